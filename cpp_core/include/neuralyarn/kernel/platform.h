@@ -1,0 +1,121 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// Portability layer of the kernel headers.
+//
+// Everything under neuralyarn/kernel/ compiles unchanged in three places: the cpp_core library, the
+// tests, and (through cycles_patch/) the Cycles kernel. The rules that make that possible:
+//   * plain float math, no STL containers, no heap, no exceptions, no virtual calls, no globals;
+//   * every function is declared with NY_KERNEL_FN (one macro; Cycles maps it to ccl_device_inline);
+//   * vectors and colours are the tiny POD types below, converted at the boundary by the host code.
+//
+// The only library this layer touches is the C math library (<cmath> float overloads), which both the
+// Cycles CPU kernel and the host already use.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#ifndef NY_KERNEL_FN
+#  define NY_KERNEL_FN inline
+#endif
+
+namespace ny {
+
+constexpr float kPi = 3.14159265358979323846f;
+constexpr float kTwoPi = 6.28318530717958647693f;
+constexpr float kHalfPi = 1.57079632679489661923f;
+constexpr float kInvPi = 0.31830988618379067154f;
+constexpr float kInvTwoPi = 0.15915494309189533577f;
+constexpr float kInvFourPi = 0.07957747154594766788f;
+constexpr float kSqrt2 = 1.41421356237309504880f;
+constexpr float kInvSqrt2 = 0.70710678118654752440f;
+constexpr float kInvSqrtTwoPi = 0.39894228040143267794f;
+
+/* ------------------------------------------------------------------------------------------------ */
+/* Vec3: a direction or point in a local frame.                                                      */
+/* ------------------------------------------------------------------------------------------------ */
+
+struct Vec3 {
+  float x, y, z;
+};
+
+NY_KERNEL_FN Vec3 make_vec3(float x, float y, float z)
+{
+  Vec3 v;
+  v.x = x;
+  v.y = y;
+  v.z = z;
+  return v;
+}
+NY_KERNEL_FN Vec3 operator+(Vec3 a, Vec3 b) { return make_vec3(a.x + b.x, a.y + b.y, a.z + b.z); }
+NY_KERNEL_FN Vec3 operator-(Vec3 a, Vec3 b) { return make_vec3(a.x - b.x, a.y - b.y, a.z - b.z); }
+NY_KERNEL_FN Vec3 operator-(Vec3 a) { return make_vec3(-a.x, -a.y, -a.z); }
+NY_KERNEL_FN Vec3 operator*(Vec3 a, float s) { return make_vec3(a.x * s, a.y * s, a.z * s); }
+NY_KERNEL_FN Vec3 operator*(float s, Vec3 a) { return a * s; }
+NY_KERNEL_FN float dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+NY_KERNEL_FN Vec3 cross(Vec3 a, Vec3 b)
+{
+  return make_vec3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+NY_KERNEL_FN float length(Vec3 a) { return sqrtf(dot(a, a)); }
+NY_KERNEL_FN Vec3 normalize(Vec3 a)
+{
+  const float len = length(a);
+  return (len > 0.0f) ? a * (1.0f / len) : make_vec3(0.0f, 0.0f, 0.0f);
+}
+
+/* ------------------------------------------------------------------------------------------------ */
+/* Rgb: a three-channel spectrum (Cycles' Spectrum when it is RGB).                                   */
+/* ------------------------------------------------------------------------------------------------ */
+
+struct Rgb {
+  float r, g, b;
+};
+
+NY_KERNEL_FN Rgb make_rgb(float r, float g, float b)
+{
+  Rgb c;
+  c.r = r;
+  c.g = g;
+  c.b = b;
+  return c;
+}
+NY_KERNEL_FN Rgb make_rgb(float v) { return make_rgb(v, v, v); }
+NY_KERNEL_FN Rgb operator+(Rgb a, Rgb b) { return make_rgb(a.r + b.r, a.g + b.g, a.b + b.b); }
+NY_KERNEL_FN Rgb operator-(Rgb a, Rgb b) { return make_rgb(a.r - b.r, a.g - b.g, a.b - b.b); }
+NY_KERNEL_FN Rgb operator*(Rgb a, Rgb b) { return make_rgb(a.r * b.r, a.g * b.g, a.b * b.b); }
+NY_KERNEL_FN Rgb operator*(Rgb a, float s) { return make_rgb(a.r * s, a.g * s, a.b * s); }
+NY_KERNEL_FN Rgb operator*(float s, Rgb a) { return a * s; }
+NY_KERNEL_FN float average(Rgb a) { return (a.r + a.g + a.b) * (1.0f / 3.0f); }
+
+/* ------------------------------------------------------------------------------------------------ */
+/* Scalar helpers.                                                                                    */
+/* ------------------------------------------------------------------------------------------------ */
+
+NY_KERNEL_FN float clampf(float x, float lo, float hi) { return fminf(fmaxf(x, lo), hi); }
+NY_KERNEL_FN float sqr(float x) { return x * x; }
+NY_KERNEL_FN float safe_sqrtf(float x) { return sqrtf(fmaxf(x, 0.0f)); }
+NY_KERNEL_FN float safe_asinf(float x) { return asinf(clampf(x, -1.0f, 1.0f)); }
+NY_KERNEL_FN float pow5(float x)
+{
+  const float x2 = x * x;
+  return x2 * x2 * x;
+}
+
+/* Wrap an angle to [-pi, pi). */
+NY_KERNEL_FN float wrap_angle(float a)
+{
+  a = fmodf(a + kPi, kTwoPi);
+  if (a < 0.0f) {
+    a += kTwoPi;
+  }
+  const float w = a - kPi;
+  /* fmodf can return exactly 2*pi - ulp; keep the result in range even then. */
+  return (w >= kPi) ? w - kTwoPi : w;
+}
+
+/* True for a finite float (not NaN, not +-inf); written without std::isfinite so that it also works in
+ * device compilers whose fast-math mode folds isfinite away. */
+NY_KERNEL_FN bool is_finite(float x) { return (x - x) == 0.0f; }
+
+}  // namespace ny

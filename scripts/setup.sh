@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# One-shot setup for a fresh Debian 12 (bookworm) machine, idempotent:
+#   1. installs the Debian packages the project builds against (only those missing),
+#   2. configures and builds everything in Release into build/,
+#   3. runs the main job on the built-in default (unless --no-run).
+#
+#   bash scripts/setup.sh            # set up and run the main job
+#   bash scripts/setup.sh --no-run   # set up only (used by scripts/test.sh)
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+BUILD="${NY_BUILD_DIR:-$ROOT/build}"
+RUN_MAIN=1
+for arg in "$@"; do
+  case "$arg" in
+    --no-run) RUN_MAIN=0 ;;
+    -h|--help) sed -n '2,9p' "$0"; exit 0 ;;
+    *) echo "setup.sh: unknown argument '$arg'" >&2; exit 2 ;;
+  esac
+done
+
+# --- 1. Debian packages -----------------------------------------------------------------------------
+# Compiler and build tools; the libraries of the C++ core (Embree for ray-curve intersection,
+# OpenImageIO/OpenEXR for images, TBB for threads, Eigen for linear algebra, nlohmann-json, CLI11);
+# GoogleTest, Google Benchmark and header-only Boost.Math for the tests; a font for plot labels.
+PACKAGES=(
+  build-essential cmake ninja-build pkg-config git ccache
+  libembree-dev libopenimageio-dev openimageio-tools libopenexr-dev libtbb-dev libeigen3-dev
+  nlohmann-json3-dev libcli11-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libboost-dev
+  fonts-dejavu-core
+)
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${#missing[@]} Debian package(s): ${missing[*]}"
+  SUDO=""
+  if [[ $(id -u) -ne 0 ]]; then
+    command -v sudo >/dev/null || { echo "setup: need root or sudo to install packages" >&2; exit 1; }
+    SUDO="sudo"
+  fi
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+else
+  echo "setup: all ${#PACKAGES[@]} Debian packages present"
+fi
+
+# --- 2. Build ----------------------------------------------------------------------------------------
+LAUNCHER=()
+command -v ccache >/dev/null && LAUNCHER=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+if [[ ! -f "$BUILD/build.ninja" ]]; then
+  cmake -S "$ROOT" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release "${LAUNCHER[@]}"
+fi
+cmake --build "$BUILD"
+
+# --- 3. Main job -------------------------------------------------------------------------------------
+if ((RUN_MAIN)); then
+  mkdir -p "$ROOT/out"
+  "$BUILD/cpp_core/neuralyarn" fiber --preset fleece --out "$ROOT/out/fleece_fiber_lobe.png"
+fi

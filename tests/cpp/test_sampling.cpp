@@ -1,0 +1,117 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// The primitive samplers against their densities: chi^2 goodness of fit (fixed seeds, Sidak-corrected
+// alpha = 0.01 over each family of cases) and normalisation by independent quadrature.
+#include <cmath>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "chi2.h"
+#include "neuralyarn/kernel/sampling.h"
+#include "quadrature.h"
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+struct TnCase {
+  double mu, sigma, a, b;
+  const char *why;
+};
+
+const TnCase kTnCases[] = {
+    {0.0, 1.0, -3.0, 3.0, "central"},
+    {-1.2, 0.0175, -kPi / 2, kPi / 2, "narrow, inside"},
+    {1.5, 0.02, -kPi / 2, kPi / 2, "narrow, cut by the upper bound"},
+    {-kPi / 2, 0.0175, -kPi / 2, kPi / 2, "mean on the bound: half a Gaussian"},
+    {5.0, 1.0, -1.0, 1.0, "mean far above the interval: the lower-tail-only inversion would fail"},
+    {-5.0, 0.5, 0.0, 1.0, "mean far below: 10 sigma into the upper tail"},
+    {0.3, 100.0, -1.0, 1.0, "almost uniform"},
+    {0.0, 0.4747, -kPi / 2, kPi / 2, "cotton TT width"},
+};
+
+class TruncatedNormalTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(TruncatedNormalTest, SamplesFollowPdf)
+{
+  const TnCase c = kTnCases[GetParam()];
+  const ny::TruncatedNormal tn = ny::make_truncated_normal(float(c.mu), float(c.sigma), float(c.a), float(c.b));
+  ASSERT_GT(tn.mass, 0.0f) << c.why;
+  const auto r = nytest::chi2_1d(
+      [&](neuralyarn::Rng &rng) { return double(ny::sample_truncated_normal(tn, neuralyarn::uniform_float(rng))); },
+      [&](double x) { return double(ny::truncated_normal_pdf(tn, float(x))); }, 1000000, 200, 1000 + GetParam());
+  ASSERT_TRUE(r.failure.empty()) << c.why << ": " << r.failure;
+  EXPECT_LE(r.interior_mass, 1.0 + 1e-4) << c.why;
+  EXPECT_GT(r.p_value, nytest::sidak_alpha(0.01, std::size(kTnCases))) << c.why << ": chi2 " << r.chi2 << " dof " << r.dof;
+}
+
+TEST_P(TruncatedNormalTest, PdfIntegratesToOne)
+{
+  const TnCase c = kTnCases[GetParam()];
+  const ny::TruncatedNormal tn = ny::make_truncated_normal(float(c.mu), float(c.sigma), float(c.a), float(c.b));
+  const auto pts = nytest::breakpoints({c.mu - 3 * c.sigma, c.mu - c.sigma, c.mu, c.mu + c.sigma, c.mu + 3 * c.sigma},
+                                       c.a, c.b);
+  const double total = nytest::integrate_panels([&](double x) { return double(ny::truncated_normal_pdf(tn, float(x))); }, pts);
+  EXPECT_NEAR(total, 1.0, 2e-5) << c.why;
+}
+
+TEST_P(TruncatedNormalTest, SamplesStayInSupportAtExtremeUniforms)
+{
+  const TnCase c = kTnCases[GetParam()];
+  const ny::TruncatedNormal tn = ny::make_truncated_normal(float(c.mu), float(c.sigma), float(c.a), float(c.b));
+  for (float u : {0.0f, 1e-30f, 1e-7f, 0.5f, 1.0f - 1e-7f, 0.99999994f}) {
+    const float x = ny::sample_truncated_normal(tn, u);
+    EXPECT_TRUE(std::isfinite(x)) << c.why << " u=" << u;
+    EXPECT_GE(x, float(c.a) - 1e-6f) << c.why << " u=" << u;
+    EXPECT_LE(x, float(c.b) + 1e-6f) << c.why << " u=" << u;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, TruncatedNormalTest, ::testing::Range(0, int(std::size(kTnCases))));
+
+const double kKappas[] = {1e-5, 0.1, 1.0, 2.23, 8.35, 100.0, 3283.0, 1e6};
+
+class VonMisesTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(VonMisesTest, SamplesFollowPdf)
+{
+  const double kappa = kKappas[GetParam()];
+  const auto r = nytest::chi2_1d(
+      [&](neuralyarn::Rng &rng) {
+        const float u1 = neuralyarn::uniform_float(rng), u2 = neuralyarn::uniform_float(rng);
+        return double(ny::sample_von_mises(float(kappa), u1, u2));
+      },
+      [&](double x) { return double(ny::von_mises_pdf(float(x), float(kappa))); }, 1000000, 200, 2000 + GetParam());
+  ASSERT_TRUE(r.failure.empty()) << "kappa " << kappa << ": " << r.failure;
+  EXPECT_LE(r.interior_mass, 1.0 + 1e-4) << "kappa " << kappa;
+  EXPECT_GT(r.p_value, nytest::sidak_alpha(0.01, std::size(kKappas))) << "kappa " << kappa << ": chi2 " << r.chi2
+                                                                      << " dof " << r.dof;
+}
+
+TEST_P(VonMisesTest, PdfIntegratesToOne)
+{
+  const double kappa = kKappas[GetParam()];
+  const double s = 1.0 / std::sqrt(kappa);
+  const auto pts = nytest::breakpoints({-10 * s, -3 * s, -s, 0.0, s, 3 * s, 10 * s}, -kPi, kPi);
+  const double total =
+      nytest::integrate_panels([&](double x) { return double(ny::von_mises_pdf(float(x), float(kappa))); }, pts);
+  EXPECT_NEAR(total, 1.0, 5e-6) << "kappa " << kappa;
+}
+
+INSTANTIATE_TEST_SUITE_P(Concentrations, VonMisesTest, ::testing::Range(0, int(std::size(kKappas))));
+
+TEST(UniformSphere, SamplesFollowPdf)
+{
+  const auto r = nytest::chi2_sphere(
+      [](neuralyarn::Rng &rng, ny::Vec3 &w) {
+        w = ny::sample_uniform_sphere(neuralyarn::uniform_float(rng), neuralyarn::uniform_float(rng));
+        return true;
+      },
+      [](ny::Vec3) { return double(ny::uniform_sphere_pdf()); }, 1000000, 20, 40, 3000);
+  ASSERT_TRUE(r.failure.empty()) << r.failure;
+  EXPECT_LE(r.interior_mass, 1.0 + 1e-4);
+  EXPECT_GT(r.p_value, 0.01) << "chi2 " << r.chi2 << " dof " << r.dof;
+}
+
+}  // namespace

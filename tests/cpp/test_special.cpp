@@ -1,0 +1,84 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// The kernel's float special functions against Boost.Math in double.
+#include <cmath>
+
+#include <boost/math/distributions/normal.hpp>
+#include <boost/math/special_functions/bessel.hpp>
+#include <gtest/gtest.h>
+
+#include "neuralyarn/kernel/special.h"
+
+namespace {
+
+const boost::math::normal_distribution<double> kStd(0.0, 1.0);
+
+double rel_err(double got, double want) { return std::fabs(got - want) / std::fabs(want); }
+
+TEST(Special, NormalCdfMatchesBoostIncludingFarTails)
+{
+  /* Relative accuracy in the lower tail down to z = -13 (Phi = 6e-39, just above float's normal range
+   * ends at 1.2e-38; below that denormals lose digits and we stop). */
+  for (double zd = -12.5; zd <= 8.0; zd += 0.01) {
+    /* Reference at the float argument: the tail amplifies an argument error by |z|. */
+    const double z = double(float(zd));
+    const double want = boost::math::cdf(kStd, z);
+    /* Phi's relative condition number in the tail is ~z^2, so the float rounding of z / sqrt(2) alone
+     * costs z^2 * 6e-8: that, plus a few ulps, is the tolerance. */
+    const double tol = 2e-6 + 1.2e-7 * z * z;
+    EXPECT_LT(rel_err(ny::normal_cdf(float(z)), want), tol) << "z = " << z;
+    const double want_c = boost::math::cdf(boost::math::complement(kStd, z));
+    if (z > -8.0) {
+      EXPECT_LT(rel_err(ny::normal_ccdf(float(z)), want_c), tol) << "z = " << z;
+    }
+  }
+}
+
+TEST(Special, NormalQuantileMatchesBoostOverAllMagnitudes)
+{
+  /* Log-spaced tail masses from 1e-37 to 0.5 exercise all three AS241 regions. */
+  for (double lg = -37.0; lg <= std::log10(0.5); lg += 0.05) {
+    const double p = std::pow(10.0, lg);
+    const float pf = float(p);
+    const double want = boost::math::quantile(kStd, double(pf));
+    EXPECT_LT(rel_err(ny::normal_quantile(pf), want), 2e-6) << "p = " << p;
+    /* Upper-tail form: Phi^-1(1 - q) = -Phi^-1(q). */
+    EXPECT_LT(rel_err(ny::normal_quantile_upper(pf), -want), 2e-6) << "q = " << p;
+  }
+  for (double p = 0.01; p < 1.0; p += 0.01) {
+    const float pf = float(p);
+    const double want = boost::math::quantile(kStd, double(pf));
+    EXPECT_NEAR(ny::normal_quantile(pf), want, 2e-6 * std::max(1.0, std::fabs(want))) << "p = " << p;
+  }
+  EXPECT_EQ(ny::normal_quantile(0.0f), -INFINITY);
+  EXPECT_EQ(ny::normal_quantile(1.0f), INFINITY);
+  EXPECT_EQ(ny::normal_quantile_upper(0.0f), INFINITY);
+}
+
+TEST(Special, QuantileInvertsCdf)
+{
+  for (float z = -9.0f; z <= 9.0f; z += 0.125f) {
+    const float back = (z <= 0.0f) ? ny::normal_quantile(ny::normal_cdf(z)) : ny::normal_quantile_upper(ny::normal_ccdf(z));
+    EXPECT_NEAR(back, z, 2e-5f * std::max(1.0f, std::fabs(z))) << "z = " << z;
+  }
+}
+
+TEST(Special, ScaledBesselI0MatchesBoost)
+{
+  for (double lg = -6.0; lg <= 7.0; lg += 0.01) {
+    const double x = double(float(std::pow(10.0, lg)));
+    /* exp(-x) I0(x) evaluated stably: Boost's I0 overflows past x ~ 700, use the asymptotic ratio there. */
+    double want;
+    if (x < 600.0) {
+      want = std::exp(-x) * boost::math::cyl_bessel_i(0.0, x);
+    }
+    else {
+      const double t = 1.0 / (8.0 * x);
+      want = (1.0 + t + 9.0 * t * t / 2.0 + 225.0 * t * t * t / 6.0) / std::sqrt(2.0 * M_PI * x);
+    }
+    EXPECT_LT(rel_err(ny::bessel_i0e(float(x)), want), 1e-6) << "x = " << x;
+  }
+  EXPECT_FLOAT_EQ(ny::bessel_i0e(0.0f), 1.0f);
+}
+
+}  // namespace
