@@ -89,11 +89,38 @@ void BM_sample(benchmark::State &state, const char *preset)
   }
 }
 
+/* The closure path: fiber_lobes once per shading point (w_i), then eval + pdf per w_o. */
+void BM_setup(benchmark::State &state, const char *preset)
+{
+  const ny::FiberBsdfParams p = neuralyarn::find_preset(preset).fiber_params();
+  const Inputs &in = inputs();
+  int i = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(ny::fiber_lobes(p, in.wi[i]));
+    i = (i + 1) & (kPairs - 1);
+  }
+}
+
+void BM_eval_pdf_given_lobes(benchmark::State &state, const char *preset)
+{
+  const ny::FiberBsdfParams p = neuralyarn::find_preset(preset).fiber_params();
+  const Inputs &in = inputs();
+  const ny::FiberLobes lobes = ny::fiber_lobes(p, in.wi[0]);
+  int i = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(ny::fiber_eval_lobes(lobes, in.wo[i]));
+    benchmark::DoNotOptimize(ny::fiber_pdf_lobes(lobes, in.wo[i]));
+    i = (i + 1) & (kPairs - 1);
+  }
+}
+
 #define NY_BENCH_PRESET(name)                                      \
   BENCHMARK_CAPTURE(BM_eval, name, #name);                         \
   BENCHMARK_CAPTURE(BM_eval_and_pdf, name, #name);                 \
   BENCHMARK_CAPTURE(BM_pdf, name, #name);                          \
-  BENCHMARK_CAPTURE(BM_sample, name, #name);
+  BENCHMARK_CAPTURE(BM_sample, name, #name);                       \
+  BENCHMARK_CAPTURE(BM_setup, name, #name);                        \
+  BENCHMARK_CAPTURE(BM_eval_pdf_given_lobes, name, #name);
 
 NY_BENCH_PRESET(fleece)
 NY_BENCH_PRESET(silk)

@@ -64,7 +64,9 @@ NY_KERNEL_FN Rgb schlick_fresnel(Rgb C_R, float cos_theta)
   return C_R + (make_rgb(1.0f) - C_R) * f;
 }
 
-NY_KERNEL_FN FiberLobes fiber_lobes(const FiberBsdfParams &p, Vec3 wi)
+/* The w_i-dependent setup. `with_eval` = false skips the two cos^2 normalisers, which only eval needs
+ * (they are the expensive part: up to 2 x 32 exp/cos); m_R and m_TT are then left zero. */
+NY_KERNEL_FN FiberLobes fiber_lobes(const FiberBsdfParams &p, Vec3 wi, bool with_eval = true)
 {
   FiberLobes l;
   l.cos_theta_i = cos_theta(wi);
@@ -78,8 +80,16 @@ NY_KERNEL_FN FiberLobes fiber_lobes(const FiberBsdfParams &p, Vec3 wi)
   l.p_R = (e_R + e_TT > 0.0f) ? e_R / (e_R + e_TT) : 0.0f;
   l.kappa_TT = 1.0f / (p.gamma_TT * p.gamma_TT);
   const float mu = -l.theta_i;
-  l.m_R = make_longitudinal_lobe(mu, p.beta_R);
-  l.m_TT = make_longitudinal_lobe(mu, p.beta_TT);
+  if (with_eval) {
+    l.m_R = make_longitudinal_lobe(mu, p.beta_R);
+    l.m_TT = make_longitudinal_lobe(mu, p.beta_TT);
+  }
+  else {
+    l.m_R.mu = l.m_TT.mu = mu;
+    l.m_R.beta = p.beta_R;
+    l.m_TT.beta = p.beta_TT;
+    l.m_R.inv_beta_G = l.m_TT.inv_beta_G = 0.0f;
+  }
   l.tn_R = make_truncated_normal(mu, p.beta_R, -kHalfPi, kHalfPi);
   l.tn_TT = make_truncated_normal(mu, p.beta_TT, -kHalfPi, kHalfPi);
   return l;
@@ -129,7 +139,7 @@ NY_KERNEL_FN Rgb fiber_eval(const FiberBsdfParams &p, Vec3 wi, Vec3 wo, float *p
 
 NY_KERNEL_FN float fiber_pdf(const FiberBsdfParams &p, Vec3 wi, Vec3 wo)
 {
-  return fiber_pdf_lobes(fiber_lobes(p, wi), wo);
+  return fiber_pdf_lobes(fiber_lobes(p, wi, false), wo);
 }
 
 /* Draws w_o given three uniform numbers in [0, 1). Returns false (and zero weight) when the fiber
