@@ -2,6 +2,7 @@
 //
 // The `neuralyarn` command line. Each verb is a thin layer over a library function that the tests call
 // directly; the verbs only parse arguments, print, and turn exceptions into a message and exit code 1.
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -18,6 +19,23 @@ namespace fs = std::filesystem;
 using namespace neuralyarn;
 
 namespace {
+
+/* CLI::Range lets NaN through (every comparison with NaN is false): reject non-finite values first. */
+CLI::Validator finite_range(double lo, double hi)
+{
+  return CLI::Validator(
+      [lo, hi](std::string &s) -> std::string {
+        double v = 0.0;
+        if (!CLI::detail::lexical_cast(s, v) || !std::isfinite(v)) {
+          return "value '" + s + "' is not a finite number";
+        }
+        if (v < lo || v > hi) {
+          return "value " + s + " is outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+        }
+        return std::string();
+      },
+      "finite in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+}
 
 FiberPreset resolve_preset(const std::string &name, const std::string &params_file)
 {
@@ -87,10 +105,10 @@ int main(int argc, char **argv)
   fiber->add_option("--params", params_file, "Fiber parameter file (JSON, docs/file_formats.md)")
       ->excludes(opt_preset);
   fiber->add_option("--theta-i", theta_i, "Incident longitudinal angle of the plot, degrees")
-      ->check(CLI::Range(-90.0, 90.0))
+      ->check(finite_range(-90.0, 90.0))
       ->capture_default_str();
   fiber->add_option("--phi-i", phi_i, "Incident azimuth of the plot, degrees")
-      ->check(CLI::Range(-180.0, 180.0))
+      ->check(finite_range(-180.0, 180.0))
       ->capture_default_str();
   fiber->add_option("--samples", samples, "Monte Carlo samples per albedo row")
       ->check(CLI::Range(1, 1000000000))
