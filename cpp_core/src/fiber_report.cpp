@@ -67,7 +67,8 @@ AzimuthComparison compare_tt_azimuth(double gamma_rad)
   AzimuthComparison c;
   c.gamma_rad = gamma_rad;
   c.kappa = 1.0 / (gamma_rad * gamma_rad);
-  const double norm = 0.5 * (std::erf(kPi / (gamma_rad * std::sqrt(2.0))) * 2.0);
+  /* Mass of N(0, gamma) inside [-pi, pi]: the authors' Gaussian renormalised on the circle. */
+  const double norm = std::erf(kPi / (gamma_rad * std::sqrt(2.0)));
   auto gauss = [&](double x) { return std::exp(-0.5 * x * x / (gamma_rad * gamma_rad)) / (gamma_rad * std::sqrt(2 * kPi) * norm); };
   auto vm = [&](double x) { return double(ny::von_mises_pdf(float(x), float(c.kappa))); };
   c.peak_von_mises = vm(0.0);
