@@ -208,3 +208,119 @@ TEST(PlyExport, CurvesHaveRadiusAndFollowTheHelix)
 }
 
 }  // namespace
+
+/* ------------------------------------------------------------------------------------------------ */
+/* K-ply yarns.                                                                                       */
+
+#include "neuralyarn/geometry/yarn.h"
+
+namespace {
+
+YarnParams yarn_params(const char *preset, int K, double alpha_yarn)
+{
+  YarnParams y;
+  y.K = K;
+  y.ply = params_of(preset, 0.5);
+  y.alpha_yarn = alpha_yarn;
+  return y;
+}
+
+TEST(Yarn, SinglePlyIsThePly)
+{
+  const YarnParams y = yarn_params("fleece", 1, 0.3);
+  const Yarn yarn(y, 9);
+  const Ply ply(y.ply, pack_cross_section(y.ply, 9));
+  EXPECT_EQ(yarn.ply_distance(), 0.0);
+  for (int i = 0; i < ply.num_fibers(); i += 29) {
+    for (double x : {0.0, 1.3, -0.7}) {
+      EXPECT_LT((yarn.fiber_point(0, i, x) - ply.fiber_point(i, x)).norm(), 1e-12);
+    }
+  }
+}
+
+TEST(Yarn, NeighbouringPliesTouchButDoNotOverlapIn3D)
+{
+  for (int K : {2, 3, 4, 5}) {
+    for (double ay : {0.0, 0.15, 0.3, 0.6}) {
+      const Yarn yarn(yarn_params("fleece", K, ay), 1);
+      const double R = 0.5;
+      /* Independent brute-force check: dense samples of every pair of centerlines over one turn. */
+      double min_d = INFINITY;
+      for (int a = 0; a < K; a++) {
+        for (int b = a + 1; b < K; b++) {
+          for (int i = 0; i <= 400; i++) {
+            const Eigen::Vector3d pa = yarn.ply_center(a, 0.0);
+            const double x = -4.0 * R + 8.0 * R * i / 400;
+            min_d = std::min(min_d, (yarn.ply_center(b, x) - pa).norm());
+          }
+        }
+      }
+      EXPECT_GE(min_d, 2.0 * R * (1.0 - 1e-6)) << "K=" << K << " alpha_yarn=" << ay;
+      EXPECT_LE(min_d, 2.0 * R * (1.0 + 1e-3)) << "K=" << K << " alpha_yarn=" << ay << ": plies not touching";
+      const double planar = R / std::sin(M_PI / K);
+      if (ay == 0.0) {
+        EXPECT_NEAR(yarn.ply_distance(), planar, 1e-9);
+      }
+      else if (K >= 3) {
+        /* (For K = 2 the plies face each other across the axis and their closest approach is exactly in
+         * the axis-normal plane, so the planar bound is exact.) */
+        EXPECT_GT(yarn.ply_distance(), planar) << "tilted plies need more room than the planar bound";
+      }
+    }
+  }
+}
+
+TEST(Yarn, FibersLieInTheirPlyTubeNormalToTheCenterline)
+{
+  const Yarn yarn(yarn_params("polyester", 3, 0.3), 2);
+  for (int k = 0; k < 3; k++) {
+    const PlyCrossSection &cs = yarn.cross_section(k);
+    for (int i = 0; i < int(cs.centers.size()); i += 7) {
+      for (double x : {0.0, 0.41, -1.7, 3.3}) {
+        const Eigen::Vector3d off = yarn.fiber_point(k, i, x) - yarn.ply_center(k, x);
+        EXPECT_NEAR(off.norm(), cs.centers[i].norm(), 1e-12);
+        EXPECT_LE(off.norm(), 0.5 - cs.r + 1e-12);
+        EXPECT_NEAR(off.dot(yarn.ply_tangent(k, x)), 0.0, 1e-12);
+      }
+    }
+  }
+}
+
+TEST(Yarn, PliesAreSTwistedAgainstZTwistedFibers)
+{
+  /* In the local yarn frame at ply 0's outermost point (normal e_r, tangent +x), the ply tangent tilts
+   * toward +y while a Z-twisted surface fiber (ply.h, kernel frames) tilts toward -y. */
+  const Yarn yarn(yarn_params("fleece", 3, 0.3), 3);
+  const Eigen::Vector3d c = yarn.ply_center(0, 0.0), t = yarn.ply_tangent(0, 0.0);
+  ny::Frame f;
+  ASSERT_TRUE(ny::make_frame(ny::make_vec3(1, 0, 0), ny::make_vec3(0.0f, float(c.y()), float(c.z())), &f));
+  const ny::Vec3 local = ny::to_local(f, ny::make_vec3(float(t.x()), float(t.y()), float(t.z())));
+  EXPECT_GT(local.y, 0.05f);
+  EXPECT_LT(ny::surface_fiber_tangent(ny::make_twist_rotation(0.3f)).y, -0.05f);
+}
+
+TEST(Yarn, ExportAndBadInput)
+{
+  const Yarn yarn(yarn_params("gabardine", 3, 0.2), 4);
+  const CurveSet curves = export_fibers(yarn, 0.0, 2.0, 16);
+  EXPECT_EQ(curves.num_curves(), 3 * 450);
+  EXPECT_LT((curves.points[curves.offsets[451] - 1].cast<double>() - yarn.fiber_point(1, 0, 2.0)).norm(), 1e-6);
+  auto expect_param = [](YarnParams p, const std::string &name) {
+    try {
+      Yarn y(p, 1);
+      ADD_FAILURE() << "accepted bad " << name;
+    }
+    catch (const neuralyarn::ParameterError &e) {
+      EXPECT_EQ(e.parameter(), name) << e.what();
+    }
+  };
+  YarnParams p = yarn_params("fleece", 0, 0.2);
+  expect_param(p, "K");
+  p = yarn_params("fleece", 3, NAN);
+  expect_param(p, "alpha_yarn");
+  p = yarn_params("fleece", 3, 0.2);
+  p.ply.rho = 0.97;
+  expect_param(p, "rho");
+}
+
+}  // namespace

@@ -1,0 +1,65 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// A K-ply yarn: K plies of radius R_ply twisted around the yarn axis (+x), each ply filled with the
+// fibers of a packed cross-section (ply.h) and twisted about its own centerline.
+//
+// Handedness (textile convention, docs/conventions.md): fibers are Z-twisted inside each ply
+// (right-handed about the ply tangent, as in ply.h), and the plies are S-twisted around the yarn axis
+// (left-handed), which is what keeps a real plied yarn balanced. Ply k's centerline is
+//     c_k(x) = (x, d cos(phi_k - w x), d sin(phi_k - w x)),  phi_k = 2 pi k / K,  w = pi alpha_yarn / R_yarn,
+// with R_yarn = d + R_ply. The centre distance d is the smallest for which neighbouring ply tubes do not
+// intersect in 3D (found numerically: tilted plies touching in the axis-normal plane would overlap).
+//
+// A fiber with cross-section polar offset (rho_i, psi_i) sits at
+//     c_k(x) + rho_i (cos(psi) e_r + sin(psi) e_b),   psi = psi_i + (pi alpha_ply / R_ply) s(x),
+// where e_r is the radial direction from the yarn axis to c_k(x) (exactly normal to the helix), e_b =
+// t_k × e_r, and s(x) the arc length of the centerline. The fiber twist is thus measured against the
+// helix's radial frame, not a rotation-minimising one; the difference is the helix's constant torsion
+// and is below 1 % of the fiber twist rate for the presets' parameters at yarn twists up to 0.3.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "neuralyarn/geometry/ply.h"
+
+namespace neuralyarn::geometry {
+
+struct YarnParams {
+  int K = 3;                /* plies (1 = a single ply on the axis)         */
+  PlyParams ply;            /* N, rho, alpha (fiber twist), R (ply radius)  */
+  double alpha_yarn = 0.0;  /* ply twist factor 2 R_yarn dn / dl, >= 0 (S); no effect when K = 1 */
+};
+
+class Yarn {
+ public:
+  /* Packs one cross-section per ply (seeds seed, seed + 1, ...). Throws ParameterError naming the
+   * parameter for bad input. */
+  Yarn(const YarnParams &params, uint64_t seed);
+
+  const YarnParams &params() const { return params_; }
+  int num_plies() const { return params_.K; }
+  const PlyCrossSection &cross_section(int ply) const { return sections_[ply]; }
+  /* Distance of the ply centerlines from the yarn axis. */
+  double ply_distance() const { return d_; }
+  double yarn_radius() const { return d_ + params_.ply.R; }
+
+  Eigen::Vector3d ply_center(int ply, double x) const;
+  Eigen::Vector3d ply_tangent(int ply, double x) const;
+  Eigen::Vector3d fiber_point(int ply, int fiber, double x) const;
+
+ private:
+  YarnParams params_;
+  std::vector<PlyCrossSection> sections_;
+  double d_ = 0.0, w_ = 0.0, arc_per_x_ = 1.0;
+};
+
+/* Smallest 3D distance between the centerlines of neighbouring plies at centre distance d (by the screw
+ * symmetry of the yarn, a 1-D minimisation). Exposed for tests. */
+double neighbour_ply_distance(int K, double d, double R_ply, double alpha_yarn);
+
+/* All fibers of all plies as polylines from x0 to x1. */
+CurveSet export_fibers(const Yarn &yarn, double x0, double x1, int segments_per_turn = 32);
+
+}  // namespace neuralyarn::geometry

@@ -1,0 +1,155 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/geometry/yarn.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <string>
+
+#include <Eigen/Geometry> /* cross() */
+
+#include "neuralyarn/presets.h" /* ParameterError, kMaxFibers */
+
+namespace neuralyarn::geometry {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr int kMaxPlies = 64;
+
+double twist_rate(double d, double R_ply, double alpha_yarn) { return kPi * alpha_yarn / (d + R_ply); }
+
+/* Squared distance from ply 0's centre at x = 0, (0, d, 0), to ply k's centre at x. */
+double dist2(double x, double d, double phi_k, double w)
+{
+  return x * x + 2.0 * d * d * (1.0 - std::cos(phi_k - w * x));
+}
+
+}  // namespace
+
+double neighbour_ply_distance(int K, double d, double R_ply, double alpha_yarn)
+{
+  if (K < 2) {
+    return INFINITY;
+  }
+  const double w = twist_rate(d, R_ply, alpha_yarn);
+  double best = INFINITY;
+  for (int k = 1; k < K; k++) {
+    const double phi = 2.0 * kPi * k / K;
+    /* f(x) >= x^2, so only |x| < sqrt(f(0)) can beat x = 0: scan that interval, then refine the best
+     * bracket by golden-section search. */
+    const double X = std::sqrt(dist2(0.0, d, phi, w));
+    const int n = 2000;
+    int i_best = n / 2;
+    double f_best = INFINITY;
+    for (int i = 0; i <= n; i++) {
+      const double f = dist2(-X + 2.0 * X * i / n, d, phi, w);
+      if (f < f_best) {
+        f_best = f;
+        i_best = i;
+      }
+    }
+    double a = -X + 2.0 * X * std::max(0, i_best - 1) / n, b = -X + 2.0 * X * std::min(n, i_best + 1) / n;
+    const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+    for (int it = 0; it < 100; it++) {
+      const double x1 = b - g * (b - a), x2 = a + g * (b - a);
+      if (dist2(x1, d, phi, w) < dist2(x2, d, phi, w)) {
+        b = x2;
+      }
+      else {
+        a = x1;
+      }
+    }
+    best = std::min({best, f_best, dist2(0.5 * (a + b), d, phi, w)});
+  }
+  return std::sqrt(best);
+}
+
+Yarn::Yarn(const YarnParams &params, uint64_t seed) : params_(params)
+{
+  if (params.K < 1 || params.K > kMaxPlies) {
+    throw ParameterError("K", "parameter 'K' (plies per yarn) must be an integer in [1, " + std::to_string(kMaxPlies) +
+                                  "], got " + std::to_string(params.K));
+  }
+  if (!(std::isfinite(params.alpha_yarn) && params.alpha_yarn >= 0.0)) {
+    std::ostringstream s;
+    s << params.alpha_yarn;
+    throw ParameterError("alpha_yarn", "parameter 'alpha_yarn' (ply twist) must be a finite number >= 0, got " + s.str());
+  }
+  for (int k = 0; k < params.K; k++) {
+    sections_.push_back(pack_cross_section(params.ply, seed + uint64_t(k)));
+  }
+  const double R = params.ply.R;
+  if (params.K > 1) {
+    /* Touching in the axis-normal plane is a lower bound; tilted plies need more room. The neighbour
+     * distance grows with d, so bisect for the smallest d with distance >= 2 R. */
+    double lo = R / std::sin(kPi / params.K), hi = lo;
+    while (neighbour_ply_distance(params.K, hi, R, params.alpha_yarn) < 2.0 * R) {
+      hi *= 1.5;
+    }
+    for (int it = 0; it < 200 && hi - lo > 1e-13 * hi; it++) {
+      const double mid = 0.5 * (lo + hi);
+      (neighbour_ply_distance(params.K, mid, R, params.alpha_yarn) < 2.0 * R ? lo : hi) = mid;
+    }
+    d_ = hi;
+  }
+  /* A single ply lies on the axis: there is nothing to twist around, and its radial frame is undefined,
+   * so alpha_yarn has no effect (the yarn is exactly the ply of ply.h). */
+  w_ = params.K > 1 ? twist_rate(d_, R, params.alpha_yarn) : 0.0;
+  arc_per_x_ = std::sqrt(1.0 + d_ * d_ * w_ * w_);
+}
+
+Eigen::Vector3d Yarn::ply_center(int ply, double x) const
+{
+  const double th = 2.0 * kPi * ply / params_.K - w_ * x;
+  return Eigen::Vector3d(x, d_ * std::cos(th), d_ * std::sin(th));
+}
+
+Eigen::Vector3d Yarn::ply_tangent(int ply, double x) const
+{
+  const double th = 2.0 * kPi * ply / params_.K - w_ * x;
+  return Eigen::Vector3d(1.0, d_ * w_ * std::sin(th), -d_ * w_ * std::cos(th)).normalized();
+}
+
+Eigen::Vector3d Yarn::fiber_point(int ply, int fiber, double x) const
+{
+  const double th = 2.0 * kPi * ply / params_.K - w_ * x;
+  const Eigen::Vector3d e_r(0.0, std::cos(th), std::sin(th)); /* normal to the helix (and to the axis) */
+  const Eigen::Vector3d e_b = ply_tangent(ply, x).cross(e_r);
+  const Eigen::Vector2d &c = sections_[ply].centers[fiber];
+  const double rho = c.norm();
+  const double psi = std::atan2(c.y(), c.x()) + kPi * params_.ply.alpha / params_.ply.R * arc_per_x_ * x;
+  return ply_center(ply, x) + rho * (std::cos(psi) * e_r + std::sin(psi) * e_b);
+}
+
+CurveSet export_fibers(const Yarn &yarn, double x0, double x1, int segments_per_turn)
+{
+  if (!(std::isfinite(x0) && std::isfinite(x1) && x1 > x0)) {
+    throw ParameterError("x", "fiber export needs a finite range x0 < x1");
+  }
+  if (segments_per_turn < 3) {
+    throw ParameterError("segments_per_turn", "segments_per_turn must be >= 3, got " + std::to_string(segments_per_turn));
+  }
+  const YarnParams &p = yarn.params();
+  const double length = x1 - x0;
+  /* Enough segments for the faster of the two twists, and at least one per ply radius. */
+  const double turns_fiber = p.ply.alpha * length / (2.0 * p.ply.R);
+  const double turns_ply = p.alpha_yarn * length / (2.0 * yarn.yarn_radius());
+  const int segments = std::max({1, int(std::ceil((turns_fiber + turns_ply) * segments_per_turn)),
+                                 int(std::ceil(length / p.ply.R))});
+  CurveSet out;
+  for (int k = 0; k < yarn.num_plies(); k++) {
+    const PlyCrossSection &cs = yarn.cross_section(k);
+    for (int i = 0; i < int(cs.centers.size()); i++) {
+      out.offsets.push_back(int(out.points.size()));
+      for (int s = 0; s <= segments; s++) {
+        out.points.push_back(yarn.fiber_point(k, i, x0 + length * s / segments).cast<float>());
+      }
+      out.radii.push_back(float(cs.r));
+    }
+  }
+  out.offsets.push_back(int(out.points.size()));
+  return out;
+}
+
+}  // namespace neuralyarn::geometry
