@@ -286,6 +286,28 @@ TEST(Yarn, FibersLieInTheirPlyTubeNormalToTheCenterline)
   }
 }
 
+TEST(Yarn, FiberTwistIsMeasuredAgainstAParallelTransportedFrame)
+{
+  /* With no fiber twist (alpha_ply = 0) a fiber must keep its place relative to the ply itself: its
+   * offset from the centerline is the parallel transport of its initial offset (integrated here
+   * numerically, independently of the generator). The radial frame alone would turn it by the helix's
+   * torsion. */
+  YarnParams y = yarn_params("cotton", 3, 0.3);
+  y.ply.alpha = 0.0;
+  const Yarn yarn(y, 6);
+  for (int i : {0, 11, 123}) {
+    Eigen::Vector3d v = (yarn.fiber_point(0, i, 0.0) - yarn.ply_center(0, 0.0)).normalized();
+    const double X = 3.0;
+    const int n = 100000;
+    for (int k = 1; k <= n; k++) {
+      const Eigen::Vector3d t = yarn.ply_tangent(0, X * k / n);
+      v = (v - v.dot(t) * t).normalized();
+    }
+    const Eigen::Vector3d off = (yarn.fiber_point(0, i, X) - yarn.ply_center(0, X)).normalized();
+    EXPECT_LT((off - v).norm(), 1e-4) << "fiber " << i;
+  }
+}
+
 TEST(Yarn, PliesAreSTwistedAgainstZTwistedFibers)
 {
   /* In the local yarn frame at ply 0's outermost point (normal e_r, tangent +x), the ply tangent tilts

@@ -97,6 +97,8 @@ Yarn::Yarn(const YarnParams &params, uint64_t seed) : params_(params)
    * so alpha_yarn has no effect (the yarn is exactly the ply of ply.h). */
   w_ = params.K > 1 ? twist_rate(d_, R, params.alpha_yarn) : 0.0;
   arc_per_x_ = std::sqrt(1.0 + d_ * d_ * w_ * w_);
+  const double torsion = w_ / (1.0 + d_ * d_ * w_ * w_);
+  fiber_rate_ = kPi * params.ply.alpha / R + torsion;
 }
 
 Eigen::Vector3d Yarn::ply_center(int ply, double x) const
@@ -118,7 +120,7 @@ Eigen::Vector3d Yarn::fiber_point(int ply, int fiber, double x) const
   const Eigen::Vector3d e_b = ply_tangent(ply, x).cross(e_r);
   const Eigen::Vector2d &c = sections_[ply].centers[fiber];
   const double rho = c.norm();
-  const double psi = std::atan2(c.y(), c.x()) + kPi * params_.ply.alpha / params_.ply.R * arc_per_x_ * x;
+  const double psi = std::atan2(c.y(), c.x()) + fiber_rate_ * arc_per_x_ * x;
   return ply_center(ply, x) + rho * (std::cos(psi) * e_r + std::sin(psi) * e_b);
 }
 

@@ -11,11 +11,13 @@
 // intersect in 3D (found numerically: tilted plies touching in the axis-normal plane would overlap).
 //
 // A fiber with cross-section polar offset (rho_i, psi_i) sits at
-//     c_k(x) + rho_i (cos(psi) e_r + sin(psi) e_b),   psi = psi_i + (pi alpha_ply / R_ply) s(x),
+//     c_k(x) + rho_i (cos(psi) e_r + sin(psi) e_b),   psi = psi_i + (pi alpha_ply / R_ply + tau) s(x),
 // where e_r is the radial direction from the yarn axis to c_k(x) (exactly normal to the helix), e_b =
-// t_k × e_r, and s(x) the arc length of the centerline. The fiber twist is thus measured against the
-// helix's radial frame, not a rotation-minimising one; the difference is the helix's constant torsion
-// and is below 1 % of the fiber twist rate for the presets' parameters at yarn twists up to 0.3.
+// t_k × e_r, s(x) the arc length of the centerline and tau = w / (1 + d^2 w^2) the helix's torsion. The
+// radial frame turns against a parallel-transported (rotation-minimising) frame at exactly +tau per unit
+// arc length, so adding tau makes alpha_ply the fiber twist *relative to the ply itself*. Without it the
+// plying would change the fibers' twist by tau, which is not small: 19-180 % of the presets' fiber twist
+// rates for K = 3 and alpha_yarn = 0.1-0.3 (tests/cpp/test_ply_geometry.cpp checks the transport).
 #pragma once
 
 #include <vector>
@@ -53,6 +55,7 @@ class Yarn {
   YarnParams params_;
   std::vector<PlyCrossSection> sections_;
   double d_ = 0.0, w_ = 0.0, arc_per_x_ = 1.0;
+  double fiber_rate_ = 0.0; /* d psi / ds = pi alpha_ply / R_ply + tau */
 };
 
 /* Smallest 3D distance between the centerlines of neighbouring plies at centre distance d (by the screw
