@@ -214,7 +214,9 @@ Eigen::Vector3d Ply::fiber_tangent(int i, double x) const
   return Eigen::Vector3d(1.0, -s * std::sin(psi), s * std::cos(psi)).normalized();
 }
 
-CurveSet export_fibers(const Ply &ply, double x0, double x1, int segments_per_turn)
+CurveSet tessellate_curves(int num_curves, const std::function<Eigen::Vector3d(int, double)> &point,
+                           const std::function<float(int)> &radius, double x0, double x1, double turns,
+                           int segments_per_turn, double min_segment_length)
 {
   if (!(std::isfinite(x0) && std::isfinite(x1) && x1 > x0)) {
     throw ParameterError("x", "fiber export needs a finite range x0 < x1, got [" + num(x0) + ", " + num(x1) + "]");
@@ -223,20 +225,27 @@ CurveSet export_fibers(const Ply &ply, double x0, double x1, int segments_per_tu
     throw ParameterError("segments_per_turn", "segments_per_turn must be >= 3, got " + std::to_string(segments_per_turn));
   }
   const double length = x1 - x0;
-  const double turns = std::isfinite(ply.pitch()) ? length / ply.pitch() : 0.0;
   const int segments = std::max({1, int(std::ceil(turns * segments_per_turn)),
-                                 int(std::ceil(length / ply.params().R))});
+                                 int(std::ceil(length / min_segment_length))});
   CurveSet out;
-  out.points.reserve(size_t(ply.num_fibers()) * (segments + 1));
-  for (int i = 0; i < ply.num_fibers(); i++) {
+  out.points.reserve(size_t(num_curves) * (segments + 1));
+  for (int c = 0; c < num_curves; c++) {
     out.offsets.push_back(int(out.points.size()));
     for (int k = 0; k <= segments; k++) {
-      out.points.push_back(ply.fiber_point(i, x0 + length * k / segments).cast<float>());
+      out.points.push_back(point(c, x0 + length * k / segments).cast<float>());
     }
-    out.radii.push_back(float(ply.fiber_radius()));
+    out.radii.push_back(radius(c));
   }
   out.offsets.push_back(int(out.points.size()));
   return out;
+}
+
+CurveSet export_fibers(const Ply &ply, double x0, double x1, int segments_per_turn)
+{
+  const double turns = std::isfinite(ply.pitch()) ? (x1 - x0) / ply.pitch() : 0.0;
+  return tessellate_curves(
+      ply.num_fibers(), [&](int i, double x) { return ply.fiber_point(i, x); },
+      [&](int) { return float(ply.fiber_radius()); }, x0, x1, turns, segments_per_turn, ply.params().R);
 }
 
 }  // namespace neuralyarn::geometry

@@ -126,32 +126,13 @@ Eigen::Vector3d Yarn::fiber_point(int ply, int fiber, double x) const
 
 CurveSet export_fibers(const Yarn &yarn, double x0, double x1, int segments_per_turn)
 {
-  if (!(std::isfinite(x0) && std::isfinite(x1) && x1 > x0)) {
-    throw ParameterError("x", "fiber export needs a finite range x0 < x1");
-  }
-  if (segments_per_turn < 3) {
-    throw ParameterError("segments_per_turn", "segments_per_turn must be >= 3, got " + std::to_string(segments_per_turn));
-  }
   const YarnParams &p = yarn.params();
-  const double length = x1 - x0;
-  /* Enough segments for the faster of the two twists, and at least one per ply radius. */
-  const double turns_fiber = p.ply.alpha * length / (2.0 * p.ply.R);
-  const double turns_ply = p.alpha_yarn * length / (2.0 * yarn.yarn_radius());
-  const int segments = std::max({1, int(std::ceil((turns_fiber + turns_ply) * segments_per_turn)),
-                                 int(std::ceil(length / p.ply.R))});
-  CurveSet out;
-  for (int k = 0; k < yarn.num_plies(); k++) {
-    const PlyCrossSection &cs = yarn.cross_section(k);
-    for (int i = 0; i < int(cs.centers.size()); i++) {
-      out.offsets.push_back(int(out.points.size()));
-      for (int s = 0; s <= segments; s++) {
-        out.points.push_back(yarn.fiber_point(k, i, x0 + length * s / segments).cast<float>());
-      }
-      out.radii.push_back(float(cs.r));
-    }
-  }
-  out.offsets.push_back(int(out.points.size()));
-  return out;
+  const int n = int(yarn.cross_section(0).centers.size()); /* every ply has N fibers */
+  /* Enough segments for both twists together, and at least one per ply radius. */
+  const double turns = p.ply.alpha * (x1 - x0) / (2.0 * p.ply.R) + p.alpha_yarn * (x1 - x0) / (2.0 * yarn.yarn_radius());
+  return tessellate_curves(
+      yarn.num_plies() * n, [&](int c, double x) { return yarn.fiber_point(c / n, c % n, x); },
+      [&](int c) { return float(yarn.cross_section(c / n).r); }, x0, x1, turns, segments_per_turn, p.ply.R);
 }
 
 }  // namespace neuralyarn::geometry

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -75,6 +76,14 @@ struct CurveSet {
   std::vector<float> radii;            /* one radius per curve                                */
   int num_curves() const { return int(radii.size()); }
 };
+
+/* Samples curves point(c, x), c < num_curves, at segments + 1 evenly spaced x in [x0, x1], with radius(c).
+ * The one tessellation routine behind every export_fibers. Throws ParameterError for an empty or
+ * non-finite range. `turns` is the number of helix turns over [x0, x1] (the fastest twist involved);
+ * the segment count is max(turns * segments_per_turn, (x1 - x0) / min_segment_length, 1). */
+CurveSet tessellate_curves(int num_curves, const std::function<Eigen::Vector3d(int, double)> &point,
+                           const std::function<float(int)> &radius, double x0, double x1, double turns,
+                           int segments_per_turn, double min_segment_length);
 
 /* The ply's fibers from x0 to x1 as polylines with `segments_per_turn` segments per helix turn (at least
  * one segment per ply radius of length, so that untwisted plies are also sampled). */

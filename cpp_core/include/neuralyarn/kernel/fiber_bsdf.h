@@ -85,10 +85,8 @@ NY_KERNEL_FN FiberLobes fiber_lobes(const FiberBsdfParams &p, Vec3 wi, bool with
     l.m_TT = make_longitudinal_lobe(mu, p.beta_TT);
   }
   else {
-    l.m_R.mu = l.m_TT.mu = mu;
-    l.m_R.beta = p.beta_R;
-    l.m_TT.beta = p.beta_TT;
-    l.m_R.inv_beta_G = l.m_TT.inv_beta_G = 0.0f;
+    l.m_R = LongitudinalLobe{mu, p.beta_R, 0.0f};
+    l.m_TT = LongitudinalLobe{mu, p.beta_TT, 0.0f};
   }
   l.tn_R = make_truncated_normal(mu, p.beta_R, -kHalfPi, kHalfPi);
   l.tn_TT = make_truncated_normal(mu, p.beta_TT, -kHalfPi, kHalfPi);
