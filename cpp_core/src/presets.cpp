@@ -150,6 +150,21 @@ FiberPreset preset_from_json(const nlohmann::json &o, const std::string &name)
   return p;
 }
 
+nlohmann::json preset_to_json(const FiberPreset &p)
+{
+  nlohmann::json o;
+  o["name"] = p.name;
+  o["N"] = p.N;
+  o["rho"] = p.rho;
+  o["alpha"] = p.alpha;
+  o["C_R"] = p.C_R;
+  o["C_TT"] = p.C_TT;
+  o["beta_R_deg"] = p.beta_R_deg;
+  o["beta_TT_deg"] = p.beta_TT_deg;
+  o["gamma_TT_deg"] = p.gamma_TT_deg;
+  return o;
+}
+
 const std::vector<FiberPreset> &builtin_presets()
 {
   static const std::vector<FiberPreset> presets = [] {

@@ -2,8 +2,14 @@
 //
 // The `neuralyarn` command line. Each verb is a thin layer over a library function that the tests call
 // directly; the verbs only parse arguments, print, and turn exceptions into a message and exit code 1.
+#include <unistd.h>
+
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <mutex>
+#include <sstream>
+#include <thread>
 #include <exception>
 #include <filesystem>
 #include <string>
@@ -13,6 +19,8 @@
 
 #include "neuralyarn/fiber_report.h"
 #include "neuralyarn/presets.h"
+#include "neuralyarn/rdm/gather.h"
+#include "neuralyarn/rdm/map_file.h"
 #include "neuralyarn/version.h"
 
 namespace fs = std::filesystem;
@@ -86,6 +94,144 @@ int run_fiber(const std::string &preset_name, const std::string &params_file, do
   return 0;
 }
 
+
+/* "10000000", "1e7", "10M", "2.5k": a positive integer path count. */
+uint64_t parse_count(const std::string &text)
+{
+  std::string s = text;
+  double mult = 1.0;
+  if (!s.empty()) {
+    const char suffix = s.back();
+    if (suffix == 'k' || suffix == 'K') mult = 1e3;
+    if (suffix == 'M' || suffix == 'm') mult = 1e6;
+    if (suffix == 'G' || suffix == 'g') mult = 1e9;
+    if (mult != 1.0) s.pop_back();
+  }
+  double v = 0.0;
+  if (!CLI::detail::lexical_cast(s, v) || !std::isfinite(v) || v * mult < 1.0 || v * mult > 1e12 ||
+      std::floor(v * mult) != v * mult) {
+    throw ParameterError("paths", "--paths must be a whole number in [1, 1e12] (e.g. 1e7 or 10M), got '" + text + "'");
+  }
+  return uint64_t(v * mult);
+}
+
+rdm::MapResolution parse_bins(const std::string &text)
+{
+  rdm::MapResolution b;
+  char x1, x2, x3;
+  std::istringstream in(text);
+  if (!(in >> b.theta_i >> x1 >> b.phi_i >> x2 >> b.theta_o >> x3 >> b.phi_o) || x1 != 'x' || x2 != 'x' ||
+      x3 != 'x' || !in.eof()) {
+    throw ParameterError("bins", "--bins must look like 22x90x45x90 (theta_i x phi_i x theta_o x phi_o), got '" +
+                                     text + "'");
+  }
+  return b;
+}
+
+/* A one-line progress bar on stderr, redrawn at most 4 times a second (every 10 % when stderr is not a
+ * terminal, so logs stay short). */
+class ProgressBar {
+ public:
+  explicit ProgressBar(bool enabled) : enabled_(enabled), tty_(isatty(2)), start_(Clock::now()) {}
+  void update(uint64_t done, uint64_t total)
+  {
+    if (!enabled_) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto now = Clock::now();
+    const double frac = double(done) / double(total);
+    if (tty_) {
+      if (done < total && now - last_ < std::chrono::milliseconds(250)) return;
+    }
+    else {
+      if (done < total && int(frac * 10) == last_decile_) return;
+      last_decile_ = int(frac * 10);
+    }
+    last_ = now;
+    const double secs = std::chrono::duration<double>(now - start_).count();
+    const double rate = secs > 0 ? double(done) / secs : 0.0;
+    const double eta = rate > 0 ? double(total - done) / rate : 0.0;
+    const int width = 30, filled = int(frac * width);
+    std::string bar(size_t(filled), '#');
+    bar.append(size_t(width - filled), '.');
+    std::fprintf(stderr, "%s[%s] %5.1f%%  %.3gM / %.3gM paths  %.2fM paths/s  ETA %.0fs%s", tty_ ? "\r" : "",
+                 bar.c_str(), 100.0 * frac, double(done) / 1e6, double(total) / 1e6, rate / 1e6, eta,
+                 tty_ ? (done >= total ? "\n" : "") : "\n");
+    std::fflush(stderr);
+  }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  bool enabled_, tty_;
+  Clock::time_point start_, last_{};
+  int last_decile_ = -1;
+  std::mutex mutex_;
+};
+
+void check_writable(const std::string &out)
+{
+  const fs::path parent = fs::path(out).has_parent_path() ? fs::path(out).parent_path() : fs::path(".");
+  if (!fs::is_directory(parent)) {
+    throw std::runtime_error("output directory '" + parent.string() + "' does not exist");
+  }
+  if (::access(parent.c_str(), W_OK) != 0) {
+    throw std::runtime_error("output directory '" + parent.string() + "' is not writable");
+  }
+  if (fs::is_directory(out)) {
+    throw std::runtime_error("output path '" + out + "' is a directory");
+  }
+}
+
+int run_gather(const std::string &preset_name, const std::string &params_file, const std::string &paths_text,
+               uint64_t seed, int threads, const std::string &bins_text, bool no_symmetrize, bool variance,
+               bool quiet, const std::string &out)
+{
+  const FiberPreset preset = resolve_preset(preset_name, params_file);
+  rdm::GatherOptions opt;
+  opt.paths = parse_count(paths_text);
+  opt.seed = seed;
+  opt.threads = threads;
+  opt.bins = parse_bins(bins_text);
+  opt.symmetrize = !no_symmetrize;
+  opt.variance = variance;
+  rdm::validate(opt);
+  check_writable(out);
+  if (!quiet) {
+    print_preset(preset);
+    std::printf("gathering %llu paths, seed %llu, bins %dx%dx%dx%d%s\n", (unsigned long long)opt.paths,
+                (unsigned long long)seed, opt.bins.theta_i, opt.bins.phi_i, opt.bins.theta_o, opt.bins.phi_o,
+                opt.symmetrize ? ", symmetrised" : "");
+    std::fflush(stdout);
+  }
+  ProgressBar bar(!quiet);
+  opt.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };
+  const rdm::RdmMaps maps = rdm::gather(preset, opt);
+  rdm::save_maps(maps, out);
+  const rdm::GatherStats &s = maps.stats;
+  auto rgb = [](const double v[3]) {
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), "%.4f %.4f %.4f", v[0], v[1], v[2]);
+    return std::string(buf);
+  };
+  std::printf("paths            %llu in %.2f s: %.3f M paths/s (%d threads)\n", (unsigned long long)s.paths, s.seconds,
+              s.paths_per_second() / 1e6, threads > 0 ? threads : int(std::thread::hardware_concurrency()));
+  std::printf("energy T (rgb)   %s   (%llu paths)\n", rgb(s.energy_T).c_str(), (unsigned long long)s.paths_T);
+  std::printf("energy R (rgb)   %s   (%llu paths)\n", rgb(s.energy_R).c_str(), (unsigned long long)s.paths_R);
+  std::printf("energy M (rgb)   %s   (%llu paths)\n", rgb(s.energy_M).c_str(), (unsigned long long)s.paths_M);
+  std::printf("absorbed (rgb)   %s\n", rgb(s.absorbed).c_str());
+  std::printf("lost (rgb)       %s   (%llu paths cut at the event limit)\n", rgb(s.lost).c_str(),
+              (unsigned long long)s.paths_truncated);
+  std::printf("events per path  mean %.2f, 95th percentile %d, max %d\n", s.mean_events, s.p95_events,
+              s.max_events_seen);
+  std::printf("exit displacement (ply radii, scattered paths)  mean %.2f, 95th percentile %.2f; M only: mean %.2f, "
+              "95th %.2f\n",
+              s.mean_displacement, s.p95_displacement, s.mean_displacement_M, s.p95_displacement_M);
+  if (s.invalid_weights) {
+    std::printf("WARNING: %llu paths had invalid weights and were dropped\n", (unsigned long long)s.invalid_weights);
+  }
+  std::printf("wrote %s\n", out.c_str());
+  return s.invalid_weights ? 1 : 0;
+}
+
 }  // namespace
 
 int main(int argc, char **argv)
@@ -116,6 +262,23 @@ int main(int argc, char **argv)
   fiber->add_option("--seed", seed, "Random seed")->capture_default_str();
   fiber->add_option("--out", out, "Lobe plot to write (PNG)");
 
+  auto *gather = app.add_subcommand("gather", "Trace paths through an explicit ply and write its radiance distribution maps");
+  std::string g_preset = "fleece", g_params, g_paths = "1e6", g_bins = "22x90x45x90", g_out;
+  uint64_t g_seed = 1;
+  int g_threads = 0;
+  bool g_no_sym = false, g_variance = false, g_quiet = false;
+  auto *g_opt_preset = gather->add_option("--preset", g_preset, "Built-in preset name")->capture_default_str();
+  gather->add_option("--params", g_params, "Fiber parameter file (JSON)")->excludes(g_opt_preset);
+  gather->add_option("--paths", g_paths, "Number of paths (1e7, 10M, ...)")->capture_default_str();
+  gather->add_option("--seed", g_seed, "Seed of the packing and the paths")->capture_default_str();
+  gather->add_option("--threads", g_threads, "Worker threads (0: all cores); the result does not depend on it")
+      ->capture_default_str();
+  gather->add_option("--bins", g_bins, "Map resolution theta_i x phi_i x theta_o x phi_o")->capture_default_str();
+  gather->add_flag("--no-symmetrize", g_no_sym, "Keep the raw maps (no 180-degree averaging)");
+  gather->add_flag("--variance", g_variance, "Also store per-bin standard errors");
+  gather->add_flag("--quiet", g_quiet, "No progress bar");
+  gather->add_option("--out", g_out, "Map file to write (.nyrdm)")->required();
+
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -124,6 +287,9 @@ int main(int argc, char **argv)
         print_preset(p);
       }
       return 0;
+    }
+    if (gather->parsed()) {
+      return run_gather(g_preset, g_params, g_paths, g_seed, g_threads, g_bins, g_no_sym, g_variance, g_quiet, g_out);
     }
     if (fiber->parsed()) {
       return run_fiber(preset_name, params_file, theta_i, phi_i, samples, seed, out);

@@ -60,6 +60,9 @@ void validate(const FiberPreset &preset);
  * silently ignored). `name` is used when the object has no "name" key. */
 FiberPreset preset_from_json(const nlohmann::json &object, const std::string &name);
 
+/* The inverse of preset_from_json (same keys; round-trips exactly). */
+nlohmann::json preset_to_json(const FiberPreset &preset);
+
 /* The five presets of the paper, parsed from the embedded cpp_core/data/presets.json and validated on
  * first use. */
 const std::vector<FiberPreset> &builtin_presets();

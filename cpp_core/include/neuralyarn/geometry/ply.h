@@ -28,7 +28,7 @@ struct PlyParams {
 
 struct PackingStats {
   int iterations = 0;        /* relaxation sweeps until no pair overlapped */
-  double min_distance = 0.0; /* smallest distance between grid neighbours (>= 2 r; +inf if none) */
+  double min_distance = 0.0; /* smallest fiber-perpendicular centre distance of neighbours (>= 2 r; +inf if none) */
 };
 
 struct PlyCrossSection {

@@ -1,0 +1,44 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// An explicit, finite ply as Embree 3 round linear curves: the independent intersector the tests check
+// PlyTracer against (P(T) from straight rays) and the benchmark races it against. Each fiber is its helix
+// tessellated into `segments_per_turn` chords per turn (at least one per ply radius of length), radius r.
+#pragma once
+
+#include <memory>
+
+#include "neuralyarn/geometry/ply.h"
+#include "neuralyarn/kernel/platform.h"
+
+namespace neuralyarn::rdm {
+
+struct EmbreeHit {
+  float t = 0.0f;
+  int fiber = -1;
+  ny::Vec3 normal; /* geometric normal, unit, facing against the ray */
+};
+
+class EmbreePly {
+ public:
+  /* The fibers of `ply` over x in [x0, x1]; `mirrored` builds the ply rotated by pi about the z axis
+   * (the cross-section mirrored y -> -y), as PlyTracer does. */
+  EmbreePly(const geometry::Ply &ply, double x0, double x1, int segments_per_turn, bool mirrored = false);
+  ~EmbreePly();
+  EmbreePly(const EmbreePly &) = delete;
+  EmbreePly &operator=(const EmbreePly &) = delete;
+
+  /* Nearest fiber hit with t in (tnear, tfar); false if none. Hits on fiber `exclude` closer than
+   * `exclude_distance` are skipped (the fiber a walk just left, as PlyTracer::trace does). */
+  bool intersect(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, EmbreeHit *hit, int exclude = -1,
+                 float exclude_distance = 0.0f) const;
+  size_t num_segments() const { return segments_; }
+
+ private:
+  bool intersect_once(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, EmbreeHit *hit) const;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  size_t segments_ = 0;
+  int segments_per_fiber_ = 0;
+};
+
+}  // namespace neuralyarn::rdm

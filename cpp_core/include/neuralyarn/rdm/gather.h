@@ -1,0 +1,110 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// Monte Carlo gathering of the radiance distribution map (RDM): paper Sec. 4 ("Data"), done correctly
+// (docs/rdm.md has the full definition; docs/decisions.md D7-D10 the choices).
+//
+// Each path enters the ply's bounding cylinder (radius R) at a uniformly random point with direction -w_i,
+// w_i on the upper hemisphere of the entry frame (x = ply axis, z = outward normal n, y = z x x), and
+// random-walks through the fibers: at every tube entry the fiber BSDF is sampled in the fiber's frame
+// (x = chord tangent, z = tube normal); an outgoing direction that points into the fiber is carried
+// through it and leaves from the tube's far side. Fiber events are counted explicitly:
+//     T: 0 events;   R: exactly 1 event and w_o . n > 0;   M: everything else that leaves,
+// where w_o is the exit direction in the entry frame (far field: the exit point is only a diagnostic).
+// Russian roulette with survival probability min(1, max channel throughput) keeps it unbiased.
+//
+// Incident directions are stratified: path k belongs to incident bin k mod (n_theta_i n_phi_i), so every
+// incident bin gets the same number of paths (+-1), and w_i is uniform in solid angle inside its bin.
+// Paths alternate, per round over the incident bins, between the ply and its mirror image (the ply rotated
+// by pi about a radial axis), which makes the 180-degree symmetry about n exact in expectation.
+//
+// Every accumulator is an integer (weights in 32.32 fixed point, added atomically), so the result does not
+// depend on the order in which threads finish: the same seed gives bit-identical maps at any thread count.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "neuralyarn/presets.h"
+#include "neuralyarn/rdm/ply_tracer.h"
+
+namespace neuralyarn::rdm {
+
+/* Bins: theta measured from the normal (polar), phi = atan2(y, x) in the entry frame, both uniform:
+ * theta_i in [0, pi/2], theta_o in [0, pi], phi in [-pi, pi). The paper's map is 22 x 90 x 45 x 90. */
+struct MapResolution {
+  int theta_i = 22, phi_i = 90, theta_o = 45, phi_o = 90;
+  size_t incident() const { return size_t(theta_i) * size_t(phi_i); }
+  size_t outgoing() const { return size_t(theta_o) * size_t(phi_o); }
+};
+
+struct GatherOptions {
+  uint64_t paths = 10'000'000;
+  uint64_t seed = 1;       /* seeds the packing and every path                                   */
+  int threads = 0;         /* 0: all cores                                                       */
+  MapResolution bins;
+  bool symmetrize = true;  /* average each bin with its image under the 180-degree rotation      */
+  bool variance = false;   /* also accumulate squared weights (per-bin standard errors)          */
+  int max_events = 1 << 20;/* a path still inside after this many events is dropped and counted  */
+  TracerOptions tracer;
+  /* Called from worker threads (serialised by the caller's own means) as paths complete. */
+  std::function<void(uint64_t done, uint64_t total)> progress;
+};
+
+/* Summary numbers of one gather. Energies are means per path (RGB); they sum with `absorbed` and `lost`
+ * to 1 in expectation. */
+struct GatherStats {
+  uint64_t paths = 0;
+  double seconds = 0.0;
+  double energy_T[3] = {0, 0, 0}, energy_R[3] = {0, 0, 0}, energy_M[3] = {0, 0, 0};
+  double absorbed[3] = {0, 0, 0}; /* expected energy absorbed at the events, per path  */
+  double lost[3] = {0, 0, 0};     /* energy of paths that hit max_events                */
+  uint64_t paths_T = 0, paths_R = 0, paths_M = 0, paths_terminated = 0, paths_truncated = 0;
+  std::vector<uint64_t> events_histogram; /* [e] = paths with e events (last bin: that many or more) */
+  double mean_events = 0.0;
+  int p95_events = 0, max_events_seen = 0;
+  uint64_t events_total = 0, slab_crossings = 0, invalid_weights = 0;
+  /* Distance between entry and exit point in ply radii, over paths that scattered and left: */
+  double mean_displacement = 0.0, p95_displacement = 0.0;
+  double mean_displacement_M = 0.0, p95_displacement_M = 0.0;
+  double paths_per_second() const { return seconds > 0.0 ? double(paths) / seconds : 0.0; }
+};
+
+/* The maps. Arrays are row-major in the order of their index lists. */
+struct RdmMaps {
+  MapResolution bins;
+  FiberPreset preset;
+  uint64_t seed = 0, paths = 0;
+  bool symmetrized = false;
+  double fiber_radius = 0.0, slab_length = 0.0, sagitta = 0.0; /* ply radius R = 1 */
+  std::vector<uint64_t> count;    /* [theta_i][phi_i]: paths                                    */
+  std::vector<float> p_t;         /* [theta_i][phi_i]: fraction passing unscattered, P(T | w_i) */
+  std::vector<float> r, m;        /* [theta_i][phi_i][theta_o][phi_o][rgb]: f |cos theta_o|     */
+  std::vector<double> exit_energy;/* [theta_i][phi_i][rgb]: mean exit throughput, T + R + M     */
+  std::vector<double> absorbed;   /* [theta_i][phi_i][rgb]: mean absorbed energy                */
+  /* Standard errors of the bin estimates (only with GatherOptions::variance): */
+  std::vector<float> p_t_se, r_se, m_se;
+  GatherStats stats;
+
+  size_t incident_index(int ti, int pi) const { return size_t(ti) * size_t(bins.phi_i) + size_t(pi); }
+  size_t map_index(int ti, int pi, int to, int po) const
+  {
+    return ((incident_index(ti, pi) * size_t(bins.theta_o) + size_t(to)) * size_t(bins.phi_o) + size_t(po)) * 3;
+  }
+  /* Solid angle of outgoing bin theta_o index `to` (any phi_o). */
+  double outgoing_solid_angle(int to) const;
+};
+
+/* Gathers the maps of one fiber preset (its N, rho, alpha and shading) for a ply of radius 1. Throws
+ * ParameterError for invalid options or geometry that cannot be packed. */
+RdmMaps gather(const FiberPreset &preset, const GatherOptions &options);
+
+/* Validates options without gathering (the CLI calls it before allocating anything). */
+void validate(const GatherOptions &options);
+
+/* Bin helpers shared with the loader, tests and trainer. */
+int bin_of(double value, double lo, double hi, int n);
+double bin_center(int index, double lo, double hi, int n);
+
+}  // namespace neuralyarn::rdm

@@ -1,0 +1,117 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// Ray queries against one infinitely long ply, exploiting its structure (docs/decisions.md, D7).
+//
+// A ply of helical fibers p_i(x) = (x, Rot(w x) c_i), w = pi alpha / R, is invariant under the screw
+// motion S_X: (x, q) -> (x + X, Rot(w X) q) for every X. The tracer therefore stores only one short slab
+// 0 <= x < L of it and keeps every ray in "canonical" slab coordinates: when a ray leaves the slab through
+// x = L it re-enters at x = 0 with its (y, z) components rotated by Rot(-w L) (and symmetrically through
+// x = 0), and the slab counter k records that the canonical frame sits at S_{k L} in the world. The ply is
+// thereby exactly infinite: no energy is lost through ends, and a ray can wander any number of pitches.
+//
+// Inside the slab each fiber is the straight round tube of radius r around the chord from p_i(0) to
+// p_i(L). L is chosen so that the chord deviates from the helix by at most `sagitta * r` (default 1 %):
+// L = sqrt(8 sagitta r / kappa_max), kappa_max = w^2 R / (1 + w^2 R^2) the largest helix curvature. For
+// alpha = 0 the chords are the exact fibers and L is arbitrary.
+//
+// Candidate fibers come from a uniform 2D grid over the slab's (y, z) cross-section, each fiber entered
+// in every cell its projected tube (a capsule around the projected chord, of radius r / cos(tilt))
+// overlaps. A query walks the cells under the ray's (y, z) projection in order (2D DDA) and stops once the
+// nearest hit lies before the current cell's exit.
+//
+// Rays enter and leave through the bounding cylinder of radius bound_radius() (R plus a hair: no tube
+// reaches it). Hits are tube *entries*: a ray whose origin lies inside a tube (neighbouring helical tubes of a packed
+// cross-section interpenetrate slightly in the outer layers, because the packing is done in the x = const
+// slice) passes through that tube. The fiber a path just scattered on is ignored for `exclude_distance`
+// after it leaves, so that the kink between two chords never produces a spurious second event.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "neuralyarn/geometry/ply.h"
+#include "neuralyarn/kernel/platform.h"
+
+namespace neuralyarn::rdm {
+
+struct TracerOptions {
+  double sagitta = 0.01;   /* largest chord deviation from the helix, in fiber radii      */
+  double cell_size = 2.0;  /* grid cell side in fiber radii                               */
+  bool mirrored = false;   /* build the ply rotated by pi about the z axis (see gather.h) */
+};
+
+/* A ray in canonical slab coordinates plus the slab it is in. */
+struct SlabRay {
+  ny::Vec3 o;      /* origin, 0 <= o.x <= L */
+  ny::Vec3 d;      /* unit direction        */
+  int64_t slab = 0;
+};
+
+struct TubeHit {
+  float t = 0.0f;   /* distance from the query origin (summed over slabs) */
+  int fiber = -1;
+  ny::Vec3 point;   /* canonical coordinates of the slab the ray ends in  */
+  ny::Vec3 normal;  /* outward tube normal at the hit                     */
+  ny::Vec3 axis;    /* unit chord direction (the fiber tangent, +x-ward)  */
+};
+
+class PlyTracer {
+ public:
+  PlyTracer(const geometry::Ply &ply, const TracerOptions &options = {});
+
+  float ply_radius() const { return R_; }
+  /* Radius of the bounding cylinder rays enter and leave through: R plus a hair (see the constructor). */
+  float bound_radius() const { return bound_; }
+  float fiber_radius() const { return r_; }
+  float slab_length() const { return L_; }
+  double twist_rate() const { return w_; }
+  int num_fibers() const { return int(fibers_.size()); }
+  /* Number of (fiber, cell) entries of the grid: its memory and the mean candidate count. */
+  size_t grid_entries() const { return items_.size(); }
+  int grid_resolution() const { return n_; }
+
+  /* Traces `ray` (updated in place: on return it is at the hit or exit point, in the slab it ended in)
+   * until it enters a tube or leaves the bounding cylinder of radius R. `exclude` is a fiber ignored for
+   * the first `exclude_distance` of travel. Returns true on a hit (filled into *hit). */
+  bool trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const;
+
+  /* Where a path that scatters at `p` on tube `fiber` into direction d (pointing into the fiber) leaves
+   * it: the point of the same perpendicular cross-section in the direction of d's component
+   * perpendicular to the axis, c + r d_perp / |d_perp|. The fiber BSDF is a far-field model, so the
+   * outgoing ray starts on the far side of the fiber's cross-section rather than after a straight chord
+   * through the tube, which for d nearly along the axis would run far along the tube (docs/decisions.md
+   * D7). The result lies on the tube's surface with d pointing outward there. */
+  ny::Vec3 far_side(int fiber, ny::Vec3 p, ny::Vec3 d) const;
+
+  /* Entry distance of the ray (canonical coordinates) into tube `fiber` of the slab, ignoring the slab's
+   * x range; +inf if it misses or starts inside. (Brute-force reference for tests.) */
+  float intersect_fiber(int fiber, ny::Vec3 o, ny::Vec3 d) const { return intersect_tube(fibers_[size_t(fiber)], o, d); }
+
+  /* Moves a ray whose origin has left [0, L] back into the slab (several slabs at once if needed). */
+  void canonicalize(SlabRay *ray) const;
+
+  /* World coordinates of a canonical point or direction in slab k. */
+  ny::Vec3 to_world_point(ny::Vec3 p, int64_t slab) const;
+  ny::Vec3 to_world_dir(ny::Vec3 d, int64_t slab) const;
+
+ private:
+  struct Tube {
+    ny::Vec3 a;    /* chord start p_i(0) */
+    ny::Vec3 axis; /* unit chord direction */
+  };
+  /* Entry distance of the ray into tube f, or +inf; origin inside the tube gives +inf. */
+  float intersect_tube(const Tube &f, ny::Vec3 o, ny::Vec3 d) const;
+  void rotate_yz(ny::Vec3 *v, float c, float s) const;
+
+  float R_ = 1.0f, bound_ = 1.0f, r_ = 0.0f, L_ = 1.0f;
+  double w_ = 0.0;
+  float rot_c_ = 1.0f, rot_s_ = 0.0f; /* Rot(w L) */
+  std::vector<Tube> fibers_;
+  /* Grid over [-R, R]^2 in (y, z): cell (iy, iz) holds items_[start_[c] .. start_[c + 1]). */
+  int n_ = 1;
+  float cell_ = 1.0f, inv_cell_ = 1.0f;
+  std::vector<uint32_t> start_;
+  std::vector<int32_t> items_;
+};
+
+}  // namespace neuralyarn::rdm

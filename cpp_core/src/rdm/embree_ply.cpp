@@ -1,0 +1,133 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/rdm/embree_ply.h"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include <embree3/rtcore.h>
+
+namespace neuralyarn::rdm {
+
+struct EmbreePly::Impl {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+};
+
+EmbreePly::EmbreePly(const geometry::Ply &ply, double x0, double x1, int segments_per_turn, bool mirrored)
+    : impl_(std::make_unique<Impl>())
+{
+  /* The mirrored ply has the cross-section mirrored (y -> -y) at x = 0 and the same Z twist, exactly as
+   * PlyTracer builds it. */
+  const double w = ply.twist_rate();
+  auto point = [&](int i, double x) -> Eigen::Vector3d {
+    if (!mirrored) {
+      return ply.fiber_point(i, x);
+    }
+    const Eigen::Vector3d p0 = ply.fiber_point(i, 0.0);
+    const double y = -p0.y(), z = p0.z(), c = std::cos(w * x), s = std::sin(w * x);
+    return Eigen::Vector3d(x, c * y - s * z, s * y + c * z);
+  };
+  const double turns = std::isfinite(ply.pitch()) ? (x1 - x0) / ply.pitch() : 0.0;
+  const float radius = float(ply.fiber_radius());
+  const geometry::CurveSet curves = geometry::tessellate_curves(
+      ply.num_fibers(), point, [radius](int) { return radius; }, x0, x1, turns, segments_per_turn, ply.params().R);
+  impl_->device = rtcNewDevice("threads=1");
+  if (!impl_->device) {
+    throw std::runtime_error("Embree: cannot create a device (error " + std::to_string(rtcGetDeviceError(nullptr)) + ")");
+  }
+  impl_->scene = rtcNewScene(impl_->device);
+  rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
+  RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_ROUND_LINEAR_CURVE);
+  const size_t nv = curves.points.size();
+  size_t nseg = 0;
+  for (int c = 0; c < curves.num_curves(); c++) {
+    nseg += size_t(curves.offsets[size_t(c) + 1] - curves.offsets[size_t(c)] - 1);
+  }
+  auto *v = static_cast<float *>(
+      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), nv));
+  auto *idx = static_cast<unsigned *>(
+      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT, sizeof(unsigned), nseg));
+  /* Which fiber each segment belongs to (the primitive id is a segment id). */
+  size_t s = 0;
+  for (int c = 0; c < curves.num_curves(); c++) {
+    for (int k = curves.offsets[size_t(c)]; k < curves.offsets[size_t(c) + 1]; k++) {
+      const auto &p = curves.points[size_t(k)];
+      v[4 * size_t(k) + 0] = p.x();
+      v[4 * size_t(k) + 1] = p.y();
+      v[4 * size_t(k) + 2] = p.z();
+      v[4 * size_t(k) + 3] = curves.radii[size_t(c)];
+      if (k + 1 < curves.offsets[size_t(c) + 1]) {
+        idx[s++] = unsigned(k);
+      }
+    }
+  }
+  rtcCommitGeometry(geom);
+  rtcAttachGeometry(impl_->scene, geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(impl_->scene);
+  segments_ = nseg;
+  /* Segment -> fiber: curves have equal point counts, so fiber = segment / segments per curve. */
+  if (curves.num_curves() > 0) {
+    segments_per_fiber_ = curves.offsets[1] - curves.offsets[0] - 1;
+  }
+}
+
+EmbreePly::~EmbreePly()
+{
+  if (impl_->scene) {
+    rtcReleaseScene(impl_->scene);
+  }
+  if (impl_->device) {
+    rtcReleaseDevice(impl_->device);
+  }
+}
+
+bool EmbreePly::intersect(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, EmbreeHit *hit, int exclude,
+                          float exclude_distance) const
+{
+  for (int round = 0; round < 64; round++) {
+    if (!intersect_once(o, d, tnear, tfar, hit)) {
+      return false;
+    }
+    if (hit->fiber != exclude || hit->t >= exclude_distance) {
+      return true;
+    }
+    tnear = hit->t * (1.0f + 1e-6f) + 1e-7f;
+  }
+  return false;
+}
+
+bool EmbreePly::intersect_once(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, EmbreeHit *hit) const
+{
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh;
+  rh.ray.org_x = o.x;
+  rh.ray.org_y = o.y;
+  rh.ray.org_z = o.z;
+  rh.ray.dir_x = d.x;
+  rh.ray.dir_y = d.y;
+  rh.ray.dir_z = d.z;
+  rh.ray.tnear = tnear;
+  rh.ray.tfar = tfar;
+  rh.ray.time = 0.0f;
+  rh.ray.mask = 0xffffffffu;
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(impl_->scene, &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+    return false;
+  }
+  hit->t = rh.ray.tfar;
+  hit->fiber = segments_per_fiber_ > 0 ? int(rh.hit.primID / unsigned(segments_per_fiber_)) : -1;
+  hit->normal = ny::normalize(ny::make_vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
+  if (ny::dot(hit->normal, d) > 0.0f) {
+    hit->normal = -hit->normal;
+  }
+  return true;
+}
+
+}  // namespace neuralyarn::rdm

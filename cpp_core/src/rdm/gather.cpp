@@ -1,0 +1,539 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/rdm/gather.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "neuralyarn/geometry/ply.h"
+#include "neuralyarn/rdm/fiber_lobe_sampler.h"
+
+namespace neuralyarn::rdm {
+
+using ny::Rgb;
+using ny::Vec3;
+using ny::make_vec3;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+/* Paths per work item: large enough to amortise scheduling, small enough for a smooth progress bar. */
+constexpr uint64_t kChunk = 8192;
+/* Fixed-point scale of the accumulators: weights are added as round(w * 2^32). */
+constexpr double kFixedScale = 4294967296.0;
+constexpr double kInvFixedScale = 1.0 / kFixedScale;
+/* Largest weight accepted into a fixed-point sum (a bin can then take 2^31 of them before overflow). */
+constexpr float kMaxWeight = 1024.0f;
+constexpr int kEventBins = 4096;
+constexpr double kDisplacementBin = 0.02; /* ply radii */
+constexpr int kDisplacementBins = 10000;   /* up to 200 R */
+
+/* SplitMix64 (Steele, Lea & Flood 2014): one independent stream per path, seeded from (seed, path). */
+struct PathRng {
+  uint64_t state;
+  static uint64_t mix(uint64_t z)
+  {
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+  }
+  PathRng(uint64_t seed, uint64_t path) : state(mix(mix(seed ^ 0x6a09e667f3bcc909ull) + path * 0x9e3779b97f4a7c15ull)) {}
+  uint64_t next()
+  {
+    state += 0x9e3779b97f4a7c15ull;
+    return mix(state);
+  }
+  /* 24 bits: in [0, 1), exactly representable. */
+  float uniform() { return float(next() >> 40) * (1.0f / 16777216.0f); }
+  double uniform_double() { return double(next() >> 11) * (1.0 / 9007199254740992.0); }
+};
+
+inline void atomic_add(uint64_t *target, uint64_t v)
+{
+  if (v != 0) {
+    __atomic_fetch_add(target, v, __ATOMIC_RELAXED);
+  }
+}
+
+inline uint64_t to_fixed(float w) { return uint64_t(std::llround(double(w) * kFixedScale)); }
+
+struct Accumulators {
+  size_t n_in = 0, n_map = 0;
+  std::vector<uint64_t> count, count_t;
+  std::vector<uint64_t> r, m, r2, m2;       /* fixed point */
+  std::vector<uint64_t> exit_energy, absorbed; /* fixed point, [in][3] */
+};
+
+/* Per-chunk statistics, merged into the shared ones once per chunk (integers: order-free). */
+struct LocalStats {
+  std::vector<uint64_t> events;
+  std::vector<uint64_t> displacement, displacement_M;
+  uint64_t energy[3][3] = {}; /* [T/R/M][rgb] fixed */
+  uint64_t absorbed[3] = {}, lost[3] = {};
+  uint64_t paths[3] = {}, terminated = 0, truncated = 0, events_total = 0, slab_crossings = 0,
+           invalid = 0, disp_sum = 0, disp_sum_M = 0, disp_count = 0, disp_count_M = 0;
+  int max_events = 0;
+};
+
+struct SharedStats {
+  std::vector<uint64_t> events, displacement, displacement_M;
+  uint64_t energy[3][3] = {}, absorbed[3] = {}, lost[3] = {};
+  uint64_t paths[3] = {}, terminated = 0, truncated = 0, events_total = 0, slab_crossings = 0,
+           invalid = 0, disp_sum = 0, disp_sum_M = 0, disp_count = 0, disp_count_M = 0;
+  std::atomic<int> max_events{0};
+};
+
+void merge(SharedStats &s, const LocalStats &l)
+{
+  for (size_t i = 0; i < l.events.size(); i++) {
+    atomic_add(&s.events[i], l.events[i]);
+  }
+  for (size_t i = 0; i < l.displacement.size(); i++) {
+    atomic_add(&s.displacement[i], l.displacement[i]);
+    atomic_add(&s.displacement_M[i], l.displacement_M[i]);
+  }
+  for (int k = 0; k < 3; k++) {
+    for (int c = 0; c < 3; c++) {
+      atomic_add(&s.energy[k][c], l.energy[k][c]);
+    }
+    atomic_add(&s.absorbed[k], l.absorbed[k]);
+    atomic_add(&s.lost[k], l.lost[k]);
+    atomic_add(&s.paths[k], l.paths[k]);
+  }
+  atomic_add(&s.terminated, l.terminated);
+  atomic_add(&s.truncated, l.truncated);
+  atomic_add(&s.events_total, l.events_total);
+  atomic_add(&s.slab_crossings, l.slab_crossings);
+  atomic_add(&s.invalid, l.invalid);
+  atomic_add(&s.disp_sum, l.disp_sum);
+  atomic_add(&s.disp_sum_M, l.disp_sum_M);
+  atomic_add(&s.disp_count, l.disp_count);
+  atomic_add(&s.disp_count_M, l.disp_count_M);
+  int prev = s.max_events.load();
+  while (prev < l.max_events && !s.max_events.compare_exchange_weak(prev, l.max_events)) {
+  }
+}
+
+double percentile(const std::vector<uint64_t> &hist, double q, double bin_width)
+{
+  uint64_t total = 0;
+  for (uint64_t v : hist) {
+    total += v;
+  }
+  if (total == 0) {
+    return 0.0;
+  }
+  const double target = q * double(total);
+  uint64_t cum = 0;
+  for (size_t i = 0; i < hist.size(); i++) {
+    cum += hist[i];
+    if (double(cum) >= target) {
+      return double(i) * bin_width;
+    }
+  }
+  return double(hist.size() - 1) * bin_width;
+}
+
+struct Geometry {
+  std::unique_ptr<PlyTracer> tracer[2]; /* the ply and its mirror image */
+};
+
+/* One path. */
+void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const GatherOptions &opt, uint64_t k,
+                Accumulators &acc, LocalStats &ls)
+{
+  const MapResolution &b = opt.bins;
+  const size_t n_in = b.incident();
+  const size_t in_bin = size_t(k % n_in);
+  const int mirrored = int((k / n_in) & 1u);
+  const PlyTracer &tracer = *geo.tracer[mirrored];
+  const int ti = int(in_bin / size_t(b.phi_i));
+  const int pi = int(in_bin % size_t(b.phi_i));
+  PathRng rng(opt.seed, k);
+
+  /* w_i uniform in solid angle inside the bin: cos(theta) uniform, phi uniform. */
+  const double th0 = 0.5 * kPi * ti / b.theta_i, th1 = 0.5 * kPi * (ti + 1) / b.theta_i;
+  const double cos_t = std::cos(th0) + (std::cos(th1) - std::cos(th0)) * rng.uniform_double();
+  const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
+  const double phi = -kPi + 2.0 * kPi * (pi + rng.uniform_double()) / b.phi_i;
+  const Vec3 wi_local = make_vec3(float(sin_t * std::cos(phi)), float(sin_t * std::sin(phi)), float(cos_t));
+  /* Entry frame at a uniform azimuth a on the ring x = 0 (screw invariance makes one ring enough). */
+  const double a = 2.0 * kPi * rng.uniform_double();
+  const Vec3 n = make_vec3(0.0f, float(std::cos(a)), float(std::sin(a)));
+  const Vec3 ey = make_vec3(0.0f, float(std::sin(a)), float(-std::cos(a))); /* z x x */
+  const Vec3 ex = make_vec3(1.0f, 0.0f, 0.0f);
+  const float R = tracer.bound_radius();
+  const Vec3 wi = ex * wi_local.x + ey * wi_local.y + n * wi_local.z;
+
+  SlabRay ray;
+  ray.o = n * R;
+  ray.d = -wi;
+  ray.slab = 0;
+  float beta[3] = {1.0f, 1.0f, 1.0f};
+  int events = 0;
+  int exclude = -1;
+  const float exclude_distance = 2.0f * tracer.fiber_radius();
+  uint64_t absorbed_fx[3] = {0, 0, 0};
+  bool alive = true;
+  TubeHit hit;
+  for (;;) {
+    const int64_t slab_before = ray.slab;
+    const bool got = tracer.trace(&ray, exclude, exclude_distance, &hit);
+    ls.slab_crossings += uint64_t(std::llabs(ray.slab - slab_before));
+    if (!got) {
+      break;
+    }
+    events++;
+    if (events > opt.max_events) {
+      ls.truncated++;
+      for (int c = 0; c < 3; c++) {
+        ls.lost[c] += to_fixed(beta[c]);
+      }
+      alive = false;
+      break;
+    }
+    /* Scatter in the fiber frame: x = tangent, z = tube normal. */
+    ny::Frame frame;
+    frame.x = hit.axis;
+    frame.z = hit.normal;
+    frame.y = ny::cross(frame.z, frame.x);
+    const Vec3 wi_f = ny::to_local(frame, -ray.d);
+    Vec3 wo_f;
+    Rgb w, albedo;
+    const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform(), u3 = rng.uniform();
+    const bool scattered = sampler.sample(wi_f, u0, u1, u2, u3, &wo_f, &w, &albedo);
+    /* Expected absorption at this event, for the energy bookkeeping: beta (1 - albedo). */
+    absorbed_fx[0] += to_fixed(beta[0] * (1.0f - albedo.r));
+    absorbed_fx[1] += to_fixed(beta[1] * (1.0f - albedo.g));
+    absorbed_fx[2] += to_fixed(beta[2] * (1.0f - albedo.b));
+    if (!scattered) {
+      alive = false;
+      ls.terminated++;
+      break;
+    }
+    beta[0] *= w.r;
+    beta[1] *= w.g;
+    beta[2] *= w.b;
+    if (!(std::isfinite(beta[0]) && std::isfinite(beta[1]) && std::isfinite(beta[2]))) {
+      ls.invalid++;
+      alive = false;
+      break;
+    }
+    const Vec3 d_new = ny::normalize(ny::to_world(frame, wo_f));
+    Vec3 origin = hit.point;
+    if (ny::dot(d_new, hit.normal) < 0.0f) {
+      /* Into the fiber: the path crosses it and leaves from the far side. */
+      origin = tracer.far_side(hit.fiber, hit.point, d_new);
+    }
+    ray.o = origin;
+    ray.d = d_new;
+    tracer.canonicalize(&ray);
+    exclude = hit.fiber;
+    /* Russian roulette: survive with q = min(1, max channel), then divide by q. */
+    const float q = std::min(1.0f, std::max(beta[0], std::max(beta[1], beta[2])));
+    if (q < 1.0f) {
+      if (!(rng.uniform() < q)) {
+        alive = false;
+        ls.terminated++;
+        break;
+      }
+      beta[0] /= q;
+      beta[1] /= q;
+      beta[2] /= q;
+    }
+  }
+
+  atomic_add(&acc.count[in_bin], 1);
+  for (int c = 0; c < 3; c++) {
+    atomic_add(&acc.absorbed[in_bin * 3 + size_t(c)], absorbed_fx[c]);
+    ls.absorbed[c] += absorbed_fx[c];
+  }
+  ls.events[size_t(std::min(events, kEventBins - 1))]++;
+  ls.events_total += uint64_t(events);
+  ls.max_events = std::max(ls.max_events, events);
+  if (!alive) {
+    return;
+  }
+
+  /* Exit: direction and point in world coordinates, then in the entry frame. */
+  const Vec3 d_w = tracer.to_world_dir(ray.d, ray.slab);
+  const Vec3 p_w = tracer.to_world_point(ray.o, ray.slab);
+  const Vec3 wo = make_vec3(ny::dot(d_w, ex), ny::dot(d_w, ey), ny::dot(d_w, n));
+  const int label = events == 0 ? 0 : (events == 1 && wo.z > 0.0f ? 1 : 2);
+  ls.paths[label]++;
+  for (int c = 0; c < 3; c++) {
+    if (!(beta[c] <= kMaxWeight)) {
+      ls.invalid++;
+      return;
+    }
+  }
+  uint64_t fx[3];
+  for (int c = 0; c < 3; c++) {
+    fx[c] = to_fixed(beta[c]);
+    ls.energy[label][c] += fx[c];
+    atomic_add(&acc.exit_energy[in_bin * 3 + size_t(c)], fx[c]);
+  }
+  if (label == 0) {
+    atomic_add(&acc.count_t[in_bin], 1);
+    return;
+  }
+  const double disp = std::sqrt(double(ny::dot(p_w - n * R, p_w - n * R))) / double(tracer.ply_radius());
+  const size_t dbin = size_t(std::min(disp / kDisplacementBin, double(kDisplacementBins - 1)));
+  const uint64_t disp_fx = uint64_t(std::llround(disp * 1e6));
+  ls.displacement[dbin]++;
+  ls.disp_sum += disp_fx;
+  ls.disp_count++;
+  if (label == 2) {
+    ls.displacement_M[dbin]++;
+    ls.disp_sum_M += disp_fx;
+    ls.disp_count_M++;
+  }
+  const double theta_o = std::acos(std::clamp(double(wo.z), -1.0, 1.0));
+  const double phi_o = std::atan2(double(wo.y), double(wo.x));
+  const int to = bin_of(theta_o, 0.0, kPi, b.theta_o);
+  const int po = bin_of(phi_o, -kPi, kPi, b.phi_o);
+  const size_t idx = (in_bin * b.outgoing() + size_t(to) * size_t(b.phi_o) + size_t(po)) * 3;
+  uint64_t *map = label == 1 ? acc.r.data() : acc.m.data();
+  uint64_t *map2 = label == 1 ? acc.r2.data() : acc.m2.data();
+  for (int c = 0; c < 3; c++) {
+    atomic_add(&map[idx + size_t(c)], fx[c]);
+    if (opt.variance) {
+      atomic_add(&map2[idx + size_t(c)], to_fixed(beta[c] * beta[c]));
+    }
+  }
+}
+
+}  // namespace
+
+int bin_of(double value, double lo, double hi, int n)
+{
+  const int i = int(std::floor((value - lo) / (hi - lo) * n));
+  return std::clamp(i, 0, n - 1);
+}
+
+double bin_center(int index, double lo, double hi, int n) { return lo + (hi - lo) * (index + 0.5) / n; }
+
+double RdmMaps::outgoing_solid_angle(int to) const
+{
+  const double t0 = kPi * to / bins.theta_o, t1 = kPi * (to + 1) / bins.theta_o;
+  return (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / bins.phi_o;
+}
+
+void validate(const GatherOptions &o)
+{
+  if (o.paths < 1 || o.paths > uint64_t(1e12)) {
+    throw ParameterError("paths", "--paths must be in [1, 1e12], got " + std::to_string(o.paths));
+  }
+  if (o.threads < 0 || o.threads > 1024) {
+    throw ParameterError("threads", "--threads must be in [0, 1024] (0: all cores), got " + std::to_string(o.threads));
+  }
+  const MapResolution &b = o.bins;
+  if (b.theta_i < 1 || b.theta_o < 1 || b.phi_i < 2 || b.phi_o < 2 || b.theta_i > 720 || b.theta_o > 1440 ||
+      b.phi_i > 2880 || b.phi_o > 2880) {
+    throw ParameterError("bins", "map resolution must have 1..720 theta_i, 1..1440 theta_o and 2..2880 phi bins");
+  }
+  if (o.symmetrize && (b.phi_i % 2 != 0 || b.phi_o % 2 != 0)) {
+    throw ParameterError("bins", "symmetrisation needs an even number of phi bins (a half turn must be whole bins)");
+  }
+  const double bytes = double(b.incident()) * double(b.outgoing()) * 3.0 * 8.0 * (o.variance ? 4.0 : 2.0);
+  if (bytes > 64e9) {
+    throw ParameterError("bins", "map resolution needs " + std::to_string(bytes / 1e9) + " GB of accumulators");
+  }
+  if (o.max_events < 1) {
+    throw ParameterError("max_events", "max_events must be >= 1");
+  }
+  if (!(o.tracer.sagitta > 0.0 && o.tracer.sagitta <= 0.5) || !(o.tracer.cell_size >= 0.25 && o.tracer.cell_size <= 64.0)) {
+    throw ParameterError("tracer", "tracer sagitta must be in (0, 0.5] and cell size in [0.25, 64] fiber radii");
+  }
+}
+
+RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
+{
+  validate(preset);
+  validate(opt);
+  const auto t_start = std::chrono::steady_clock::now();
+
+  geometry::PlyParams pp;
+  pp.N = preset.N;
+  pp.rho = preset.rho;
+  pp.alpha = preset.alpha;
+  pp.R = 1.0;
+  const geometry::Ply ply(pp, geometry::pack_cross_section(pp, opt.seed));
+  Geometry geo;
+  TracerOptions to = opt.tracer;
+  to.mirrored = false;
+  geo.tracer[0] = std::make_unique<PlyTracer>(ply, to);
+  to.mirrored = true;
+  geo.tracer[1] = std::make_unique<PlyTracer>(ply, to);
+  const FiberLobeSampler sampler(preset.fiber_params());
+
+  const MapResolution &b = opt.bins;
+  Accumulators acc;
+  acc.n_in = b.incident();
+  acc.n_map = b.incident() * b.outgoing() * 3;
+  acc.count.assign(acc.n_in, 0);
+  acc.count_t.assign(acc.n_in, 0);
+  acc.exit_energy.assign(acc.n_in * 3, 0);
+  acc.absorbed.assign(acc.n_in * 3, 0);
+  acc.r.assign(acc.n_map, 0);
+  acc.m.assign(acc.n_map, 0);
+  if (opt.variance) {
+    acc.r2.assign(acc.n_map, 0);
+    acc.m2.assign(acc.n_map, 0);
+  }
+  SharedStats shared;
+  shared.events.assign(kEventBins, 0);
+  shared.displacement.assign(kDisplacementBins, 0);
+  shared.displacement_M.assign(kDisplacementBins, 0);
+
+  const uint64_t n_chunks = (opt.paths + kChunk - 1) / kChunk;
+  std::atomic<uint64_t> done{0};
+  auto work = [&](const tbb::blocked_range<uint64_t> &range) {
+    LocalStats ls;
+    ls.events.assign(kEventBins, 0);
+    ls.displacement.assign(kDisplacementBins, 0);
+    ls.displacement_M.assign(kDisplacementBins, 0);
+    for (uint64_t chunk = range.begin(); chunk != range.end(); chunk++) {
+      const uint64_t k0 = chunk * kChunk, k1 = std::min(opt.paths, k0 + kChunk);
+      for (uint64_t k = k0; k < k1; k++) {
+        trace_path(geo, sampler, opt, k, acc, ls);
+      }
+      const uint64_t now = done.fetch_add(k1 - k0) + (k1 - k0);
+      if (opt.progress) {
+        opt.progress(now, opt.paths);
+      }
+    }
+    merge(shared, ls);
+  };
+  const int threads = opt.threads > 0 ? opt.threads : tbb::this_task_arena::max_concurrency();
+  tbb::task_arena arena(threads);
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_chunks, 1), work, tbb::simple_partitioner());
+  });
+
+  /* Finalise: fixed point -> estimates. */
+  RdmMaps maps;
+  maps.bins = b;
+  maps.preset = preset;
+  maps.seed = opt.seed;
+  maps.paths = opt.paths;
+  maps.fiber_radius = geo.tracer[0]->fiber_radius();
+  maps.slab_length = geo.tracer[0]->slab_length();
+  maps.sagitta = opt.tracer.sagitta;
+  maps.count = acc.count;
+  maps.p_t.assign(acc.n_in, 0.0f);
+  maps.exit_energy.assign(acc.n_in * 3, 0.0);
+  maps.absorbed.assign(acc.n_in * 3, 0.0);
+  maps.r.assign(acc.n_map, 0.0f);
+  maps.m.assign(acc.n_map, 0.0f);
+  if (opt.variance) {
+    maps.p_t_se.assign(acc.n_in, 0.0f);
+    maps.r_se.assign(acc.n_map, 0.0f);
+    maps.m_se.assign(acc.n_map, 0.0f);
+  }
+  std::vector<double> inv_sa(size_t(b.theta_o));
+  for (int t = 0; t < b.theta_o; t++) {
+    inv_sa[size_t(t)] = 1.0 / maps.outgoing_solid_angle(t);
+  }
+  /* Per incident bin the estimate of a bin is mean(w) / dOmega, its variance (E[w^2] - E[w]^2) / n. */
+  const int half_i = b.phi_i / 2, half_o = b.phi_o / 2;
+  /* Each incident bin writes only its own outputs: parallel and still deterministic. */
+  auto finalize_bin = [&](size_t i) {
+      const int ti = int(i / size_t(b.phi_i)), pi = int(i % size_t(b.phi_i));
+      /* The bins averaged into this one: itself, and with symmetrisation its half-turn image. */
+      size_t src[2] = {i, maps.incident_index(ti, (pi + half_i) % b.phi_i)};
+      const int n_src = opt.symmetrize ? 2 : 1;
+      double pt = 0.0, pt_var = 0.0;
+      for (int s = 0; s < n_src; s++) {
+        const double n = double(acc.count[src[s]]);
+        if (n > 0) {
+          const double p = double(acc.count_t[src[s]]) / n;
+          pt += p / n_src;
+          pt_var += p * (1.0 - p) / n / (n_src * n_src);
+        }
+      }
+      maps.p_t[i] = float(pt);
+      if (opt.variance) {
+        maps.p_t_se[i] = float(std::sqrt(pt_var));
+      }
+      const double n_here = double(acc.count[i]);
+      for (int c = 0; c < 3; c++) {
+        maps.exit_energy[i * 3 + size_t(c)] = n_here > 0 ? double(acc.exit_energy[i * 3 + size_t(c)]) * kInvFixedScale / n_here : 0.0;
+        maps.absorbed[i * 3 + size_t(c)] = n_here > 0 ? double(acc.absorbed[i * 3 + size_t(c)]) * kInvFixedScale / n_here : 0.0;
+      }
+      for (int to2 = 0; to2 < b.theta_o; to2++) {
+        for (int po = 0; po < b.phi_o; po++) {
+          const size_t dst = maps.map_index(ti, pi, to2, po);
+          size_t srcm[2] = {dst, maps.map_index(ti, (pi + half_i) % b.phi_i, to2, (po + half_o) % b.phi_o)};
+          for (int c = 0; c < 3; c++) {
+            double rv = 0.0, mv = 0.0, rvar = 0.0, mvar = 0.0;
+            for (int s = 0; s < n_src; s++) {
+              const double n = double(acc.count[src[s]]);
+              if (!(n > 0)) {
+                continue;
+              }
+              const size_t j = srcm[s] + size_t(c);
+              const double k = inv_sa[size_t(to2)] / n;
+              const double sr = double(acc.r[j]) * kInvFixedScale, sm = double(acc.m[j]) * kInvFixedScale;
+              rv += sr * k / n_src;
+              mv += sm * k / n_src;
+              if (opt.variance) {
+                const double s2r = double(acc.r2[j]) * kInvFixedScale, s2m = double(acc.m2[j]) * kInvFixedScale;
+                const double ka = inv_sa[size_t(to2)];
+                rvar += std::max(0.0, s2r / n * ka * ka - (sr / n * ka) * (sr / n * ka)) / n / (n_src * n_src);
+                mvar += std::max(0.0, s2m / n * ka * ka - (sm / n * ka) * (sm / n * ka)) / n / (n_src * n_src);
+              }
+            }
+            maps.r[dst + size_t(c)] = float(rv);
+            maps.m[dst + size_t(c)] = float(mv);
+            if (opt.variance) {
+              maps.r_se[dst + size_t(c)] = float(std::sqrt(rvar));
+              maps.m_se[dst + size_t(c)] = float(std::sqrt(mvar));
+            }
+          }
+        }
+      }
+  };
+  arena.execute([&] {
+    tbb::parallel_for(size_t(0), acc.n_in, [&](size_t i) { finalize_bin(i); });
+  });
+  maps.symmetrized = opt.symmetrize;
+
+  GatherStats &st = maps.stats;
+  st.paths = opt.paths;
+  const double np = double(opt.paths);
+  for (int c = 0; c < 3; c++) {
+    st.energy_T[c] = double(shared.energy[0][c]) * kInvFixedScale / np;
+    st.energy_R[c] = double(shared.energy[1][c]) * kInvFixedScale / np;
+    st.energy_M[c] = double(shared.energy[2][c]) * kInvFixedScale / np;
+    st.absorbed[c] = double(shared.absorbed[c]) * kInvFixedScale / np;
+    st.lost[c] = double(shared.lost[c]) * kInvFixedScale / np;
+  }
+  st.paths_T = shared.paths[0];
+  st.paths_R = shared.paths[1];
+  st.paths_M = shared.paths[2];
+  st.paths_terminated = shared.terminated;
+  st.paths_truncated = shared.truncated;
+  st.events_histogram = shared.events;
+  st.events_total = shared.events_total;
+  st.mean_events = double(shared.events_total) / np;
+  st.p95_events = int(percentile(shared.events, 0.95, 1.0));
+  st.max_events_seen = shared.max_events.load();
+  st.slab_crossings = shared.slab_crossings;
+  st.invalid_weights = shared.invalid;
+  st.mean_displacement = shared.disp_count ? double(shared.disp_sum) * 1e-6 / double(shared.disp_count) : 0.0;
+  st.mean_displacement_M = shared.disp_count_M ? double(shared.disp_sum_M) * 1e-6 / double(shared.disp_count_M) : 0.0;
+  st.p95_displacement = percentile(shared.displacement, 0.95, kDisplacementBin);
+  st.p95_displacement_M = percentile(shared.displacement_M, 0.95, kDisplacementBin);
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return maps;
+}
+
+}  // namespace neuralyarn::rdm

@@ -1,0 +1,365 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/rdm/map_file.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "neuralyarn/version.h"
+
+namespace neuralyarn::rdm {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+const char kMagic[8] = {'N', 'Y', 'R', 'D', 'M', '\r', '\n', '\x1a'};
+constexpr size_t kAlign = 64;
+
+uint64_t fnv1a(const std::string &bytes)
+{
+  uint64_t h = 0xcbf29ce484222325ull;
+  for (unsigned char c : bytes) {
+    h = (h ^ c) * 0x100000001b3ull;
+  }
+  return h;
+}
+
+std::string hex(uint64_t v)
+{
+  char buf[17];
+  std::snprintf(buf, sizeof(buf), "%016llx", (unsigned long long)v);
+  return buf;
+}
+
+template<class T> void append_le(std::string &out, T v)
+{
+  for (size_t i = 0; i < sizeof(T); i++) {
+    out.push_back(char((uint64_t(v) >> (8 * i)) & 0xff));
+  }
+}
+
+template<class T> T read_le(const char *p)
+{
+  uint64_t v = 0;
+  for (size_t i = 0; i < sizeof(T); i++) {
+    v |= uint64_t(uint8_t(p[i])) << (8 * i);
+  }
+  return T(v);
+}
+
+/* The payload writer: arrays appended with their descriptors. (x86-64 and aarch64 are little endian;
+ * a static_assert below refuses anything else rather than writing a wrong file.) */
+struct Payload {
+  std::string bytes;
+  json arrays = json::array();
+  template<class T> void add(const std::string &name, const std::string &dtype, const std::vector<T> &v,
+                             const std::vector<size_t> &shape)
+  {
+    while (bytes.size() % kAlign) {
+      bytes.push_back('\0');
+    }
+    json d;
+    d["name"] = name;
+    d["dtype"] = dtype;
+    d["shape"] = shape;
+    d["offset"] = bytes.size();
+    d["bytes"] = v.size() * sizeof(T);
+    arrays.push_back(d);
+    bytes.append(reinterpret_cast<const char *>(v.data()), v.size() * sizeof(T));
+  }
+};
+
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "map files are little endian");
+
+std::string utc_now()
+{
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+json stats_json(const GatherStats &s)
+{
+  json j;
+  j["paths"] = s.paths;
+  j["seconds"] = s.seconds;
+  j["paths_per_second"] = s.paths_per_second();
+  j["energy_T"] = {s.energy_T[0], s.energy_T[1], s.energy_T[2]};
+  j["energy_R"] = {s.energy_R[0], s.energy_R[1], s.energy_R[2]};
+  j["energy_M"] = {s.energy_M[0], s.energy_M[1], s.energy_M[2]};
+  j["absorbed"] = {s.absorbed[0], s.absorbed[1], s.absorbed[2]};
+  j["lost"] = {s.lost[0], s.lost[1], s.lost[2]};
+  j["paths_T"] = s.paths_T;
+  j["paths_R"] = s.paths_R;
+  j["paths_M"] = s.paths_M;
+  j["paths_terminated"] = s.paths_terminated;
+  j["paths_truncated"] = s.paths_truncated;
+  j["mean_events"] = s.mean_events;
+  j["p95_events"] = s.p95_events;
+  j["max_events"] = s.max_events_seen;
+  j["slab_crossings"] = s.slab_crossings;
+  j["invalid_weights"] = s.invalid_weights;
+  j["mean_displacement_R"] = s.mean_displacement;
+  j["p95_displacement_R"] = s.p95_displacement;
+  j["mean_displacement_M_R"] = s.mean_displacement_M;
+  j["p95_displacement_M_R"] = s.p95_displacement_M;
+  /* The path-length distribution, trimmed after its last non-empty bin. */
+  size_t last = 0;
+  for (size_t i = 0; i < s.events_histogram.size(); i++) {
+    if (s.events_histogram[i]) {
+      last = i + 1;
+    }
+  }
+  j["events_histogram"] = std::vector<uint64_t>(s.events_histogram.begin(), s.events_histogram.begin() + last);
+  return j;
+}
+
+[[noreturn]] void fail(const std::string &path, const std::string &what)
+{
+  throw MapFileError("map file '" + path + "': " + what);
+}
+
+}  // namespace
+
+void save_maps(const RdmMaps &maps, const std::string &path)
+{
+  const MapResolution &b = maps.bins;
+  const size_t ti = size_t(b.theta_i), pi = size_t(b.phi_i), to = size_t(b.theta_o), po = size_t(b.phi_o);
+  Payload pl;
+  pl.add("count", "u64", maps.count, {ti, pi});
+  pl.add("p_t", "f32", maps.p_t, {ti, pi});
+  pl.add("exit_energy", "f64", maps.exit_energy, {ti, pi, 3});
+  pl.add("absorbed", "f64", maps.absorbed, {ti, pi, 3});
+  pl.add("r", "f32", maps.r, {ti, pi, to, po, 3});
+  pl.add("m", "f32", maps.m, {ti, pi, to, po, 3});
+  if (!maps.r_se.empty()) {
+    pl.add("p_t_se", "f32", maps.p_t_se, {ti, pi});
+    pl.add("r_se", "f32", maps.r_se, {ti, pi, to, po, 3});
+    pl.add("m_se", "f32", maps.m_se, {ti, pi, to, po, 3});
+  }
+
+  json h;
+  h["format"] = "neuralyarn-rdm";
+  h["version"] = kMapFileVersion;
+  h["code_version"] = std::string(kVersion) + "+" + kGitRevision;
+  h["created"] = utc_now();
+  h["preset"] = preset_to_json(maps.preset);
+  h["geometry"] = {{"R", 1.0}, {"fiber_radius", maps.fiber_radius}, {"slab_length", maps.slab_length},
+                   {"chord_sagitta_fiber_radii", maps.sagitta}, {"packing_seed", maps.seed},
+                   {"mirror_pair", true}};
+  h["gather"] = {{"paths", maps.paths}, {"seed", maps.seed}, {"symmetrized", maps.symmetrized},
+                 {"incident_sampling", "stratified: equal paths per incident bin, uniform solid angle within"}};
+  h["bins"] = {{"theta_i", b.theta_i}, {"phi_i", b.phi_i}, {"theta_o", b.theta_o}, {"phi_o", b.phi_o},
+               {"theta_i_range_deg", {0, 90}}, {"theta_o_range_deg", {0, 180}}, {"phi_range_deg", {-180, 180}}};
+  h["definitions"] = {
+      {"angles", "entry frame x = ply axis, z = outward normal, y = z cross x; theta = acos(z) from the "
+                 "normal, phi = atan2(y, x); w_i points away from the ply (toward the light)"},
+      {"p_t", "fraction of paths of the incident bin that leave without any fiber event"},
+      {"r", "f |cos theta_o| per outgoing solid angle of paths with exactly one fiber event leaving with "
+            "w_o.n > 0: sum of weights / paths of the incident bin / solid angle of the outgoing bin"},
+      {"m", "the same for all other scattered paths"},
+      {"exit_energy", "mean exit throughput per path of the incident bin (T + R + M)"},
+      {"absorbed", "mean expected absorbed energy per path of the incident bin"}};
+  h["summary"] = stats_json(maps.stats);
+  h["arrays"] = pl.arrays;
+  h["payload_bytes"] = pl.bytes.size();
+  h["payload_fnv1a64"] = hex(fnv1a(pl.bytes));
+  const std::string header = h.dump(1);
+
+  std::string head(kMagic, 8);
+  append_le<uint32_t>(head, kMapFileVersion);
+  append_le<uint64_t>(head, header.size());
+  head += header;
+
+  const fs::path target(path);
+  if (target.has_parent_path() && !fs::is_directory(target.parent_path())) {
+    fail(path, "directory '" + target.parent_path().string() + "' does not exist");
+  }
+  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) {
+      fail(path, "cannot create '" + tmp + "': " + std::strerror(errno));
+    }
+    out.write(head.data(), std::streamsize(head.size()));
+    out.write(pl.bytes.data(), std::streamsize(pl.bytes.size()));
+    out.flush();
+    if (!out) {
+      out.close();
+      std::remove(tmp.c_str());
+      fail(path, "write failed (disk full?)");
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, target, ec);
+  if (ec) {
+    std::remove(tmp.c_str());
+    fail(path, "cannot rename the temporary file into place: " + ec.message());
+  }
+}
+
+RdmMaps load_maps(const std::string &path)
+{
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    fail(path, "cannot open: " + std::string(std::strerror(errno)));
+  }
+  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (data.size() < 20 || std::memcmp(data.data(), kMagic, 8) != 0) {
+    fail(path, "not a neuralyarn RDM file (bad magic; was it transferred in text mode or truncated?)");
+  }
+  const uint32_t version = read_le<uint32_t>(data.data() + 8);
+  if (version != kMapFileVersion) {
+    fail(path, "format version " + std::to_string(version) + " is not supported (this build reads version " +
+                   std::to_string(kMapFileVersion) + ")");
+  }
+  const uint64_t hlen = read_le<uint64_t>(data.data() + 12);
+  if (hlen > data.size() - 20) {
+    fail(path, "truncated: header of " + std::to_string(hlen) + " bytes, file has " + std::to_string(data.size()));
+  }
+  json h;
+  try {
+    h = json::parse(data.substr(20, hlen));
+  }
+  catch (const json::exception &e) {
+    fail(path, std::string("corrupt header: ") + e.what());
+  }
+  const std::string payload = data.substr(20 + hlen);
+  RdmMaps maps;
+  try {
+    if (h.at("format").get<std::string>() != "neuralyarn-rdm") {
+      fail(path, "header format is not 'neuralyarn-rdm'");
+    }
+    if (h.at("payload_bytes").get<uint64_t>() != payload.size()) {
+      fail(path, "truncated or padded: payload is " + std::to_string(payload.size()) + " bytes, header says " +
+                     std::to_string(h.at("payload_bytes").get<uint64_t>()));
+    }
+    if (h.at("payload_fnv1a64").get<std::string>() != hex(fnv1a(payload))) {
+      fail(path, "corrupt: payload hash mismatch");
+    }
+    const json &b = h.at("bins");
+    maps.bins.theta_i = b.at("theta_i").get<int>();
+    maps.bins.phi_i = b.at("phi_i").get<int>();
+    maps.bins.theta_o = b.at("theta_o").get<int>();
+    maps.bins.phi_o = b.at("phi_o").get<int>();
+    if (maps.bins.theta_i < 1 || maps.bins.phi_i < 1 || maps.bins.theta_o < 1 || maps.bins.phi_o < 1 ||
+        maps.bins.theta_i > 100000 || maps.bins.phi_i > 100000 || maps.bins.theta_o > 100000 || maps.bins.phi_o > 100000) {
+      fail(path, "invalid bin counts in header");
+    }
+    maps.preset = preset_from_json(h.at("preset"), "map");
+    maps.seed = h.at("gather").at("seed").get<uint64_t>();
+    maps.paths = h.at("gather").at("paths").get<uint64_t>();
+    maps.symmetrized = h.at("gather").at("symmetrized").get<bool>();
+    maps.fiber_radius = h.at("geometry").at("fiber_radius").get<double>();
+    maps.slab_length = h.at("geometry").at("slab_length").get<double>();
+    maps.sagitta = h.at("geometry").at("chord_sagitta_fiber_radii").get<double>();
+    const json &s = h.at("summary");
+    GatherStats &st = maps.stats;
+    st.paths = s.at("paths").get<uint64_t>();
+    st.seconds = s.at("seconds").get<double>();
+    for (int c = 0; c < 3; c++) {
+      st.energy_T[c] = s.at("energy_T")[size_t(c)].get<double>();
+      st.energy_R[c] = s.at("energy_R")[size_t(c)].get<double>();
+      st.energy_M[c] = s.at("energy_M")[size_t(c)].get<double>();
+      st.absorbed[c] = s.at("absorbed")[size_t(c)].get<double>();
+      st.lost[c] = s.at("lost")[size_t(c)].get<double>();
+    }
+    st.mean_events = s.at("mean_events").get<double>();
+    st.p95_events = s.at("p95_events").get<int>();
+    st.events_histogram = s.at("events_histogram").get<std::vector<uint64_t>>();
+    st.mean_displacement = s.at("mean_displacement_R").get<double>();
+    st.p95_displacement = s.at("p95_displacement_R").get<double>();
+    st.mean_displacement_M = s.at("mean_displacement_M_R").get<double>();
+    st.p95_displacement_M = s.at("p95_displacement_M_R").get<double>();
+  }
+  catch (const MapFileError &) {
+    throw;
+  }
+  catch (const std::exception &e) {
+    fail(path, std::string("header is missing a key or has a wrong type: ") + e.what());
+  }
+
+  const size_t n_in = maps.bins.incident();
+  const size_t n_map = n_in * maps.bins.outgoing() * 3;
+  auto find = [&](const std::string &name) -> const json * {
+    for (const json &a : h.at("arrays")) {
+      if (a.at("name").get<std::string>() == name) {
+        return &a;
+      }
+    }
+    return nullptr;
+  };
+  auto read_array = [&](const std::string &name, const std::string &dtype, size_t elems, size_t elem_size,
+                        bool required, auto &out) {
+    const json *a = find(name);
+    if (!a) {
+      if (required) {
+        fail(path, "array '" + name + "' is missing");
+      }
+      return;
+    }
+    if (a->at("dtype").get<std::string>() != dtype) {
+      fail(path, "array '" + name + "' has dtype " + a->at("dtype").get<std::string>() + ", expected " + dtype);
+    }
+    size_t prod = 1;
+    for (const json &d : a->at("shape")) {
+      prod *= d.get<size_t>();
+    }
+    const uint64_t off = a->at("offset").get<uint64_t>(), len = a->at("bytes").get<uint64_t>();
+    if (prod != elems || len != elems * elem_size) {
+      fail(path, "array '" + name + "' has the wrong shape for the header's bins");
+    }
+    if (off > payload.size() || len > payload.size() - off) {
+      fail(path, "array '" + name + "' lies outside the payload");
+    }
+    out.resize(elems);
+    std::memcpy(out.data(), payload.data() + off, len);
+  };
+  try {
+    read_array("count", "u64", n_in, 8, true, maps.count);
+    read_array("p_t", "f32", n_in, 4, true, maps.p_t);
+    read_array("exit_energy", "f64", n_in * 3, 8, true, maps.exit_energy);
+    read_array("absorbed", "f64", n_in * 3, 8, true, maps.absorbed);
+    read_array("r", "f32", n_map, 4, true, maps.r);
+    read_array("m", "f32", n_map, 4, true, maps.m);
+    read_array("p_t_se", "f32", n_in, 4, false, maps.p_t_se);
+    read_array("r_se", "f32", n_map, 4, false, maps.r_se);
+    read_array("m_se", "f32", n_map, 4, false, maps.m_se);
+  }
+  catch (const MapFileError &) {
+    throw;
+  }
+  catch (const std::exception &e) {
+    fail(path, std::string("bad array descriptor: ") + e.what());
+  }
+  auto check = [&](const auto &v, const char *name) {
+    for (size_t i = 0; i < v.size(); i++) {
+      if (!(std::isfinite(double(v[i])) && v[i] >= 0)) {
+        fail(path, std::string("array '") + name + "' holds a negative or non-finite value at element " +
+                       std::to_string(i));
+      }
+    }
+  };
+  check(maps.p_t, "p_t");
+  check(maps.exit_energy, "exit_energy");
+  check(maps.absorbed, "absorbed");
+  check(maps.r, "r");
+  check(maps.m, "m");
+  return maps;
+}
+
+}  // namespace neuralyarn::rdm
