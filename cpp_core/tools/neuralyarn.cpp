@@ -182,13 +182,14 @@ void check_writable(const std::string &out)
 }
 
 int run_gather(const std::string &preset_name, const std::string &params_file, const std::string &paths_text,
-               uint64_t seed, int threads, const std::string &bins_text, bool no_symmetrize, bool variance,
+               uint64_t seed, uint64_t packing_seed, int threads, const std::string &bins_text, bool no_symmetrize, bool variance,
                bool quiet, const std::string &out)
 {
   const FiberPreset preset = resolve_preset(preset_name, params_file);
   rdm::GatherOptions opt;
   opt.paths = parse_count(paths_text);
   opt.seed = seed;
+  opt.packing_seed = packing_seed;
   opt.threads = threads;
   opt.bins = parse_bins(bins_text);
   opt.symmetrize = !no_symmetrize;
@@ -218,6 +219,8 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
   std::printf("energy R (rgb)   %s   (%llu paths)\n", rgb(s.energy_R).c_str(), (unsigned long long)s.paths_R);
   std::printf("energy M (rgb)   %s   (%llu paths)\n", rgb(s.energy_M).c_str(), (unsigned long long)s.paths_M);
   std::printf("absorbed (rgb)   %s\n", rgb(s.absorbed).c_str());
+  std::printf("balance (rgb)    %s   (exit + absorbed + lost; 1 in expectation, standard error %.1e)\n",
+              rgb(s.balance).c_str(), std::max({s.balance_se[0], s.balance_se[1], s.balance_se[2]}));
   std::printf("lost (rgb)       %s   (%llu paths cut at the event limit)\n", rgb(s.lost).c_str(),
               (unsigned long long)s.paths_truncated);
   std::printf("events per path  mean %.2f, 95th percentile %d, max %d\n", s.mean_events, s.p95_events,
@@ -264,13 +267,14 @@ int main(int argc, char **argv)
 
   auto *gather = app.add_subcommand("gather", "Trace paths through an explicit ply and write its radiance distribution maps");
   std::string g_preset = "fleece", g_params, g_paths = "1e6", g_bins = "22x90x45x90", g_out;
-  uint64_t g_seed = 1;
+  uint64_t g_seed = 1, g_packing_seed = 1;
   int g_threads = 0;
   bool g_no_sym = false, g_variance = false, g_quiet = false;
   auto *g_opt_preset = gather->add_option("--preset", g_preset, "Built-in preset name")->capture_default_str();
   gather->add_option("--params", g_params, "Fiber parameter file (JSON)")->excludes(g_opt_preset);
   gather->add_option("--paths", g_paths, "Number of paths (1e7, 10M, ...)")->capture_default_str();
-  gather->add_option("--seed", g_seed, "Seed of the packing and the paths")->capture_default_str();
+  gather->add_option("--seed", g_seed, "Seed of the paths")->capture_default_str();
+  gather->add_option("--packing-seed", g_packing_seed, "Seed of the fiber cross-section")->capture_default_str();
   gather->add_option("--threads", g_threads, "Worker threads (0: all cores); the result does not depend on it")
       ->capture_default_str();
   gather->add_option("--bins", g_bins, "Map resolution theta_i x phi_i x theta_o x phi_o")->capture_default_str();
@@ -289,7 +293,7 @@ int main(int argc, char **argv)
       return 0;
     }
     if (gather->parsed()) {
-      return run_gather(g_preset, g_params, g_paths, g_seed, g_threads, g_bins, g_no_sym, g_variance, g_quiet, g_out);
+      return run_gather(g_preset, g_params, g_paths, g_seed, g_packing_seed, g_threads, g_bins, g_no_sym, g_variance, g_quiet, g_out);
     }
     if (fiber->parsed()) {
       return run_fiber(preset_name, params_file, theta_i, phi_i, samples, seed, out);

@@ -12,6 +12,8 @@ namespace neuralyarn::rdm {
 struct EmbreePly::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
+  const float *vertices = nullptr; /* owned by the geometry, which the scene keeps alive */
+  const unsigned *indices = nullptr;
 };
 
 EmbreePly::EmbreePly(const geometry::Ply &ply, double x0, double x1, int segments_per_turn, bool mirrored)
@@ -62,6 +64,8 @@ EmbreePly::EmbreePly(const geometry::Ply &ply, double x0, double x1, int segment
       }
     }
   }
+  impl_->vertices = v;
+  impl_->indices = idx;
   rtcCommitGeometry(geom);
   rtcAttachGeometry(impl_->scene, geom);
   rtcReleaseGeometry(geom);
@@ -127,6 +131,9 @@ bool EmbreePly::intersect_once(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, 
   if (ny::dot(hit->normal, d) > 0.0f) {
     hit->normal = -hit->normal;
   }
+  const size_t v0 = impl_->indices[rh.hit.primID];
+  const float *a = impl_->vertices + 4 * v0, *b = impl_->vertices + 4 * (v0 + 1);
+  hit->tangent = ny::normalize(ny::make_vec3(b[0] - a[0], b[1] - a[1], b[2] - a[2]));
   return true;
 }
 

@@ -111,46 +111,4 @@ FiberLobeSampler::FiberLobeSampler(const ny::FiberBsdfParams &params)
 {
 }
 
-bool FiberLobeSampler::sample(Vec3 wi, float u_lobe, float u_theta, float u_phi, float u_extra, Vec3 *wo,
-                              Rgb *weight, Rgb *albedo) const
-{
-  const float theta_i = ny::theta_of(wi);
-  const Rgb F = ny::schlick_fresnel(p_.C_R, ny::cos_theta(wi));
-  const Rgb e_TT = (ny::make_rgb(1.0f) - F) * p_.C_TT;
-  *albedo = F + e_TT;
-  const float a_R = ny::average(F);
-  const float a_TT = ny::average(e_TT);
-  *weight = ny::make_rgb(0.0f);
-  if (!(a_R + a_TT > 0.0f)) {
-    return false;
-  }
-  const float p_R = a_R / (a_R + a_TT);
-  const bool choose_R = u_lobe < p_R;
-  const float beta = choose_R ? p_.beta_R : p_.beta_TT;
-  const float mu = -theta_i;
-  const ny::TruncatedNormal tn = ny::make_truncated_normal(mu, beta, -ny::kHalfPi, ny::kHalfPi);
-  const float theta_o = ny::sample_truncated_normal(tn, u_theta);
-  /* The azimuth as its sine and cosine: for TT, phi_o = phi_i + pi + delta is expanded with the angle-sum
-   * formulas from phi_i's sine and cosine (w_i's normal-plane components), saving an atan2 and a sincos. */
-  float sin_phi, cos_phi;
-  if (choose_R) {
-    sincosf(ny::kTwoPi * u_phi - ny::kPi, &sin_phi, &cos_phi);
-  }
-  else {
-    const float delta = ny::sample_von_mises(kappa_TT_, u_phi, u_extra);
-    float sd, cd;
-    sincosf(delta, &sd, &cd);
-    const float ci = ny::cos_theta(wi);
-    const float si_phi = ci > 0.0f ? wi.y / ci : 0.0f, ci_phi = ci > 0.0f ? wi.z / ci : 1.0f;
-    sin_phi = -(si_phi * cd + ci_phi * sd);
-    cos_phi = -(ci_phi * cd - si_phi * sd);
-  }
-  float sin_t, cos_t;
-  sincosf(theta_o, &sin_t, &cos_t);
-  *wo = ny::make_vec3(sin_t, cos_t * sin_phi, cos_t * cos_phi);
-  const float ratio = cos_t * cos_t * (choose_R ? ratio_R_(mu) : ratio_TT_(mu));
-  *weight = choose_R ? F * (ratio / p_R) : e_TT * (ratio / (1.0f - p_R));
-  return true;
-}
-
 }  // namespace neuralyarn::rdm

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <cstdio>
+#include <cstdlib>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -62,7 +64,8 @@ inline void atomic_add(uint64_t *target, uint64_t v)
   }
 }
 
-inline uint64_t to_fixed(float w) { return uint64_t(std::llround(double(w) * kFixedScale)); }
+/* Round to nearest (w >= 0); a cast instead of llround, which is a library call. */
+inline uint64_t to_fixed(float w) { return uint64_t(double(w) * kFixedScale + 0.5); }
 
 struct Accumulators {
   size_t n_in = 0, n_map = 0;
@@ -71,12 +74,21 @@ struct Accumulators {
   std::vector<uint64_t> exit_energy, absorbed; /* fixed point, [in][3] */
 };
 
+/* One scattered path's contribution to the R or M map (fixed point). */
+struct MapRecord {
+  size_t index;
+  uint64_t w[3], w2[3];
+  bool is_R;
+};
+
 /* Per-chunk statistics, merged into the shared ones once per chunk (integers: order-free). */
 struct LocalStats {
+  std::vector<MapRecord> records;
   std::vector<uint64_t> events;
   std::vector<uint64_t> displacement, displacement_M;
   uint64_t energy[3][3] = {}; /* [T/R/M][rgb] fixed */
   uint64_t absorbed[3] = {}, lost[3] = {};
+  double balance[3] = {}, balance_sq[3] = {}; /* per chunk in double: summed in chunk order below */
   uint64_t paths[3] = {}, terminated = 0, truncated = 0, events_total = 0, slab_crossings = 0,
            invalid = 0, disp_sum = 0, disp_sum_M = 0, disp_count = 0, disp_count_M = 0;
   int max_events = 0;
@@ -85,13 +97,18 @@ struct LocalStats {
 struct SharedStats {
   std::vector<uint64_t> events, displacement, displacement_M;
   uint64_t energy[3][3] = {}, absorbed[3] = {}, lost[3] = {};
+  std::vector<double> balance, balance_sq; /* [chunk][rgb]: combined in chunk order, so deterministic */
   uint64_t paths[3] = {}, terminated = 0, truncated = 0, events_total = 0, slab_crossings = 0,
            invalid = 0, disp_sum = 0, disp_sum_M = 0, disp_count = 0, disp_count_M = 0;
   std::atomic<int> max_events{0};
 };
 
-void merge(SharedStats &s, const LocalStats &l)
+void merge(SharedStats &s, const LocalStats &l, uint64_t chunk)
 {
+  for (int c = 0; c < 3; c++) {
+    s.balance[chunk * 3 + uint64_t(c)] = l.balance[c];
+    s.balance_sq[chunk * 3 + uint64_t(c)] = l.balance_sq[c];
+  }
   for (size_t i = 0; i < l.events.size(); i++) {
     atomic_add(&s.events[i], l.events[i]);
   }
@@ -143,6 +160,7 @@ double percentile(const std::vector<uint64_t> &hist, double q, double bin_width)
 
 struct Geometry {
   std::unique_ptr<PlyTracer> tracer[2]; /* the ply and its mirror image */
+  std::vector<double> cos_theta_edge;   /* cos of the theta_i bin edges */
 };
 
 /* One path. */
@@ -159,15 +177,16 @@ void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const Gath
   PathRng rng(opt.seed, k);
 
   /* w_i uniform in solid angle inside the bin: cos(theta) uniform, phi uniform. */
-  const double th0 = 0.5 * kPi * ti / b.theta_i, th1 = 0.5 * kPi * (ti + 1) / b.theta_i;
-  const double cos_t = std::cos(th0) + (std::cos(th1) - std::cos(th0)) * rng.uniform_double();
+  const double c0 = geo.cos_theta_edge[size_t(ti)], c1 = geo.cos_theta_edge[size_t(ti) + 1];
+  const double cos_t = c0 + (c1 - c0) * rng.uniform_double();
   const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
   const double phi = -kPi + 2.0 * kPi * (pi + rng.uniform_double()) / b.phi_i;
   const Vec3 wi_local = make_vec3(float(sin_t * std::cos(phi)), float(sin_t * std::sin(phi)), float(cos_t));
   /* Entry frame at a uniform azimuth a on the ring x = 0 (screw invariance makes one ring enough). */
-  const double a = 2.0 * kPi * rng.uniform_double();
-  const Vec3 n = make_vec3(0.0f, float(std::cos(a)), float(std::sin(a)));
-  const Vec3 ey = make_vec3(0.0f, float(std::sin(a)), float(-std::cos(a))); /* z x x */
+  double sin_a, cos_a;
+  sincos(2.0 * kPi * rng.uniform_double(), &sin_a, &cos_a);
+  const Vec3 n = make_vec3(0.0f, float(cos_a), float(sin_a));
+  const Vec3 ey = make_vec3(0.0f, float(sin_a), float(-cos_a)); /* z x x */
   const Vec3 ex = make_vec3(1.0f, 0.0f, 0.0f);
   const float R = tracer.bound_radius();
   const Vec3 wi = ex * wi_local.x + ey * wi_local.y + n * wi_local.z;
@@ -207,8 +226,8 @@ void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const Gath
     const Vec3 wi_f = ny::to_local(frame, -ray.d);
     Vec3 wo_f;
     Rgb w, albedo;
-    const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform(), u3 = rng.uniform();
-    const bool scattered = sampler.sample(wi_f, u0, u1, u2, u3, &wo_f, &w, &albedo);
+    const bool scattered = sampler.sample(wi_f, ny::make_rgb(beta[0], beta[1], beta[2]), [&rng] { return rng.uniform(); },
+                                          &wo_f, &w, &albedo);
     /* Expected absorption at this event, for the energy bookkeeping: beta (1 - albedo). */
     absorbed_fx[0] += to_fixed(beta[0] * (1.0f - albedo.r));
     absorbed_fx[1] += to_fixed(beta[1] * (1.0f - albedo.g));
@@ -255,6 +274,14 @@ void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const Gath
     atomic_add(&acc.absorbed[in_bin * 3 + size_t(c)], absorbed_fx[c]);
     ls.absorbed[c] += absorbed_fx[c];
   }
+  /* Energy balance of this path: what left + what was absorbed + what was cut off. */
+  for (int c = 0; c < 3; c++) {
+    const double out = alive ? double(beta[c]) : 0.0;
+    const double lost = (!alive && events > opt.max_events) ? double(beta[c]) : 0.0;
+    const double total = out + double(absorbed_fx[c]) * kInvFixedScale + lost;
+    ls.balance[c] += total;
+    ls.balance_sq[c] += total * total;
+  }
   ls.events[size_t(std::min(events, kEventBins - 1))]++;
   ls.events_total += uint64_t(events);
   ls.max_events = std::max(ls.max_events, events);
@@ -271,6 +298,10 @@ void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const Gath
   for (int c = 0; c < 3; c++) {
     if (!(beta[c] <= kMaxWeight)) {
       ls.invalid++;
+      if (std::getenv("NY_DEBUG_WEIGHTS")) {
+        std::fprintf(stderr, "invalid weight: path %llu events %d beta %g %g %g\n", (unsigned long long)k, events,
+                     double(beta[0]), double(beta[1]), double(beta[2]));
+      }
       return;
     }
   }
@@ -300,14 +331,41 @@ void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const Gath
   const int to = bin_of(theta_o, 0.0, kPi, b.theta_o);
   const int po = bin_of(phi_o, -kPi, kPi, b.phi_o);
   const size_t idx = (in_bin * b.outgoing() + size_t(to) * size_t(b.phi_o) + size_t(po)) * 3;
-  uint64_t *map = label == 1 ? acc.r.data() : acc.m.data();
-  uint64_t *map2 = label == 1 ? acc.r2.data() : acc.m2.data();
+  /* Deferred to the end of the chunk (flush_records), where the random writes into the large maps are
+   * issued with prefetching. */
+  MapRecord rec;
+  rec.index = idx;
+  rec.is_R = label == 1;
   for (int c = 0; c < 3; c++) {
-    atomic_add(&map[idx + size_t(c)], fx[c]);
-    if (opt.variance) {
-      atomic_add(&map2[idx + size_t(c)], to_fixed(beta[c] * beta[c]));
+    rec.w[c] = fx[c];
+    rec.w2[c] = opt.variance ? to_fixed(beta[c] * beta[c]) : 0;
+  }
+  ls.records.push_back(rec);
+}
+
+void flush_records(LocalStats &ls, Accumulators &acc, bool variance)
+{
+  constexpr size_t kAhead = 8;
+  const size_t n = ls.records.size();
+  for (size_t i = 0; i < n; i++) {
+    if (i + kAhead < n) {
+      const MapRecord &f = ls.records[i + kAhead];
+      __builtin_prefetch((f.is_R ? acc.r.data() : acc.m.data()) + f.index, 1);
+      if (variance) {
+        __builtin_prefetch((f.is_R ? acc.r2.data() : acc.m2.data()) + f.index, 1);
+      }
+    }
+    const MapRecord &r = ls.records[i];
+    uint64_t *map = r.is_R ? acc.r.data() : acc.m.data();
+    uint64_t *map2 = r.is_R ? acc.r2.data() : acc.m2.data();
+    for (int c = 0; c < 3; c++) {
+      atomic_add(&map[r.index + size_t(c)], r.w[c]);
+      if (variance) {
+        atomic_add(&map2[r.index + size_t(c)], r.w2[c]);
+      }
     }
   }
+  ls.records.clear();
 }
 
 }  // namespace
@@ -365,7 +423,7 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
   pp.rho = preset.rho;
   pp.alpha = preset.alpha;
   pp.R = 1.0;
-  const geometry::Ply ply(pp, geometry::pack_cross_section(pp, opt.seed));
+  const geometry::Ply ply(pp, geometry::pack_cross_section(pp, opt.packing_seed));
   Geometry geo;
   TracerOptions to = opt.tracer;
   to.mirrored = false;
@@ -373,6 +431,9 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
   to.mirrored = true;
   geo.tracer[1] = std::make_unique<PlyTracer>(ply, to);
   const FiberLobeSampler sampler(preset.fiber_params());
+  for (int t = 0; t <= opt.bins.theta_i; t++) {
+    geo.cos_theta_edge.push_back(std::cos(0.5 * kPi * t / opt.bins.theta_i));
+  }
 
   const MapResolution &b = opt.bins;
   Accumulators acc;
@@ -395,34 +456,41 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
 
   const uint64_t n_chunks = (opt.paths + kChunk - 1) / kChunk;
   std::atomic<uint64_t> done{0};
+  shared.balance.assign(n_chunks * 3, 0.0);
+  shared.balance_sq.assign(n_chunks * 3, 0.0);
   auto work = [&](const tbb::blocked_range<uint64_t> &range) {
-    LocalStats ls;
-    ls.events.assign(kEventBins, 0);
-    ls.displacement.assign(kDisplacementBins, 0);
-    ls.displacement_M.assign(kDisplacementBins, 0);
     for (uint64_t chunk = range.begin(); chunk != range.end(); chunk++) {
+      LocalStats ls;
+      ls.events.assign(kEventBins, 0);
+      ls.displacement.assign(kDisplacementBins, 0);
+      ls.displacement_M.assign(kDisplacementBins, 0);
       const uint64_t k0 = chunk * kChunk, k1 = std::min(opt.paths, k0 + kChunk);
+      ls.records.reserve(k1 - k0);
       for (uint64_t k = k0; k < k1; k++) {
         trace_path(geo, sampler, opt, k, acc, ls);
       }
+      flush_records(ls, acc, opt.variance);
+      merge(shared, ls, chunk);
       const uint64_t now = done.fetch_add(k1 - k0) + (k1 - k0);
       if (opt.progress) {
         opt.progress(now, opt.paths);
       }
     }
-    merge(shared, ls);
   };
   const int threads = opt.threads > 0 ? opt.threads : tbb::this_task_arena::max_concurrency();
   tbb::task_arena arena(threads);
+  const auto t_trace = std::chrono::steady_clock::now();
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_chunks, 1), work, tbb::simple_partitioner());
   });
+  const double seconds_tracing = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_trace).count();
 
   /* Finalise: fixed point -> estimates. */
   RdmMaps maps;
   maps.bins = b;
   maps.preset = preset;
   maps.seed = opt.seed;
+  maps.packing_seed = opt.packing_seed;
   maps.paths = opt.paths;
   maps.fiber_radius = geo.tracer[0]->fiber_radius();
   maps.slab_length = geo.tracer[0]->slab_length();
@@ -516,6 +584,15 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
     st.absorbed[c] = double(shared.absorbed[c]) * kInvFixedScale / np;
     st.lost[c] = double(shared.lost[c]) * kInvFixedScale / np;
   }
+  for (int c = 0; c < 3; c++) {
+    double sum = 0.0, sq = 0.0;
+    for (uint64_t k = 0; k < n_chunks; k++) {
+      sum += shared.balance[k * 3 + uint64_t(c)];
+      sq += shared.balance_sq[k * 3 + uint64_t(c)];
+    }
+    st.balance[c] = sum / np;
+    st.balance_se[c] = std::sqrt(std::max(0.0, sq / np - st.balance[c] * st.balance[c]) / np);
+  }
   st.paths_T = shared.paths[0];
   st.paths_R = shared.paths[1];
   st.paths_M = shared.paths[2];
@@ -533,6 +610,7 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
   st.p95_displacement = percentile(shared.displacement, 0.95, kDisplacementBin);
   st.p95_displacement_M = percentile(shared.displacement_M, 0.95, kDisplacementBin);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  st.seconds_tracing = seconds_tracing;
   return maps;
 }
 

@@ -97,12 +97,15 @@ json stats_json(const GatherStats &s)
   json j;
   j["paths"] = s.paths;
   j["seconds"] = s.seconds;
+  j["seconds_tracing"] = s.seconds_tracing;
   j["paths_per_second"] = s.paths_per_second();
   j["energy_T"] = {s.energy_T[0], s.energy_T[1], s.energy_T[2]};
   j["energy_R"] = {s.energy_R[0], s.energy_R[1], s.energy_R[2]};
   j["energy_M"] = {s.energy_M[0], s.energy_M[1], s.energy_M[2]};
   j["absorbed"] = {s.absorbed[0], s.absorbed[1], s.absorbed[2]};
   j["lost"] = {s.lost[0], s.lost[1], s.lost[2]};
+  j["energy_balance"] = {s.balance[0], s.balance[1], s.balance[2]};
+  j["energy_balance_se"] = {s.balance_se[0], s.balance_se[1], s.balance_se[2]};
   j["paths_T"] = s.paths_T;
   j["paths_R"] = s.paths_R;
   j["paths_M"] = s.paths_M;
@@ -159,7 +162,7 @@ void save_maps(const RdmMaps &maps, const std::string &path)
   h["created"] = utc_now();
   h["preset"] = preset_to_json(maps.preset);
   h["geometry"] = {{"R", 1.0}, {"fiber_radius", maps.fiber_radius}, {"slab_length", maps.slab_length},
-                   {"chord_sagitta_fiber_radii", maps.sagitta}, {"packing_seed", maps.seed},
+                   {"chord_sagitta_fiber_radii", maps.sagitta}, {"packing_seed", maps.packing_seed},
                    {"mirror_pair", true}};
   h["gather"] = {{"paths", maps.paths}, {"seed", maps.seed}, {"symmetrized", maps.symmetrized},
                  {"incident_sampling", "stratified: equal paths per incident bin, uniform solid angle within"}};
@@ -264,6 +267,7 @@ RdmMaps load_maps(const std::string &path)
     maps.seed = h.at("gather").at("seed").get<uint64_t>();
     maps.paths = h.at("gather").at("paths").get<uint64_t>();
     maps.symmetrized = h.at("gather").at("symmetrized").get<bool>();
+    maps.packing_seed = h.at("geometry").at("packing_seed").get<uint64_t>();
     maps.fiber_radius = h.at("geometry").at("fiber_radius").get<double>();
     maps.slab_length = h.at("geometry").at("slab_length").get<double>();
     maps.sagitta = h.at("geometry").at("chord_sagitta_fiber_radii").get<double>();

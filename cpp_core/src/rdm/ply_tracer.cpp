@@ -38,6 +38,8 @@ PlyTracer::PlyTracer(const geometry::Ply &ply, const TracerOptions &options)
   /* Chords in double, then stored in float. */
   const int N = ply.num_fibers();
   fibers_.resize(size_t(N));
+  std::vector<Eigen::Vector4d> capsule(static_cast<size_t>(N)); /* projected chord (y0, z0, y1, z1) */
+  std::vector<double> capsule_radius(static_cast<size_t>(N));
   std::vector<float> ymin(static_cast<size_t>(N)), ymax(static_cast<size_t>(N)), zmin(static_cast<size_t>(N)),
       zmax(static_cast<size_t>(N));
   for (int i = 0; i < N; i++) {
@@ -56,6 +58,8 @@ PlyTracer::PlyTracer(const geometry::Ply &ply, const TracerOptions &options)
     /* Projected tube: capsule around the projected chord with radius r / cos(tilt). Slightly inflated so
      * that float rounding in the DDA can never lose a candidate. */
     const double rp = r / std::max(std::abs(axis.x()), 1e-6) * 1.001 + 1e-6 * R;
+    capsule[size_t(i)] = Eigen::Vector4d(p0.y(), p0.z(), p1.y(), p1.z());
+    capsule_radius[size_t(i)] = rp;
     ymin[size_t(i)] = float(std::min(p0.y(), p1.y()) - rp);
     ymax[size_t(i)] = float(std::max(p0.y(), p1.y()) + rp);
     zmin[size_t(i)] = float(std::min(p0.z(), p1.z()) - rp);
@@ -107,14 +111,26 @@ PlyTracer::PlyTracer(const geometry::Ply &ply, const TracerOptions &options)
     for (int i = 0; i < N; i++) {
       const int y0 = cell_index(ymin[size_t(i)]), y1 = cell_index(ymax[size_t(i)]);
       const int z0 = cell_index(zmin[size_t(i)]), z1 = cell_index(zmax[size_t(i)]);
+      const Eigen::Vector4d &cap = capsule[size_t(i)];
+      const Eigen::Vector2d s0(cap[0], cap[1]), s1(cap[2], cap[3]);
+      const double half_diagonal = 0.5 * std::sqrt(2.0) * double(cell_);
       for (int iz = z0; iz <= z1; iz++) {
         for (int iy = y0; iy <= y1; iy++) {
+          /* Only cells the capsule can touch: centre within capsule radius + half the cell diagonal of the
+           * projected chord (conservative). */
+          const Eigen::Vector2d centre((iy + 0.5) * double(cell_) - double(bound_), (iz + 0.5) * double(cell_) - double(bound_));
+          const Eigen::Vector2d seg = s1 - s0;
+          const double len2 = seg.squaredNorm();
+          const double t = len2 > 0.0 ? std::clamp((centre - s0).dot(seg) / len2, 0.0, 1.0) : 0.0;
+          if ((centre - (s0 + t * seg)).norm() > capsule_radius[size_t(i)] + half_diagonal) {
+            continue;
+          }
           const size_t c = size_t(iz) * size_t(n_) + size_t(iy);
           if (pass == 0) {
             count[c]++;
           }
           else {
-            items_[fill[c]++] = i;
+            items_[fill[c]++] = CellItem{fibers_[size_t(i)], i, 0.0f};
           }
         }
       }
@@ -201,6 +217,23 @@ Vec3 PlyTracer::far_side(int fiber, Vec3 p, Vec3 d) const
 bool PlyTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const
 {
   float travelled = 0.0f;
+  /* Leaving the bounding cylinder (the origin is inside or on it): the far root. Slab crossings rotate the
+   * ray about the axis, which keeps its distance to the cylinder: computed once, counted down. */
+  float t_cyl = kInf;
+  {
+    const Vec3 o = ray->o, d = ray->d;
+    const float a2 = d.y * d.y + d.z * d.z;
+    if (a2 > 0.0f) {
+      const float b = o.y * d.y + o.z * d.z;
+      const float c = o.y * o.y + o.z * o.z - bound_ * bound_;
+      const float disc = std::max(b * b - a2 * c, 0.0f);
+      const float q = -b + std::copysign(std::sqrt(disc), -b);
+      /* roots q / a2 and c / q; the far one is the larger. */
+      const float t1 = q / a2;
+      const float t2 = (q != 0.0f) ? c / q : 0.0f;
+      t_cyl = std::max(std::max(t1, t2), 0.0f);
+    }
+  }
   for (;;) {
     const Vec3 o = ray->o;
     const Vec3 d = ray->d;
@@ -213,26 +246,13 @@ bool PlyTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit
       t_slab = -o.x / d.x;
     }
     t_slab = std::max(t_slab, 0.0f);
-    /* Leaving the bounding cylinder (the origin is inside or on it): far root. */
-    const float a2 = d.y * d.y + d.z * d.z;
-    float t_cyl = kInf;
-    if (a2 > 0.0f) {
-      const float b = o.y * d.y + o.z * d.z;
-      const float c = o.y * o.y + o.z * o.z - bound_ * bound_;
-      const float disc = std::max(b * b - a2 * c, 0.0f);
-      const float q = -b + std::copysign(std::sqrt(disc), -b);
-      /* roots q / a2 and c / q; the far one is the larger. */
-      const float t1 = q / a2;
-      const float t2 = (q != 0.0f) ? c / q : 0.0f;
-      t_cyl = std::max(std::max(t1, t2), 0.0f);
-    }
     const float t_end = std::min(t_slab, t_cyl);
 
     /* 2D DDA over the cells under the (y, z) projection for t in [0, t_end]. */
     float best = std::min(t_end, kInf);
     int best_fiber = -1;
-    int iy = std::clamp(int(std::floor((o.y + bound_) * inv_cell_)), 0, n_ - 1);
-    int iz = std::clamp(int(std::floor((o.z + bound_) * inv_cell_)), 0, n_ - 1);
+    int iy = std::clamp(int((o.y + bound_) * inv_cell_), 0, n_ - 1); /* >= 0 up to rounding: cast = floor */
+    int iz = std::clamp(int((o.z + bound_) * inv_cell_), 0, n_ - 1);
     const int step_y = d.y > 0.0f ? 1 : -1;
     const int step_z = d.z > 0.0f ? 1 : -1;
     const float inv_dy = d.y != 0.0f ? 1.0f / d.y : kInf;
@@ -244,8 +264,8 @@ bool PlyTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit
     for (;;) {
       const size_t c = size_t(iz) * size_t(n_) + size_t(iy);
       for (uint32_t k = start_[c]; k < start_[c + 1]; k++) {
-        const int f = items_[k];
-        const float t = intersect_tube(fibers_[size_t(f)], o, d);
+        const int f = items_[k].fiber;
+        const float t = intersect_tube(items_[k].tube, o, d);
         if (!(t < best)) {
           continue;
         }
@@ -298,6 +318,7 @@ bool PlyTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit
     }
     /* Into the neighbouring slab: re-enter the canonical slab through the opposite face. */
     travelled += t_slab;
+    t_cyl = std::max(t_cyl - t_slab, 0.0f);
     Vec3 p = o + d * t_slab;
     if (d.x > 0.0f) {
       p.x = 0.0f;

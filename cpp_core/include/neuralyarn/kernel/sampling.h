@@ -65,8 +65,10 @@ NY_KERNEL_FN TruncatedNormal make_truncated_normal(float mu, float sigma, float 
   tn.sigma = sigma;
   tn.za = (a - mu) / sigma;
   tn.zb = (b - mu) / sigma;
-  tn.lower = normal_cdf(tn.za);
-  tn.upper = normal_ccdf(tn.zb);
+  /* A tail beyond 9 sigma (mass < 1.2e-19) is below float resolution next to the smallest mass the
+   * inverse CDF ever asks for (u >= 2^-32 times the mass): it is exactly 0 then, and erfc is skipped. */
+  tn.lower = tn.za < -9.0f ? 0.0f : normal_cdf(tn.za);
+  tn.upper = tn.zb > 9.0f ? 0.0f : normal_ccdf(tn.zb);
   if (tn.za >= 0.0f) {
     tn.mass = normal_ccdf(tn.za) - tn.upper;
   }
@@ -147,12 +149,17 @@ NY_KERNEL_FN float von_mises_pdf(float delta, float kappa)
  * u_angle in [0, 1) supplies the sign (its first half) and U (rescaled); u_accept in [0, 1) is the first
  * acceptance variate. Further variates, needed after a rejection (probability < 0.35 per round), come
  * from the hash chain. */
-NY_KERNEL_FN float sample_von_mises(float kappa, float u_angle, float u_accept)
+/* The sampler's core: returns t = tan(theta / 2) of the sampled angle theta in (-pi, pi], from which
+ * callers form theta = 2 atan(t) or, without any inverse trigonometry, sin(theta) = 2t / (1 + t^2) and
+ * cos(theta) = (1 - t^2) / (1 + t^2). (For kappa below kVonMisesUniformKappa the angle is uniform and t
+ * = tan(pi u / 2) as well.) */
+NY_KERNEL_FN float sample_von_mises_half_tan(float kappa, float u_angle, float u_accept)
 {
   const bool negative = u_angle < 0.5f;
   float u = negative ? 2.0f * u_angle : 2.0f * u_angle - 1.0f;
   if (kappa < kVonMisesUniformKappa) {
-    return negative ? -kPi * u : kPi * u;
+    const float t = tanf(0.5f * kPi * u);
+    return negative ? -t : t;
   }
 
   /* tau = 1 + sqrt(1 + 4 kappa^2), b = (tau - sqrt(2 tau)) / (2 kappa). With
@@ -167,20 +174,24 @@ NY_KERNEL_FN float sample_von_mises(float kappa, float u_angle, float u_accept)
 
   uint32_t chain = hash_pcg(float_bits(u_angle) ^ hash_pcg(float_bits(u_accept) + 0x9e3779b9u));
   float v = u_accept;
-  float half_theta = 0.0f;
+  float t = 0.0f;
   /* 64 rounds fail with probability < 0.35^64 ~ 1e-29; the last proposal is then returned. */
   for (int round = 0; round < 64; round++) {
-    half_theta = atanf(c * tanf(0.5f * kPi * u));
-    const float sh = sinf(half_theta);
-    const float y = kappa * (r_minus_1 + 2.0f * sh * sh);
+    t = c * tanf(0.5f * kPi * u);
+    const float sh2 = t * t / (1.0f + t * t); /* sin^2(theta / 2) */
+    const float y = kappa * (r_minus_1 + 2.0f * sh2);
     if (y * (2.0f - y) - v > 0.0f || logf(y / v) + 1.0f - y >= 0.0f) {
       break;
     }
     u = hash_next_uniform(&chain);
     v = hash_next_uniform(&chain);
   }
-  const float theta = 2.0f * half_theta;
-  return negative ? -theta : theta;
+  return negative ? -t : t;
+}
+
+NY_KERNEL_FN float sample_von_mises(float kappa, float u_angle, float u_accept)
+{
+  return 2.0f * atanf(sample_von_mises_half_tan(kappa, u_angle, u_accept));
 }
 
 /* ------------------------------------------------------------------------------------------------ */

@@ -15,7 +15,8 @@ namespace neuralyarn::rdm {
 struct EmbreeHit {
   float t = 0.0f;
   int fiber = -1;
-  ny::Vec3 normal; /* geometric normal, unit, facing against the ray */
+  ny::Vec3 normal;  /* geometric normal, unit, facing against the ray */
+  ny::Vec3 tangent; /* unit direction of the hit segment (the fiber tangent, +x-ward) */
 };
 
 class EmbreePly {

@@ -2,7 +2,7 @@
 //
 // The fiber BSDF sampled the way a random walk wants it: the one-sample lobe estimator.
 //
-// Pick lobe k in {R, TT} with probability p_k (the kernel's p_R), draw w_o from that lobe's sampling
+// Pick lobe k in {R, TT} with probability p_k proportional to its energy weighted by the path's throughput, draw w_o from that lobe's sampling
 // density alone (truncated normal TN_k in theta_o, uniform or von Mises in phi_o) and return the weight
 //
 //     weight = e_k / p_k * cos^2(theta_o) * Z_k(mu) / G_k(mu),       mu = -theta_i,
@@ -13,13 +13,21 @@
 // without evaluating the other lobe. (Its weight is not eval / pdf, so a renderer that combines BSDF and
 // light sampling by MIS must keep using ny::fiber_sample.)
 //
+// Where the acceptance rate E_TN[cos^2 theta] = G_k / Z_k is at least kRejectionMinAcceptance (every
+// event except those with w_i within a few beta of the fiber axis), theta_o is instead drawn exactly from
+// gbar_k cos^2 by rejection (propose from TN_k, accept with probability cos^2 theta_o), and the weight is
+// the constant e_k / p_k: the cos^2 factor would otherwise multiply into the throughput at every event
+// and, over the tens of events of a high-albedo walk (cotton), dominate the variance of the maps. Both
+// branches are unbiased, and which one runs depends on w_i only.
+//
 // Z_k / G_k = 1 / E_TN[cos^2 theta] depends on mu and beta_k only. Computing G_k per event costs up to 32
 // exp + 32 cos (the Gauss-Legendre branch, taken whenever mu is within 6 beta of a pole: most events), so
 // the sampler tabulates Z/G over |mu| in [0, pi/2] once per preset, in double precision, and interpolates
-// it with a cubic (Catmull-Rom) spline: relative error below 1e-6 (tests/cpp/test_rdm.cpp), far below
+// it with a cubic (Catmull-Rom) spline on 8192 intervals: relative error below 2e-5 (tests/cpp/test_rdm.cpp), far below
 // the Monte Carlo noise of any map. docs/benchmarks.md has the speed-up.
 #pragma once
 
+#include <cmath>
 #include <vector>
 
 #include "neuralyarn/kernel/fiber_bsdf.h"
@@ -29,7 +37,7 @@ namespace neuralyarn::rdm {
 /* Z(mu) / G(mu) for one longitudinal width beta (radians), tabulated over |mu| in [0, pi/2]. */
 class CosSquaredRatioTable {
  public:
-  explicit CosSquaredRatioTable(double beta, int intervals = 2048);
+  explicit CosSquaredRatioTable(double beta, int intervals = 8192);
   float operator()(float mu) const;
   /* The exact value in double precision (what the table stores at its nodes). */
   static double exact(double mu, double beta);
@@ -40,21 +48,96 @@ class CosSquaredRatioTable {
   int intervals_ = 0;
 };
 
+constexpr float kRejectionMinAcceptance = 0.2f;
+constexpr int kRejectionMaxRounds = 64;
+
 class FiberLobeSampler {
  public:
   explicit FiberLobeSampler(const ny::FiberBsdfParams &params);
 
-  /* Samples w_o for w_i (both in the fiber frame, pointing away from the fiber) from four uniform numbers.
-   * Returns false (zero weight) when the fiber scatters nothing; *albedo receives F + (1 - F) C_TT. */
-  bool sample(ny::Vec3 wi, float u_lobe, float u_theta, float u_phi, float u_extra, ny::Vec3 *wo,
-              ny::Rgb *weight, ny::Rgb *albedo) const;
+  /* Samples w_o for w_i (both in the fiber frame, pointing away from the fiber); `uniform()` returns
+   * numbers in [0, 1). Returns false (zero weight) when the fiber scatters nothing; *albedo receives
+   * F + (1 - F) C_TT. */
+  template<class Uniform>
+  bool sample(ny::Vec3 wi, ny::Rgb throughput, Uniform &&uniform, ny::Vec3 *wo, ny::Rgb *weight,
+              ny::Rgb *albedo) const;
 
   const ny::FiberBsdfParams &params() const { return p_; }
+  /* Z / G of lobe R or TT at mu = -theta_i. */
+  float ratio(bool lobe_R, float mu) const { return lobe_R ? ratio_R_(mu) : ratio_TT_(mu); }
 
  private:
   ny::FiberBsdfParams p_;
   float kappa_TT_;
   CosSquaredRatioTable ratio_R_, ratio_TT_;
 };
+
+template<class Uniform>
+bool FiberLobeSampler::sample(ny::Vec3 wi, ny::Rgb throughput, Uniform &&uniform, ny::Vec3 *wo, ny::Rgb *weight,
+                              ny::Rgb *albedo) const
+{
+  const float theta_i = ny::theta_of(wi);
+  const float cos_i = ny::cos_theta(wi);
+  const ny::Rgb F = ny::schlick_fresnel(p_.C_R, cos_i);
+  const ny::Rgb e_TT = (ny::make_rgb(1.0f) - F) * p_.C_TT;
+  *albedo = F + e_TT;
+  /* Lobe energies weighted by the path's throughput: then the channel sum of the throughput can never grow
+   * (sum_c beta_c e_kc / p_k = <beta, albedo>), however differently the lobes are coloured. With the plain
+   * channel mean, a blue-heavy path meeting blue-heavy TT events (cotton) multiplies its blue weight by
+   * ~2 per event without bound. */
+  float a_R = throughput.r * F.r + throughput.g * F.g + throughput.b * F.b;
+  float a_TT = throughput.r * e_TT.r + throughput.g * e_TT.g + throughput.b * e_TT.b;
+  if (!(a_R + a_TT > 0.0f)) {
+    a_R = ny::average(F);
+    a_TT = ny::average(e_TT);
+  }
+  *weight = ny::make_rgb(0.0f);
+  if (!(a_R + a_TT > 0.0f)) {
+    return false;
+  }
+  const float p_R = a_R / (a_R + a_TT);
+  const bool choose_R = uniform() < p_R;
+  const float beta = choose_R ? p_.beta_R : p_.beta_TT;
+  const float mu = -theta_i;
+  const ny::TruncatedNormal tn = ny::make_truncated_normal(mu, beta, -ny::kHalfPi, ny::kHalfPi);
+  const float zg = ratio(choose_R, mu); /* Z / G = 1 / acceptance */
+  const ny::Rgb lobe_weight = choose_R ? F * (1.0f / p_R) : e_TT * (1.0f / (1.0f - p_R));
+
+  float theta_o = 0.0f, sin_t = 0.0f, cos_t = 1.0f;
+  bool exact = false;
+  if (zg * kRejectionMinAcceptance <= 1.0f) {
+    for (int round = 0; round < kRejectionMaxRounds && !exact; round++) {
+      theta_o = ny::sample_truncated_normal(tn, uniform());
+      sincosf(theta_o, &sin_t, &cos_t);
+      exact = uniform() < cos_t * cos_t;
+    }
+  }
+  float factor = 1.0f;
+  if (!exact) {
+    /* Weighted branch (or, with probability < 0.8^64, a rejection loop that ran out): a fresh TN sample. */
+    theta_o = ny::sample_truncated_normal(tn, uniform());
+    sincosf(theta_o, &sin_t, &cos_t);
+    factor = cos_t * cos_t * zg;
+  }
+
+  /* The azimuth as its sine and cosine: for TT, phi_o = phi_i + pi + delta is expanded with the angle-sum
+   * formulas from phi_i's sine and cosine (w_i's normal-plane components), saving an atan2 and a sincos. */
+  float sin_phi, cos_phi;
+  if (choose_R) {
+    sincosf(ny::kTwoPi * uniform() - ny::kPi, &sin_phi, &cos_phi);
+  }
+  else {
+    const float u1 = uniform(), u2 = uniform();
+    const float t = ny::sample_von_mises_half_tan(kappa_TT_, u1, u2);
+    const float inv = 1.0f / (1.0f + t * t);
+    const float sd = 2.0f * t * inv, cd = (1.0f - t * t) * inv; /* sin, cos of the deviation delta */
+    const float si_phi = cos_i > 0.0f ? wi.y / cos_i : 0.0f, ci_phi = cos_i > 0.0f ? wi.z / cos_i : 1.0f;
+    sin_phi = -(si_phi * cd + ci_phi * sd);
+    cos_phi = -(ci_phi * cd - si_phi * sd);
+  }
+  *wo = ny::make_vec3(sin_t, cos_t * sin_phi, cos_t * cos_phi);
+  *weight = lobe_weight * factor;
+  return true;
+}
 
 }  // namespace neuralyarn::rdm

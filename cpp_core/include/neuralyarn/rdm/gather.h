@@ -41,7 +41,8 @@ struct MapResolution {
 
 struct GatherOptions {
   uint64_t paths = 10'000'000;
-  uint64_t seed = 1;       /* seeds the packing and every path                                   */
+  uint64_t seed = 1;       /* seeds every path                                                   */
+  uint64_t packing_seed = 1; /* seeds the fiber cross-section (the geometry)                    */
   int threads = 0;         /* 0: all cores                                                       */
   MapResolution bins;
   bool symmetrize = true;  /* average each bin with its image under the 180-degree rotation      */
@@ -56,10 +57,13 @@ struct GatherOptions {
  * to 1 in expectation. */
 struct GatherStats {
   uint64_t paths = 0;
-  double seconds = 0.0;
+  double seconds = 0.0;         /* wall time of gather(): packing, allocation, tracing, finalisation */
+  double seconds_tracing = 0.0; /* of which tracing the paths                                       */
   double energy_T[3] = {0, 0, 0}, energy_R[3] = {0, 0, 0}, energy_M[3] = {0, 0, 0};
   double absorbed[3] = {0, 0, 0}; /* expected energy absorbed at the events, per path  */
   double lost[3] = {0, 0, 0};     /* energy of paths that hit max_events                */
+  /* Per path, exit weight + absorbed + lost has expectation exactly 1: its mean and standard error. */
+  double balance[3] = {0, 0, 0}, balance_se[3] = {0, 0, 0};
   uint64_t paths_T = 0, paths_R = 0, paths_M = 0, paths_terminated = 0, paths_truncated = 0;
   std::vector<uint64_t> events_histogram; /* [e] = paths with e events (last bin: that many or more) */
   double mean_events = 0.0;
@@ -75,7 +79,7 @@ struct GatherStats {
 struct RdmMaps {
   MapResolution bins;
   FiberPreset preset;
-  uint64_t seed = 0, paths = 0;
+  uint64_t seed = 0, packing_seed = 0, paths = 0;
   bool symmetrized = false;
   double fiber_radius = 0.0, slab_length = 0.0, sagitta = 0.0; /* ply radius R = 1 */
   std::vector<uint64_t> count;    /* [theta_i][phi_i]: paths                                    */

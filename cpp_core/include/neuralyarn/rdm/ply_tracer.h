@@ -111,7 +111,13 @@ class PlyTracer {
   int n_ = 1;
   float cell_ = 1.0f, inv_cell_ = 1.0f;
   std::vector<uint32_t> start_;
-  std::vector<int32_t> items_;
+  /* A cell's tubes are stored inline (32 bytes each), saving the indirection through fibers_. */
+  struct CellItem {
+    Tube tube;
+    int32_t fiber;
+    float pad;
+  };
+  std::vector<CellItem> items_;
 };
 
 }  // namespace neuralyarn::rdm

@@ -1,0 +1,752 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// The RDM gatherer against independent references:
+//   * the lobe sampler against quadrature of the kernel's eval (unbiasedness);
+//   * PlyTracer against brute force over every fiber, and P(T) against straight rays through Embree;
+//   * the R map against next-event estimation with Embree (an estimator that never samples a direction);
+//   * energy bookkeeping, symmetry, determinism across threads, agreement of independent halves;
+//   * the map file's round trip and its corruption errors.
+// Statistical comparisons use fixed seeds and a chi^2 over all compared numbers with p > 1e-4 (a correct
+// implementation fails one such test with probability 1e-4; the seeds are fixed, so a pass is stable).
+#include <gtest/gtest.h>
+
+#include <boost/math/distributions/chi_squared.hpp>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "neuralyarn/geometry/ply.h"
+#include "neuralyarn/kernel/fiber_bsdf.h"
+#include "neuralyarn/presets.h"
+#include "neuralyarn/rdm/embree_ply.h"
+#include "neuralyarn/rdm/fiber_lobe_sampler.h"
+#include "neuralyarn/rdm/gather.h"
+#include "neuralyarn/rdm/map_file.h"
+#include "neuralyarn/rdm/ply_tracer.h"
+#include "quadrature.h"
+
+using namespace neuralyarn;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+
+/* Accumulates z-scores; p-value of their sum of squares against chi^2(n). */
+struct ZTest {
+  double chi2 = 0.0;
+  int n = 0;
+  double worst = 0.0;
+  void add(double a, double b, double se)
+  {
+    if (!(se > 0.0)) {
+      return;
+    }
+    const double z = (a - b) / se;
+    chi2 += z * z;
+    n++;
+    worst = std::max(worst, std::abs(z));
+  }
+  double p_value() const
+  {
+    if (n == 0) {
+      return 0.0;
+    }
+    return boost::math::cdf(boost::math::complement(boost::math::chi_squared(n), chi2));
+  }
+  std::string report() const
+  {
+    return "chi2 " + std::to_string(chi2) + " over " + std::to_string(n) + " values, worst |z| " +
+           std::to_string(worst) + ", p " + std::to_string(p_value());
+  }
+};
+
+geometry::Ply make_ply(const FiberPreset &p, uint64_t seed = 1)
+{
+  geometry::PlyParams pp{p.N, p.rho, p.alpha, 1.0};
+  return geometry::Ply(pp, geometry::pack_cross_section(pp, seed));
+}
+
+rdm::GatherOptions small_options(uint64_t paths, rdm::MapResolution bins, bool symmetrize, bool variance)
+{
+  rdm::GatherOptions o;
+  o.paths = paths;
+  o.bins = bins;
+  o.symmetrize = symmetrize;
+  o.variance = variance;
+  o.threads = 2;
+  return o;
+}
+
+}  // namespace
+
+/* ------------------------------------------------------------------------------------------------ */
+/* The fiber lobe sampler.                                                                            */
+/* ------------------------------------------------------------------------------------------------ */
+
+TEST(FiberLobeSampler, RatioTableMatchesExactAndKernel)
+{
+  for (double beta_deg : {1.0, 2.141, 7.238, 10.0, 27.197, 38.0}) {
+    const double beta = beta_deg * kDeg;
+    const rdm::CosSquaredRatioTable table(beta);
+    double worst_table = 0.0, worst_kernel = 0.0;
+    for (int i = 0; i <= 10007; i++) {
+      const double mu = -kPi / 2 + kPi * i / 10007.0;
+      const double exact = rdm::CosSquaredRatioTable::exact(mu, beta);
+      worst_table = std::max(worst_table, std::abs(double(table(float(mu))) / exact - 1.0));
+      /* The kernel's float normaliser and truncated-normal mass: an independent implementation. */
+      const ny::TruncatedNormal tn = ny::make_truncated_normal(float(mu), float(beta), -ny::kHalfPi, ny::kHalfPi);
+      const double kernel = double(tn.mass) / double(ny::cos2_gaussian_normalizer(float(mu), float(beta)));
+      worst_kernel = std::max(worst_kernel, std::abs(kernel / exact - 1.0));
+    }
+    /* Catmull-Rom on 8192 intervals; the worst case is beta = 1 degree next to the pole. */
+    EXPECT_LT(worst_table, 2e-5) << "beta " << beta_deg;
+    EXPECT_LT(worst_kernel, 2e-4) << "beta " << beta_deg << " (float kernel)";
+  }
+}
+
+/* E[weight h(w_o)] = integral of eval h for test functions h, per channel, at incidences that take the
+ * rejection branch and the weighted branch, with neutral and coloured path throughputs. */
+TEST(FiberLobeSampler, UnbiasedAgainstQuadrature)
+{
+  ZTest zt;
+  std::mt19937_64 rng(2024);
+  auto uniform = [&rng] { return float(rng() >> 40) * (1.0f / 16777216.0f); };
+  const std::function<double(ny::Vec3)> hs[] = {
+      [](ny::Vec3) { return 1.0; },
+      [](ny::Vec3 w) { return double(w.x); },
+      [](ny::Vec3 w) { return double(w.y); },
+      [](ny::Vec3 w) { return double(w.z); },
+      [](ny::Vec3 w) { return double(w.x * w.x); },
+      [](ny::Vec3 w) { return w.z > 0.5f ? 1.0 : 0.0; },
+  };
+  constexpr int kH = 6;
+  for (const char *name : {"fleece", "cotton", "silk", "polyester"}) {
+    const ny::FiberBsdfParams params = find_preset(name).fiber_params();
+    const rdm::FiberLobeSampler sampler(params);
+    for (double th : {0.0, 40.0, 80.0, 88.5}) {
+      for (int tp = 0; tp < 2; tp++) {
+        const ny::Vec3 wi = ny::direction_from_angles(float(th * kDeg), 0.7f);
+        const ny::Rgb throughput = tp == 0 ? ny::make_rgb(1.0f) : ny::make_rgb(0.1f, 0.5f, 1.0f);
+        /* Reference by quadrature with breakpoints at the lobes. */
+        std::vector<double> tb, pb;
+        for (double beta : {double(params.beta_R), double(params.beta_TT)}) {
+          for (double k : {-9.0, -6.0, -3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0, 6.0, 9.0}) {
+            tb.push_back(-th * kDeg + k * beta);
+          }
+        }
+        for (double k : {-6.0, -3.0, -1.0, 0.0, 1.0, 3.0, 6.0}) {
+          pb.push_back(std::remainder(0.7 + kPi + k * params.gamma_TT, 2 * kPi));
+        }
+        pb.push_back(std::acos(0.5)); /* the step of the last test function (w.z > 0.5 at theta = 0) */
+        pb.push_back(-std::acos(0.5));
+        const auto ref = nytest::integrate_2d_fixed<3 * kH>(
+            [&](double t, double p) {
+              const ny::Vec3 wo = ny::direction_from_angles(float(t), float(p));
+              float pdf;
+              const ny::Rgb f = ny::fiber_eval(params, wi, wo, &pdf);
+              std::array<double, 3 * kH> v{};
+              for (int h = 0; h < kH; h++) {
+                const double hv = hs[h](wo) * std::cos(t);
+                v[size_t(3 * h)] = f.r * hv;
+                v[size_t(3 * h + 1)] = f.g * hv;
+                v[size_t(3 * h + 2)] = f.b * hv;
+              }
+              return v;
+            },
+            nytest::breakpoints(tb, -kPi / 2, kPi / 2, 0.25), nytest::breakpoints(pb, -kPi, kPi, 0.5));
+        const int n = 100000;
+        std::array<double, 3 * kH> sum{}, sq{};
+        for (int i = 0; i < n; i++) {
+          ny::Vec3 wo;
+          ny::Rgb w, albedo;
+          ASSERT_TRUE(sampler.sample(wi, throughput, uniform, &wo, &w, &albedo));
+          const float ch[3] = {w.r, w.g, w.b};
+          for (int h = 0; h < kH; h++) {
+            const double hv = hs[h](wo);
+            for (int c = 0; c < 3; c++) {
+              const double x = double(ch[c]) * hv;
+              sum[size_t(3 * h + c)] += x;
+              sq[size_t(3 * h + c)] += x * x;
+            }
+          }
+        }
+        for (size_t k = 0; k < sum.size(); k++) {
+          const double mean = sum[k] / n;
+          const double se = std::sqrt(std::max(0.0, sq[k] / n - mean * mean) / n);
+          /* The sample standard error is useless for rare events (an indicator of mass 1e-4 may get no
+           * sample at all): floor it by the Poisson bound sqrt(w_max |ref| / n), weights being < 3. */
+          const double floor_se = std::sqrt(3.0 * std::abs(ref[k]) / n) + 1e-9;
+          zt.add(mean, ref[k], std::max(se, floor_se));
+          if (std::getenv("NY_TEST_DEBUG")) {
+            std::printf("%s th %g tp %d k %zu: mc %.5f ref %.5f se %.5f\n", name, th, tp, k, mean, ref[k], se);
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(zt.p_value(), 1e-4) << zt.report();
+}
+
+/* ------------------------------------------------------------------------------------------------ */
+/* The tracer.                                                                                        */
+/* ------------------------------------------------------------------------------------------------ */
+
+/* Rays from random points on fiber surfaces and on the bounding cylinder, in random directions: trace()
+ * must return exactly the nearest entry found by testing every fiber of the slab, whenever that entry
+ * lies in the slab the ray starts in. */
+TEST(PlyTracer, MatchesBruteForceInTheSlab)
+{
+  for (const char *name : {"fleece", "silk", "polyester", "cotton"}) {
+    for (bool mirrored : {false, true}) {
+      const geometry::Ply ply = make_ply(find_preset(name));
+      rdm::TracerOptions to;
+      to.mirrored = mirrored;
+      const rdm::PlyTracer tracer(ply, to);
+      std::mt19937_64 rng(17);
+      std::uniform_real_distribution<float> U(0.0f, 1.0f);
+      int compared = 0, hits = 0;
+      for (int i = 0; i < 20000; i++) {
+        /* Origin: a point on the bounding cylinder in the slab, direction into the cylinder. */
+        const float a = 6.2831853f * U(rng);
+        const ny::Vec3 n = ny::make_vec3(0.0f, std::cos(a), std::sin(a));
+        ny::Vec3 d = ny::normalize(ny::make_vec3(2.0f * U(rng) - 1.0f, 2.0f * U(rng) - 1.0f, 2.0f * U(rng) - 1.0f));
+        if (ny::dot(d, n) > 0.0f) {
+          d = d - n * (2.0f * ny::dot(d, n));
+        }
+        const ny::Vec3 o = n * tracer.bound_radius() + ny::make_vec3(tracer.slab_length() * U(rng), 0.0f, 0.0f);
+        /* Brute force within the slab. */
+        float best = INFINITY;
+        int best_f = -1;
+        for (int f = 0; f < tracer.num_fibers(); f++) {
+          const float t = tracer.intersect_fiber(f, o, d);
+          const float x = o.x + t * d.x;
+          if (t < best && x >= 0.0f && x <= tracer.slab_length()) {
+            best = t;
+            best_f = f;
+          }
+        }
+        rdm::SlabRay ray{o, d, 0};
+        rdm::TubeHit hit;
+        const bool got = tracer.trace(&ray, -1, 0.0f, &hit);
+        if (best_f >= 0) {
+          /* A brute-force hit in the starting slab is always the nearest (the ray reaches other slabs
+           * only after leaving this one). */
+          compared++;
+          ASSERT_TRUE(got) << name << " ray " << i;
+          EXPECT_EQ(hit.fiber, best_f) << name << " ray " << i;
+          EXPECT_NEAR(hit.t, best, 1e-5f) << name << " ray " << i;
+          EXPECT_NEAR(ny::length(hit.normal), 1.0f, 1e-5f);
+          hits++;
+        }
+      }
+      EXPECT_GT(compared, 5000) << name;
+      EXPECT_EQ(hits, compared);
+    }
+  }
+}
+
+/* A path scattered into the fiber leaves from the far side of the same cross-section, on the tube's
+ * surface, heading outward. */
+TEST(PlyTracer, TransmissionLeavesFromTheFarSide)
+{
+  const geometry::Ply ply = make_ply(find_preset("fleece"));
+  const rdm::PlyTracer tracer(ply);
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  int checked = 0;
+  for (int i = 0; i < 5000; i++) {
+    const float a = 6.2831853f * U(rng);
+    const ny::Vec3 n = ny::make_vec3(0.0f, std::cos(a), std::sin(a));
+    rdm::SlabRay ray{n * tracer.bound_radius(), -n, 0};
+    rdm::TubeHit hit;
+    if (!tracer.trace(&ray, -1, 0.0f, &hit)) {
+      continue;
+    }
+    /* A direction into the fiber. */
+    ny::Vec3 d = ny::normalize(ny::make_vec3(2.0f * U(rng) - 1.0f, 2.0f * U(rng) - 1.0f, 2.0f * U(rng) - 1.0f));
+    if (ny::dot(d, hit.normal) > 0.0f) {
+      d = -d;
+    }
+    const ny::Vec3 p = tracer.far_side(hit.fiber, hit.point, d);
+    /* On the surface: distance r from the axis. */
+    const ny::Vec3 w = p - hit.point;
+    const ny::Vec3 c = hit.point - hit.normal * tracer.fiber_radius();
+    const ny::Vec3 pc = p - c;
+    const ny::Vec3 radial = pc - hit.axis * ny::dot(pc, hit.axis);
+    EXPECT_NEAR(ny::length(radial), tracer.fiber_radius(), 1e-4f * tracer.fiber_radius() + 1e-6f);
+    /* The opposite side and heading out. */
+    EXPECT_LT(ny::dot(radial, hit.normal), 0.0f);
+    EXPECT_GT(ny::dot(radial, d), 0.0f);
+    /* Crossed the fiber: moved by about a diameter across the axis. */
+    EXPECT_GT(ny::length(w - hit.axis * ny::dot(w, hit.axis)), 0.5f * tracer.fiber_radius());
+    checked++;
+  }
+  EXPECT_GT(checked, 3000);
+}
+
+/* One straight fiber is convex: a path that scatters on it leaves on a straight line that cannot meet it
+ * again, so no path has two events. A walk that did not carry transmitted paths through the fiber would
+ * restart inside it or on its near side and register a second event. */
+TEST(Gather, SingleStraightFiberScattersAtMostOnce)
+{
+  FiberPreset p = find_preset("cotton"); /* TT-heavy: C_TT = 0.999 */
+  p.name = "one_fiber";
+  p.N = 1;
+  p.rho = 0.3;
+  p.alpha = 0.0;
+  const rdm::RdmMaps maps = rdm::gather(p, small_options(40000, {2, 4, 4, 4}, true, false));
+  EXPECT_EQ(maps.stats.max_events_seen, 1);
+  EXPECT_GT(maps.stats.events_histogram.at(1), 5000u);
+  EXPECT_EQ(maps.stats.invalid_weights, 0u);
+}
+
+/* P(T | w_i) against straight rays through an explicit Embree 3 ply (round linear curves, 256 segments per
+ * turn, the same two mirror-image geometries), a different intersector and a different ray generator. */
+TEST(Gather, TransmissionProbabilityMatchesStraightEmbreeRays)
+{
+  const rdm::MapResolution bins{6, 8, 4, 8};
+  for (const char *name : {"fleece", "silk"}) {
+    const FiberPreset &preset = find_preset(name);
+    const rdm::RdmMaps maps = rdm::gather(preset, small_options(6 * 8 * 3000, bins, false, false));
+    const geometry::Ply ply = make_ply(preset);
+    const double len = 60.0;
+    const rdm::EmbreePly ply_a(ply, -len, len, 256, false), ply_b(ply, -len, len, 256, true);
+    const rdm::PlyTracer tracer(ply); /* only for the bounding radius */
+    const float Rb = tracer.bound_radius();
+    const double period = std::isfinite(ply.pitch()) ? ply.pitch() : 1.0;
+    std::mt19937_64 rng(99);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    ZTest zt;
+    int escaped_ends = 0;
+    for (int ti = 0; ti < bins.theta_i; ti++) {
+      for (int pi = 0; pi < bins.phi_i; pi++) {
+        const int n_rays = 4000;
+        int passed = 0;
+        for (int k = 0; k < n_rays; k++) {
+          const double c0 = std::cos(0.5 * kPi * ti / bins.theta_i), c1 = std::cos(0.5 * kPi * (ti + 1) / bins.theta_i);
+          const double ct = c0 + (c1 - c0) * U(rng), st = std::sqrt(1 - ct * ct);
+          const double ph = -kPi + 2 * kPi * (pi + U(rng)) / bins.phi_i;
+          const double a = 2 * kPi * U(rng);
+          const double x0 = period * (U(rng) - 0.5);
+          const ny::Vec3 n = ny::make_vec3(0.0f, float(std::cos(a)), float(std::sin(a)));
+          const ny::Vec3 ey = ny::make_vec3(0.0f, float(std::sin(a)), float(-std::cos(a)));
+          const ny::Vec3 wi = ny::make_vec3(float(st * std::cos(ph)), 0.0f, 0.0f) + ey * float(st * std::sin(ph)) + n * float(ct);
+          const ny::Vec3 o = n * Rb + ny::make_vec3(float(x0), 0.0f, 0.0f);
+          const ny::Vec3 d = -wi;
+          const float a2 = d.y * d.y + d.z * d.z;
+          const float b = o.y * d.y + o.z * d.z, c = o.y * o.y + o.z * o.z - Rb * Rb;
+          const float tfar = a2 > 0 ? (-b + std::sqrt(std::max(b * b - a2 * c, 0.0f))) / a2 : 1e30f;
+          if (std::abs(o.x + tfar * d.x) > len - 1.0) {
+            escaped_ends++;
+          }
+          rdm::EmbreeHit h;
+          const rdm::EmbreePly &geo = (k & 1) ? ply_b : ply_a;
+          passed += geo.intersect(o, d, 0.0f, tfar, &h) ? 0 : 1;
+        }
+        const size_t i = maps.incident_index(ti, pi);
+        const double n1 = double(maps.count[i]), p1 = maps.p_t[i];
+        const double p2 = double(passed) / n_rays;
+        const double pooled = (p1 * n1 + p2 * n_rays) / (n1 + n_rays);
+        if (pooled * (n1 + n_rays) < 10 || (1 - pooled) * (n1 + n_rays) < 10) {
+          continue; /* normal approximation needs counts */
+        }
+        zt.add(p1, p2, std::sqrt(pooled * (1 - pooled) * (1 / n1 + 1.0 / n_rays)));
+      }
+    }
+    /* Near-axial rays that would leave the explicit ply through its ends (the tracer's ply is infinite):
+     * too few to matter. */
+    EXPECT_LT(escaped_ends, bins.theta_i * bins.phi_i * 4000 / 1000) << name;
+    EXPECT_GT(zt.n, 10) << name;
+    EXPECT_GT(zt.p_value(), 1e-4) << name << ": " << zt.report();
+  }
+}
+
+/* The R map against next-event estimation: for each straight ray's first fiber hit (Embree), the fiber
+ * BSDF is *evaluated* for directions spread over every upper-hemisphere outgoing bin, times visibility to
+ * the bounding cylinder (Embree again). No direction is sampled, no event counted: an independent estimate
+ * of the single-scattering, upward-leaving part of f |cos theta_o|. */
+TEST(Gather, ReflectionMapMatchesNextEventEstimation)
+{
+  const rdm::MapResolution bins{3, 4, 4, 8};
+  const FiberPreset &preset = find_preset("fleece");
+  const rdm::RdmMaps maps = rdm::gather(preset, small_options(3 * 4 * 30000, bins, false, true));
+  const geometry::Ply ply = make_ply(preset);
+  const double len = 60.0;
+  const rdm::EmbreePly ply_a(ply, -len, len, 256, false), ply_b(ply, -len, len, 256, true);
+  const rdm::PlyTracer tracer(ply);
+  const float Rb = tracer.bound_radius(), r = tracer.fiber_radius();
+  const ny::FiberBsdfParams fp = preset.fiber_params();
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  auto exit_distance = [&](ny::Vec3 o, ny::Vec3 d) {
+    const float a2 = d.y * d.y + d.z * d.z;
+    const float b = o.y * d.y + o.z * d.z, c = o.y * o.y + o.z * o.z - Rb * Rb;
+    return a2 > 0 ? (-b + std::sqrt(std::max(b * b - a2 * c, 0.0f))) / a2 : 1e30f;
+  };
+  ZTest zt;
+  const int n_out_up = (bins.theta_o / 2) * bins.phi_o;
+  for (int ti = 0; ti < bins.theta_i; ti++) {
+    for (int pi = 0; pi < bins.phi_i; pi++) {
+      const int n_rays = 3000;
+      std::vector<double> sum(size_t(n_out_up) * 3, 0.0), sq(size_t(n_out_up) * 3, 0.0);
+      for (int k = 0; k < n_rays; k++) {
+        const double c0 = std::cos(0.5 * kPi * ti / bins.theta_i), c1 = std::cos(0.5 * kPi * (ti + 1) / bins.theta_i);
+        const double ct = c0 + (c1 - c0) * U(rng), st = std::sqrt(1 - ct * ct);
+        const double ph = -kPi + 2 * kPi * (pi + U(rng)) / bins.phi_i;
+        const double a = 2 * kPi * U(rng);
+        const double x0 = ply.pitch() * (U(rng) - 0.5);
+        const ny::Vec3 n = ny::make_vec3(0.0f, float(std::cos(a)), float(std::sin(a)));
+        const ny::Vec3 ey = ny::make_vec3(0.0f, float(std::sin(a)), float(-std::cos(a)));
+        const ny::Vec3 ex = ny::make_vec3(1.0f, 0.0f, 0.0f);
+        const ny::Vec3 wi = ex * float(st * std::cos(ph)) + ey * float(st * std::sin(ph)) + n * float(ct);
+        const ny::Vec3 o = n * Rb + ex * float(x0);
+        const ny::Vec3 d = -wi;
+        const rdm::EmbreePly &geo = (k & 1) ? ply_b : ply_a;
+        rdm::EmbreeHit h;
+        std::vector<double> v(size_t(n_out_up) * 3, 0.0);
+        if (geo.intersect(o, d, 0.0f, exit_distance(o, d), &h)) {
+          const ny::Vec3 p = o + d * h.t;
+          ny::Frame f;
+          f.x = h.tangent;
+          f.z = ny::normalize(h.normal - h.tangent * ny::dot(h.normal, h.tangent));
+          f.y = ny::cross(f.z, f.x);
+          const ny::Vec3 wi_f = ny::to_local(f, -d);
+          const ny::Vec3 axis_point = p - f.z * r;
+          for (int to = 0; to < bins.theta_o / 2; to++) {
+            for (int po = 0; po < bins.phi_o; po++) {
+              const int ob = to * bins.phi_o + po;
+              const int m = 2; /* directions per bin, uniform in solid angle */
+              for (int j = 0; j < m; j++) {
+                const double oc0 = std::cos(kPi * to / bins.theta_o), oc1 = std::cos(kPi * (to + 1) / bins.theta_o);
+                const double oct = oc0 + (oc1 - oc0) * U(rng), ost = std::sqrt(1 - oct * oct);
+                const double oph = -kPi + 2 * kPi * (po + U(rng)) / bins.phi_o;
+                const ny::Vec3 wo = ex * float(ost * std::cos(oph)) + ey * float(ost * std::sin(oph)) + n * float(oct);
+                const ny::Rgb fv = ny::fiber_eval(fp, wi_f, ny::to_local(f, wo), nullptr);
+                if (!(fv.r + fv.g + fv.b > 0.0f)) {
+                  continue;
+                }
+                /* Leave from the hit point, or from the far side of the cross-section (PlyTracer::far_side). */
+                ny::Vec3 start = p;
+                if (ny::dot(wo, f.z) < 0.0f) {
+                  const ny::Vec3 wp = wo - f.x * ny::dot(wo, f.x);
+                  start = axis_point + wp * (r / ny::length(wp));
+                }
+                rdm::EmbreeHit h2;
+                if (geo.intersect(start, wo, 0.0f, exit_distance(start, wo), &h2, h.fiber, 2.0f * r)) {
+                  continue;
+                }
+                v[size_t(ob) * 3 + 0] += fv.r / m;
+                v[size_t(ob) * 3 + 1] += fv.g / m;
+                v[size_t(ob) * 3 + 2] += fv.b / m;
+              }
+            }
+          }
+        }
+        for (size_t q = 0; q < v.size(); q++) {
+          sum[q] += v[q];
+          sq[q] += v[q] * v[q];
+        }
+      }
+      for (int to = 0; to < bins.theta_o / 2; to++) {
+        for (int po = 0; po < bins.phi_o; po++) {
+          for (int c = 0; c < 3; c++) {
+            const size_t q = size_t(to * bins.phi_o + po) * 3 + size_t(c);
+            const double mean = sum[q] / n_rays;
+            const double se = std::sqrt(std::max(0.0, sq[q] / n_rays - mean * mean) / n_rays);
+            const size_t mi = maps.map_index(ti, pi, to, po) + size_t(c);
+            /* A bin that caught few samples has a useless sample standard error: floor it by the Poisson
+             * bound for the expected value (weights < 3). */
+            const double n_paths = double(maps.count[maps.incident_index(ti, pi)]);
+            const double se_map = std::max(double(maps.r_se[mi]),
+                                           std::sqrt(3.0 * mean / (n_paths * maps.outgoing_solid_angle(to))));
+            if (mean < 1e-4 && maps.r[mi] < 1e-4) {
+              continue; /* nothing there in either estimate (e.g. grazing outgoing bins) */
+            }
+            zt.add(maps.r[mi], mean, std::sqrt(se * se + se_map * se_map));
+            if (std::getenv("NY_TEST_DEBUG")) {
+              std::printf("bin %d %d %d %d c%d: map %.5f +- %.5f  nee %.5f +- %.5f  z %.2f\n", ti, pi, to, po, c,
+                          double(maps.r[mi]), se_map, mean, se, (maps.r[mi] - mean) / std::sqrt(se * se + se_map * se_map));
+            }
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(zt.n, 400);
+  EXPECT_GT(zt.p_value(), 1e-4) << zt.report();
+}
+
+/* ------------------------------------------------------------------------------------------------ */
+/* Bookkeeping, symmetry, determinism, convergence.                                                   */
+/* ------------------------------------------------------------------------------------------------ */
+
+TEST(Gather, EnergyBookkeeping)
+{
+  for (const char *name : {"fleece", "cotton", "polyester"}) {
+    const rdm::RdmMaps maps = rdm::gather(find_preset(name), small_options(60000, {4, 8, 6, 8}, true, false));
+    const rdm::GatherStats &s = maps.stats;
+    EXPECT_EQ(s.invalid_weights, 0u) << name;
+    EXPECT_EQ(s.paths_truncated, 0u) << name;
+    EXPECT_EQ(s.paths_T + s.paths_R + s.paths_M + s.paths_terminated, s.paths) << name;
+    for (int c = 0; c < 3; c++) {
+      /* Exit + absorbed has expectation 1 per path. */
+      EXPECT_NEAR(s.balance[c], 1.0, 4.0 * s.balance_se[c]) << name << " channel " << c;
+      EXPECT_LT(s.balance_se[c], 0.01) << name;
+    }
+    /* Per incident bin, the maps integrate to the recorded exit energy: sum (R + M) dOmega + P_T. This is
+     * the normalisation, so it holds to float rounding (the maps are symmetrised: compare the same). */
+    for (int ti = 0; ti < maps.bins.theta_i; ti++) {
+      for (int pi = 0; pi < maps.bins.phi_i; pi++) {
+        const size_t i = maps.incident_index(ti, pi);
+        const size_t i2 = maps.incident_index(ti, (pi + maps.bins.phi_i / 2) % maps.bins.phi_i);
+        for (int c = 0; c < 3; c++) {
+          double total = maps.p_t[i];
+          for (int to = 0; to < maps.bins.theta_o; to++) {
+            for (int po = 0; po < maps.bins.phi_o; po++) {
+              const size_t mi = maps.map_index(ti, pi, to, po) + size_t(c);
+              total += (double(maps.r[mi]) + double(maps.m[mi])) * maps.outgoing_solid_angle(to);
+            }
+          }
+          const double want = 0.5 * (maps.exit_energy[i * 3 + size_t(c)] + maps.exit_energy[i2 * 3 + size_t(c)]);
+          EXPECT_NEAR(total, want, 1e-5 * std::max(1.0, want)) << name << " bin " << ti << "," << pi;
+        }
+      }
+    }
+  }
+}
+
+namespace {
+/* chi^2 between a map and its image under an index map, using the raw standard errors. */
+ZTest compare_map_images(const rdm::RdmMaps &m, const std::vector<float> &map, const std::vector<float> &se,
+                         const std::function<int(int)> &image_phi_i, const std::function<int(int)> &image_phi_o)
+{
+  ZTest zt;
+  const rdm::MapResolution &b = m.bins;
+  for (int ti = 0; ti < b.theta_i; ti++) {
+    for (int pi = 0; pi < b.phi_i; pi++) {
+      const int pi2 = image_phi_i(pi);
+      if (pi2 < pi) {
+        continue; /* each pair once */
+      }
+      for (int to = 0; to < b.theta_o; to++) {
+        for (int po = 0; po < b.phi_o; po++) {
+          const int po2 = image_phi_o(po);
+          if (pi2 == pi && po2 <= po) {
+            continue;
+          }
+          for (int c = 0; c < 3; c++) {
+            const size_t a = m.map_index(ti, pi, to, po) + size_t(c), z = m.map_index(ti, pi2, to, po2) + size_t(c);
+            if (se[a] > 0 && se[z] > 0) {
+              zt.add(map[a], map[z], std::sqrt(double(se[a]) * se[a] + double(se[z]) * se[z]));
+            }
+          }
+        }
+      }
+    }
+  }
+  return zt;
+}
+}  // namespace
+
+/* Raw (unsymmetrised) data: a 180-degree rotation about n maps the statistics onto themselves. */
+TEST(Gather, RawDataHasTheHalfTurnSymmetry)
+{
+  const rdm::RdmMaps m = rdm::gather(find_preset("fleece"), small_options(3 * 8 * 25000, {3, 8, 6, 8}, false, true));
+  const int hi = m.bins.phi_i / 2, ho = m.bins.phi_o / 2;
+  for (const auto *which : {&m.r, &m.m}) {
+    const auto &se = which == &m.r ? m.r_se : m.m_se;
+    const ZTest zt = compare_map_images(m, *which, se, [&](int p) { return (p + hi) % m.bins.phi_i; },
+                                        [&](int p) { return (p + ho) % m.bins.phi_o; });
+    EXPECT_GT(zt.n, 300);
+    EXPECT_GT(zt.p_value(), 1e-4) << (which == &m.r ? "R: " : "M: ") << zt.report();
+  }
+}
+
+/* alpha = 0: straight fibers are symmetric under x -> -x, i.e. phi -> pi - phi for both directions. */
+TEST(Gather, UntwistedPlyIsMirrorSymmetric)
+{
+  const rdm::RdmMaps m = rdm::gather(find_preset("silk"), small_options(3 * 8 * 25000, {3, 8, 6, 8}, false, true));
+  auto mirror = [](int P) { return [P](int p) { return ((P / 2 - 1 - p) % P + P) % P; }; };
+  for (const auto *which : {&m.r, &m.m}) {
+    const auto &se = which == &m.r ? m.r_se : m.m_se;
+    const ZTest zt = compare_map_images(m, *which, se, mirror(m.bins.phi_i), mirror(m.bins.phi_o));
+    EXPECT_GT(zt.n, 300);
+    EXPECT_GT(zt.p_value(), 1e-4) << (which == &m.r ? "R: " : "M: ") << zt.report();
+  }
+}
+
+TEST(Gather, BitIdenticalAcrossThreadCounts)
+{
+  auto run = [](int threads) {
+    rdm::GatherOptions o = small_options(50000, {4, 8, 6, 8}, true, true);
+    o.threads = threads;
+    return rdm::gather(find_preset("gabardine"), o);
+  };
+  const rdm::RdmMaps a = run(1), b = run(2), c = run(3);
+  for (const rdm::RdmMaps *x : {&b, &c}) {
+    EXPECT_EQ(a.count, x->count);
+    EXPECT_EQ(a.p_t, x->p_t);
+    EXPECT_EQ(a.r, x->r);
+    EXPECT_EQ(a.m, x->m);
+    EXPECT_EQ(a.r_se, x->r_se);
+    EXPECT_EQ(a.m_se, x->m_se);
+    EXPECT_EQ(a.exit_energy, x->exit_energy);
+    EXPECT_EQ(a.absorbed, x->absorbed);
+    EXPECT_EQ(a.stats.events_histogram, x->stats.events_histogram);
+    for (int ch = 0; ch < 3; ch++) {
+      EXPECT_EQ(a.stats.balance[ch], x->stats.balance[ch]);
+      EXPECT_EQ(a.stats.energy_M[ch], x->stats.energy_M[ch]);
+    }
+    EXPECT_EQ(a.stats.mean_displacement, x->stats.mean_displacement);
+  }
+}
+
+/* Two gathers with different path seeds (same geometry) agree within their standard errors, and
+ * symmetrisation shrinks the standard errors by about 1/sqrt(2). */
+TEST(Gather, IndependentHalvesAgreeWithinNoise)
+{
+  rdm::GatherOptions o = small_options(3 * 8 * 20000, {3, 8, 6, 8}, true, true);
+  o.seed = 11;
+  const rdm::RdmMaps a = rdm::gather(find_preset("polyester"), o);
+  o.seed = 12;
+  const rdm::RdmMaps b = rdm::gather(find_preset("polyester"), o);
+  ZTest zt;
+  for (size_t i = 0; i < a.m.size(); i++) {
+    if (a.m_se[i] > 0 && b.m_se[i] > 0) {
+      /* Symmetrised bins come in identical pairs: count each pair once by halving. */
+      zt.add(a.m[i], b.m[i], std::sqrt(double(a.m_se[i]) * a.m_se[i] + double(b.m_se[i]) * b.m_se[i]));
+    }
+  }
+  ZTest halved = zt;
+  halved.chi2 *= 0.5;
+  halved.n /= 2;
+  EXPECT_GT(halved.n, 300);
+  EXPECT_GT(halved.p_value(), 1e-4) << zt.report();
+  for (size_t i = 0; i < a.p_t.size(); i++) {
+    EXPECT_NEAR(a.p_t[i], b.p_t[i], 5.0 * std::sqrt(double(a.p_t_se[i]) * a.p_t_se[i] + double(b.p_t_se[i]) * b.p_t_se[i]) + 1e-6);
+  }
+  /* Symmetrisation: raw standard errors are about sqrt(2) larger. */
+  o.symmetrize = false;
+  const rdm::RdmMaps raw = rdm::gather(find_preset("polyester"), o);
+  std::vector<double> ratios;
+  for (size_t i = 0; i < raw.m.size(); i++) {
+    if (raw.m_se[i] > 0 && b.m_se[i] > 0 && raw.m[i] > 0.05f) {
+      ratios.push_back(double(b.m_se[i]) / raw.m_se[i]);
+    }
+  }
+  ASSERT_GT(ratios.size(), 100u);
+  std::nth_element(ratios.begin(), ratios.begin() + long(ratios.size() / 2), ratios.end());
+  EXPECT_NEAR(ratios[ratios.size() / 2], 1.0 / std::sqrt(2.0), 0.05);
+}
+
+TEST(Gather, RejectsBadOptions)
+{
+  rdm::GatherOptions o;
+  o.paths = 0;
+  EXPECT_THROW(rdm::validate(o), ParameterError);
+  o = rdm::GatherOptions();
+  o.bins.phi_o = 45;
+  EXPECT_THROW(rdm::validate(o), ParameterError); /* symmetrisation needs even phi bins */
+  o.symmetrize = false;
+  EXPECT_NO_THROW(rdm::validate(o));
+  FiberPreset p = find_preset("fleece");
+  p.rho = 0.95;
+  EXPECT_THROW(rdm::gather(p, small_options(100, {2, 4, 4, 4}, true, false)), ParameterError);
+  p = find_preset("fleece");
+  p.alpha = std::nan("");
+  EXPECT_THROW(rdm::gather(p, small_options(100, {2, 4, 4, 4}, true, false)), ParameterError);
+}
+
+/* ------------------------------------------------------------------------------------------------ */
+/* Map files.                                                                                         */
+/* ------------------------------------------------------------------------------------------------ */
+
+namespace {
+std::string temp_path(const std::string &name)
+{
+  const fs::path dir = fs::temp_directory_path() / ("ny_rdm_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return (dir / name).string();
+}
+std::string read_all(const std::string &path)
+{
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+void write_all(const std::string &path, const std::string &data)
+{
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(data.data(), std::streamsize(data.size()));
+}
+template<class F> std::string error_of(F f)
+{
+  try {
+    f();
+  }
+  catch (const rdm::MapFileError &e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST(MapFile, RoundTripAndCorruption)
+{
+  const rdm::RdmMaps maps = rdm::gather(find_preset("silk"), small_options(20000, {3, 4, 4, 6}, true, true));
+  const std::string path = temp_path("silk.nyrdm");
+  rdm::save_maps(maps, path);
+  const rdm::RdmMaps back = rdm::load_maps(path);
+  EXPECT_EQ(back.r, maps.r);
+  EXPECT_EQ(back.m, maps.m);
+  EXPECT_EQ(back.p_t, maps.p_t);
+  EXPECT_EQ(back.count, maps.count);
+  EXPECT_EQ(back.r_se, maps.r_se);
+  EXPECT_EQ(back.exit_energy, maps.exit_energy);
+  EXPECT_EQ(back.bins.phi_o, 6);
+  EXPECT_EQ(back.preset.name, "silk");
+  EXPECT_EQ(back.preset.beta_R_deg, maps.preset.beta_R_deg);
+  EXPECT_EQ(back.paths, 20000u);
+  /* The file stores the histogram up to its last non-empty bin. */
+  std::vector<uint64_t> trimmed = maps.stats.events_histogram;
+  while (!trimmed.empty() && trimmed.back() == 0) {
+    trimmed.pop_back();
+  }
+  EXPECT_EQ(back.stats.events_histogram, trimmed);
+  /* No temporary file is left behind. */
+  int files = 0;
+  for (const auto &e : fs::directory_iterator(fs::path(path).parent_path())) {
+    files += e.path().filename().string().find(".tmp-") != std::string::npos;
+  }
+  EXPECT_EQ(files, 0);
+
+  const std::string good = read_all(path);
+  const std::string bad = temp_path("bad.nyrdm");
+  write_all(bad, good.substr(0, good.size() - 100));
+  EXPECT_NE(error_of([&] { rdm::load_maps(bad); }).find("truncated"), std::string::npos);
+  std::string flipped = good;
+  flipped[flipped.size() - 7] ^= 0x10;
+  write_all(bad, flipped);
+  EXPECT_NE(error_of([&] { rdm::load_maps(bad); }).find("hash mismatch"), std::string::npos);
+  std::string text = good;
+  text[5] = '\n'; /* a text-mode transfer rewrote "\r\n" */
+  write_all(bad, text);
+  EXPECT_NE(error_of([&] { rdm::load_maps(bad); }).find("bad magic"), std::string::npos);
+  std::string newer = good;
+  newer[8] = 2;
+  write_all(bad, newer);
+  EXPECT_NE(error_of([&] { rdm::load_maps(bad); }).find("version 2 is not supported"), std::string::npos);
+  write_all(bad, good.substr(0, 30));
+  EXPECT_NE(error_of([&] { rdm::load_maps(bad); }), "");
+  EXPECT_NE(error_of([&] { rdm::load_maps(temp_path("missing.nyrdm")); }).find("cannot open"), std::string::npos);
+  /* Unwritable destination: an error, and an existing file there is left alone. */
+  EXPECT_NE(error_of([&] { rdm::save_maps(maps, "/nonexistent-dir/x.nyrdm"); }).find("does not exist"), std::string::npos);
+  EXPECT_NE(error_of([&] { rdm::save_maps(maps, "/dev/null/x.nyrdm"); }), "");
+  fs::remove_all(fs::path(path).parent_path());
+}
