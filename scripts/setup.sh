@@ -62,4 +62,7 @@ cmake --build "$BUILD"
 if ((RUN_MAIN)); then
   mkdir -p "$ROOT/out"
   "$BUILD/cpp_core/neuralyarn" fiber --preset fleece --out "$ROOT/out/fleece_fiber_lobe.png"
+  # The radiance distribution maps of the default preset at the paper's resolution, from a short run
+  # (the paper uses 50-100 M paths; pass --paths 1e8 for that, ~3.5 min on 2 cores).
+  "$BUILD/cpp_core/neuralyarn" gather --preset fleece --paths 4e6 --out "$ROOT/out/fleece.nyrdm"
 fi

@@ -182,7 +182,7 @@ int main(int argc, char **argv)
   double paths = 1e7, cell = 2.0, sagitta = 0.01;
   int threads = 2;
   size_t queries = 200000;
-  bool skip_gather = false, skip_queries = false;
+  bool skip_gather = false, skip_queries = false, noise = false;
   app.add_option("--presets", presets);
   app.add_option("--paths", paths);
   app.add_option("--threads", threads);
@@ -192,6 +192,7 @@ int main(int argc, char **argv)
   app.add_option("--queries", queries);
   app.add_flag("--skip-gather", skip_gather);
   app.add_flag("--skip-queries", skip_queries);
+  app.add_flag("--noise", noise, "Map noise per second: our estimator vs. the plain one (two seeds each)");
   CLI11_PARSE(app, argc, argv);
 
   std::vector<std::string> names;
@@ -206,6 +207,43 @@ int main(int argc, char **argv)
     std::printf("# Intersector: recorded walk queries, 1 thread\n");
     for (const auto &n : names) {
       bench_queries(find_preset(n), topt, queries);
+    }
+  }
+  if (noise) {
+    std::printf("# Map noise: RMS over bins of (map(seed 1) - map(seed 2)) / sqrt(2), %d threads, bins %s, %.0e paths\n",
+                threads, bins.c_str(), paths);
+    for (const auto &n : names) {
+      for (int plain = 0; plain < 2; plain++) {
+        rdm::RdmMaps maps[2];
+        double seconds = 0.0;
+        for (int k = 0; k < 2; k++) {
+          rdm::GatherOptions opt;
+          opt.paths = uint64_t(paths);
+          opt.threads = threads;
+          opt.bins = parse_bins(bins);
+          opt.tracer = topt;
+          opt.seed = uint64_t(k + 1);
+          opt.plain_estimator = plain != 0;
+          maps[k] = rdm::gather(find_preset(n), opt);
+          seconds += maps[k].stats.seconds_tracing;
+        }
+        double sq_m = 0.0, sq_r = 0.0, sum_m = 0.0;
+        for (size_t i = 0; i < maps[0].m.size(); i++) {
+          const double dm = double(maps[0].m[i]) - maps[1].m[i], dr = double(maps[0].r[i]) - maps[1].r[i];
+          sq_m += dm * dm;
+          sq_r += dr * dr;
+          sum_m += 0.5 * (double(maps[0].m[i]) + maps[1].m[i]);
+        }
+        const double noise_m = std::sqrt(sq_m / double(maps[0].m.size()) / 2.0);
+        const double noise_r = std::sqrt(sq_r / double(maps[0].r.size()) / 2.0);
+        const double mean_m = sum_m / double(maps[0].m.size());
+        const double t = seconds / 2.0;
+        std::printf("%-10s %-22s %.3f M paths/s, events/path %.2f, M noise %.4g (mean M %.4g), R noise %.4g, "
+                    "1/(noise_M^2 s) %.4g\n",
+                    n.c_str(), plain ? "plain estimator" : "ours (default)", paths / t / 1e6,
+                    maps[0].stats.mean_events, noise_m, mean_m, noise_r, 1.0 / (noise_m * noise_m * t));
+        std::fflush(stdout);
+      }
     }
   }
   if (!skip_gather) {
@@ -224,6 +262,12 @@ int main(int argc, char **argv)
                   double(s.paths) / s.seconds_tracing / 1e6, s.mean_events, s.p95_events,
                   double(s.events_total + s.paths) / double(s.paths), double(s.slab_crossings) / double(s.paths),
                   peak_rss_mb());
+      auto avg = [](const double v[3]) { return (v[0] + v[1] + v[2]) / 3.0; };
+      std::printf("%-10s   energy (channel mean) T %.4f R %.4f M %.4f absorbed %.4f lost %.1e, balance %.5f +- %.5f; "
+                  "exit displacement mean %.2f R (95th %.2f), M paths mean %.2f R (95th %.2f)\n",
+                  n.c_str(), avg(s.energy_T), avg(s.energy_R), avg(s.energy_M), avg(s.absorbed), avg(s.lost),
+                  avg(s.balance), avg(s.balance_se), s.mean_displacement, s.p95_displacement, s.mean_displacement_M,
+                  s.p95_displacement_M);
       std::fflush(stdout);
     }
   }

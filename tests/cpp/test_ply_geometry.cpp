@@ -4,6 +4,7 @@
 // preset and at rho = 0.5, a clear error when a density cannot be packed, and the helices' handedness
 // against the surface-fiber rotation of the kernel.
 #include <cmath>
+#include <cstdio>
 
 #include <gtest/gtest.h>
 
@@ -48,6 +49,47 @@ TEST_P(PackingTest, PresetPacksWithoutOverlap)
   const PlyCrossSection cs = pack_cross_section(p, 1);
   expect_valid_packing(p, cs);
   EXPECT_GE(cs.stats.min_distance, 2.0 * cs.r);
+}
+
+/* The packer measures separation perpendicular to the tilted fibers (docs/decisions.md D8), so the helical
+ * tubes of radius r are disjoint in 3D, not only their slices. By screw symmetry the distance between two
+ * helices is the distance from one point of the first to the whole second one: minimised over the second
+ * helix's parameter by dense sampling and golden-section refinement. */
+TEST_P(PackingTest, HelicalTubesAreDisjointIn3D)
+{
+  const PlyParams p = params_of(GetParam());
+  const Ply ply(p, pack_cross_section(p, 1));
+  const double r = ply.fiber_radius(), w = ply.twist_rate();
+  const double reach = 2.0 * r * std::sqrt(1.0 + w * w * p.R * p.R) * 1.01;
+  double worst = 1e9;
+  int pairs = 0;
+  for (int i = 0; i < ply.num_fibers(); i++) {
+    const Eigen::Vector3d a = ply.fiber_point(i, 0.0);
+    for (int j = 0; j < ply.num_fibers(); j++) {
+      if (j == i || (ply.cross_section().centers[i] - ply.cross_section().centers[j]).norm() > reach) {
+        continue;
+      }
+      pairs++;
+      auto dist = [&](double x) { return (ply.fiber_point(j, x) - a).norm(); };
+      double best_x = 0.0, best = dist(0.0);
+      for (double x = -4.0 * r; x <= 4.0 * r; x += r / 64.0) {
+        if (dist(x) < best) {
+          best = dist(x);
+          best_x = x;
+        }
+      }
+      double lo = best_x - r / 64.0, hi = best_x + r / 64.0;
+      for (int it = 0; it < 60; it++) {
+        const double m1 = lo + 0.382 * (hi - lo), m2 = lo + 0.618 * (hi - lo);
+        (dist(m1) < dist(m2) ? hi : lo) = (dist(m1) < dist(m2) ? m2 : m1);
+      }
+      worst = std::min(worst, dist(0.5 * (lo + hi)) / (2.0 * r));
+    }
+  }
+  EXPECT_GT(pairs, ply.num_fibers() / 2);
+  std::printf("%s: closest approach %.5f diameters over %d neighbour pairs\n", GetParam(), worst, pairs);
+  /* The metric uses the pair's mean radius for the tilt; neighbours at different radii are a hair closer. */
+  EXPECT_GT(worst, 0.999) << "closest approach of two tubes, in diameters";
 }
 
 INSTANTIATE_TEST_SUITE_P(Presets, PackingTest,

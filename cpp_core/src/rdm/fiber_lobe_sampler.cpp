@@ -103,8 +103,9 @@ float CosSquaredRatioTable::operator()(float mu) const
   return p1 + 0.5f * t * (p2 - p0 + t * (2.0f * p0 - 5.0f * p1 + 4.0f * p2 - p3 + t * (3.0f * (p1 - p2) + p3 - p0)));
 }
 
-FiberLobeSampler::FiberLobeSampler(const ny::FiberBsdfParams &params)
+FiberLobeSampler::FiberLobeSampler(const ny::FiberBsdfParams &params, bool plain)
     : p_(params),
+      plain_(plain),
       kappa_TT_(1.0f / (params.gamma_TT * params.gamma_TT)),
       ratio_R_(params.beta_R),
       ratio_TT_(params.beta_TT)

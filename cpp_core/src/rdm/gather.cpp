@@ -224,7 +224,7 @@ void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const Gath
     frame.z = hit.normal;
     frame.y = ny::cross(frame.z, frame.x);
     const Vec3 wi_f = ny::to_local(frame, -ray.d);
-    Vec3 wo_f;
+    Vec3 wo_f = make_vec3(0.0f, 0.0f, 1.0f);
     Rgb w, albedo;
     const bool scattered = sampler.sample(wi_f, ny::make_rgb(beta[0], beta[1], beta[2]), [&rng] { return rng.uniform(); },
                                           &wo_f, &w, &albedo);
@@ -430,7 +430,7 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
   geo.tracer[0] = std::make_unique<PlyTracer>(ply, to);
   to.mirrored = true;
   geo.tracer[1] = std::make_unique<PlyTracer>(ply, to);
-  const FiberLobeSampler sampler(preset.fiber_params());
+  const FiberLobeSampler sampler(preset.fiber_params(), opt.plain_estimator);
   for (int t = 0; t <= opt.bins.theta_i; t++) {
     geo.cos_theta_edge.push_back(std::cos(0.5 * kPi * t / opt.bins.theta_i));
   }

@@ -53,7 +53,10 @@ constexpr int kRejectionMaxRounds = 64;
 
 class FiberLobeSampler {
  public:
-  explicit FiberLobeSampler(const ny::FiberBsdfParams &params);
+  /* `plain`: the textbook estimator instead, for benchmarks only (docs/benchmarks.md): lobe probability
+   * from the channel mean (as the kernel) and theta_o always from the truncated normal with weight
+   * cos^2 Z / G. Also unbiased, but noisier. */
+  explicit FiberLobeSampler(const ny::FiberBsdfParams &params, bool plain = false);
 
   /* Samples w_o for w_i (both in the fiber frame, pointing away from the fiber); `uniform()` returns
    * numbers in [0, 1). Returns false (zero weight) when the fiber scatters nothing; *albedo receives
@@ -68,6 +71,7 @@ class FiberLobeSampler {
 
  private:
   ny::FiberBsdfParams p_;
+  bool plain_ = false;
   float kappa_TT_;
   CosSquaredRatioTable ratio_R_, ratio_TT_;
 };
@@ -87,7 +91,7 @@ bool FiberLobeSampler::sample(ny::Vec3 wi, ny::Rgb throughput, Uniform &&uniform
    * ~2 per event without bound. */
   float a_R = throughput.r * F.r + throughput.g * F.g + throughput.b * F.b;
   float a_TT = throughput.r * e_TT.r + throughput.g * e_TT.g + throughput.b * e_TT.b;
-  if (!(a_R + a_TT > 0.0f)) {
+  if (plain_ || !(a_R + a_TT > 0.0f)) {
     a_R = ny::average(F);
     a_TT = ny::average(e_TT);
   }
@@ -105,7 +109,7 @@ bool FiberLobeSampler::sample(ny::Vec3 wi, ny::Rgb throughput, Uniform &&uniform
 
   float theta_o = 0.0f, sin_t = 0.0f, cos_t = 1.0f;
   bool exact = false;
-  if (zg * kRejectionMinAcceptance <= 1.0f) {
+  if (!plain_ && zg * kRejectionMinAcceptance <= 1.0f) {
     for (int round = 0; round < kRejectionMaxRounds && !exact; round++) {
       theta_o = ny::sample_truncated_normal(tn, uniform());
       sincosf(theta_o, &sin_t, &cos_t);

@@ -49,6 +49,7 @@ struct GatherOptions {
   bool variance = false;   /* also accumulate squared weights (per-bin standard errors)          */
   int max_events = 1 << 20;/* a path still inside after this many events is dropped and counted  */
   TracerOptions tracer;
+  bool plain_estimator = false; /* benchmarks only: FiberLobeSampler's textbook mode               */
   /* Called from worker threads (serialised by the caller's own means) as paths complete. */
   std::function<void(uint64_t done, uint64_t total)> progress;
 };
