@@ -536,35 +536,35 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
         maps.exit_energy[i * 3 + size_t(c)] = n_here > 0 ? double(acc.exit_energy[i * 3 + size_t(c)]) * kInvFixedScale / n_here : 0.0;
         maps.absorbed[i * 3 + size_t(c)] = n_here > 0 ? double(acc.absorbed[i * 3 + size_t(c)]) * kInvFixedScale / n_here : 0.0;
       }
-      for (int to2 = 0; to2 < b.theta_o; to2++) {
+      for (int to = 0; to < b.theta_o; to++) {
         for (int po = 0; po < b.phi_o; po++) {
-          const size_t dst = maps.map_index(ti, pi, to2, po);
-          size_t srcm[2] = {dst, maps.map_index(ti, (pi + half_i) % b.phi_i, to2, (po + half_o) % b.phi_o)};
+          const size_t dst = maps.map_index(ti, pi, to, po);
+          const size_t srcm[2] = {dst, maps.map_index(ti, (pi + half_i) % b.phi_i, to, (po + half_o) % b.phi_o)};
           for (int c = 0; c < 3; c++) {
-            double rv = 0.0, mv = 0.0, rvar = 0.0, mvar = 0.0;
-            for (int s = 0; s < n_src; s++) {
-              const double n = double(acc.count[src[s]]);
-              if (!(n > 0)) {
-                continue;
+            /* One map: the bin's mean over the averaged sources and the variance of that mean. */
+            auto estimate = [&](const std::vector<uint64_t> &sum, const std::vector<uint64_t> &sum2, float *mean,
+                                float *se) {
+              double v = 0.0, var = 0.0;
+              for (int s = 0; s < n_src; s++) {
+                const double n = double(acc.count[src[s]]);
+                if (!(n > 0)) {
+                  continue;
+                }
+                const size_t j = srcm[s] + size_t(c);
+                const double m1 = double(sum[j]) * kInvFixedScale / n * inv_sa[size_t(to)];
+                v += m1 / n_src;
+                if (se) {
+                  const double m2 = double(sum2[j]) * kInvFixedScale / n * inv_sa[size_t(to)] * inv_sa[size_t(to)];
+                  var += std::max(0.0, m2 - m1 * m1) / n / (n_src * n_src);
+                }
               }
-              const size_t j = srcm[s] + size_t(c);
-              const double k = inv_sa[size_t(to2)] / n;
-              const double sr = double(acc.r[j]) * kInvFixedScale, sm = double(acc.m[j]) * kInvFixedScale;
-              rv += sr * k / n_src;
-              mv += sm * k / n_src;
-              if (opt.variance) {
-                const double s2r = double(acc.r2[j]) * kInvFixedScale, s2m = double(acc.m2[j]) * kInvFixedScale;
-                const double ka = inv_sa[size_t(to2)];
-                rvar += std::max(0.0, s2r / n * ka * ka - (sr / n * ka) * (sr / n * ka)) / n / (n_src * n_src);
-                mvar += std::max(0.0, s2m / n * ka * ka - (sm / n * ka) * (sm / n * ka)) / n / (n_src * n_src);
+              *mean = float(v);
+              if (se) {
+                *se = float(std::sqrt(var));
               }
-            }
-            maps.r[dst + size_t(c)] = float(rv);
-            maps.m[dst + size_t(c)] = float(mv);
-            if (opt.variance) {
-              maps.r_se[dst + size_t(c)] = float(std::sqrt(rvar));
-              maps.m_se[dst + size_t(c)] = float(std::sqrt(mvar));
-            }
+            };
+            estimate(acc.r, acc.r2, &maps.r[dst + size_t(c)], opt.variance ? &maps.r_se[dst + size_t(c)] : nullptr);
+            estimate(acc.m, acc.m2, &maps.m[dst + size_t(c)], opt.variance ? &maps.m_se[dst + size_t(c)] : nullptr);
           }
         }
       }
