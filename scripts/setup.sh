@@ -58,6 +58,9 @@ if [[ ! -f "$BUILD/build.ninja" ]]; then
 fi
 cmake --build "$BUILD"
 
+# --- 2b. The patched standalone Cycles (cycles_patch/): Debian's Blender 4.3.2 source, verified --------
+NY_BUILD_DIR="$BUILD" bash "$ROOT/scripts/build_cycles.sh"
+
 # --- 3. Main job -------------------------------------------------------------------------------------
 if ((RUN_MAIN)); then
   mkdir -p "$ROOT/out"

@@ -21,6 +21,7 @@
 #include "neuralyarn/presets.h"
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/rdm/map_file.h"
+#include "neuralyarn/scenes/cycles_xml.h"
 #include "neuralyarn/version.h"
 
 namespace fs = std::filesystem;
@@ -283,6 +284,17 @@ int main(int argc, char **argv)
   gather->add_flag("--quiet", g_quiet, "No progress bar");
   gather->add_option("--out", g_out, "Map file to write (.nyrdm)")->required();
 
+  auto *scene = app.add_subcommand("cycles-scene", "Write the single-ply close-up with explicit fibers for the patched Cycles");
+  std::string s_preset = "fleece", s_params, s_out;
+  scenes::PlySceneOptions s_opt;
+  auto *s_opt_preset = scene->add_option("--preset", s_preset, "Built-in preset name")->capture_default_str();
+  scene->add_option("--params", s_params, "Fiber parameter file (JSON)")->excludes(s_opt_preset);
+  scene->add_option("--width", s_opt.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
+  scene->add_option("--height", s_opt.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
+  scene->add_option("--packing-seed", s_opt.packing_seed, "Seed of the fiber cross-section")->capture_default_str();
+  scene->add_flag("--white-furnace", s_opt.white_furnace, "Uniform white background, no lights");
+  scene->add_option("--out", s_out, "Scene file to write (.xml)")->required();
+
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -290,6 +302,12 @@ int main(int argc, char **argv)
       for (const auto &p : builtin_presets()) {
         print_preset(p);
       }
+      return 0;
+    }
+    if (scene->parsed()) {
+      check_writable(s_out);
+      scenes::write_fiber_ply_scene(resolve_preset(s_preset, s_params), s_opt, s_out);
+      std::printf("wrote %s\n", s_out.c_str());
       return 0;
     }
     if (gather->parsed()) {

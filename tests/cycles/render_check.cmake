@@ -1,0 +1,56 @@
+# Renders a neuralyarn scene with the patched standalone Cycles and checks the image.
+#
+#   cmake -DNY=<neuralyarn> -DCYCLES=<cycles> -DOUT=<dir> -DNAME=<name> -DSCENE_ARGS="a;b;..."
+#         -DSAMPLES=<n> -DCHECK=<finite|furnace> -P render_check.cmake
+#
+# finite:  no NaN/Inf anywhere and the ply region is not black (mean > 1e-3);
+# furnace: the ply region of a white-furnace render averages 1 within TOL (albedo-1 fibers under a
+#          uniform white environment must vanish: energy conservation of the closure inside Cycles).
+if(NOT EXISTS "${CYCLES}")
+  message(FATAL_ERROR "patched Cycles not built at ${CYCLES}: run scripts/build_cycles.sh (scripts/test.sh does)")
+endif()
+file(MAKE_DIRECTORY "${OUT}")
+set(scene "${OUT}/${NAME}.xml")
+set(image "${OUT}/${NAME}.exr")
+execute_process(COMMAND ${NY} cycles-scene ${SCENE_ARGS} --out ${scene} RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "cycles-scene failed: ${o}${e}")
+endif()
+execute_process(COMMAND ${CYCLES} --background --quiet --samples ${SAMPLES} --threads 2 --width 160 --height 80
+                        --output ${image} ${scene}
+                RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e)
+if(NOT rc EQUAL 0 OR NOT EXISTS "${image}")
+  message(FATAL_ERROR "cycles failed (${rc}): ${o}${e}")
+endif()
+if(e MATCHES "error")
+  message(FATAL_ERROR "cycles reported an error: ${e}")
+endif()
+
+# Whole image: finite.
+execute_process(COMMAND oiiotool --stats ${image} OUTPUT_VARIABLE stats RESULT_VARIABLE rc)
+string(REGEX MATCH "NanCount: ([0-9]+) ([0-9]+) ([0-9]+)" _ "${stats}")
+set(nan "${CMAKE_MATCH_1}${CMAKE_MATCH_2}${CMAKE_MATCH_3}")
+string(REGEX MATCH "InfCount: ([0-9]+) ([0-9]+) ([0-9]+)" _ "${stats}")
+set(inf "${CMAKE_MATCH_1}${CMAKE_MATCH_2}${CMAKE_MATCH_3}")
+if(NOT nan STREQUAL "000" OR NOT inf STREQUAL "000")
+  message(FATAL_ERROR "non-finite pixels: NaN ${nan}, Inf ${inf}\n${stats}")
+endif()
+
+# The ply region: the middle rows where the ply crosses the frame (radius 1 at distance 12, fov 0.9).
+execute_process(COMMAND oiiotool ${image} --cut 120x8+20+36 --printstats OUTPUT_VARIABLE region)
+string(REGEX MATCH "Stats Avg: ([0-9.eE+-]+) ([0-9.eE+-]+) ([0-9.eE+-]+)" _ "${region}")
+set(r "${CMAKE_MATCH_1}")
+set(g "${CMAKE_MATCH_2}")
+set(b "${CMAKE_MATCH_3}")
+message(STATUS "${NAME}: ply region mean ${r} ${g} ${b}")
+if(CHECK STREQUAL "finite")
+  if(r LESS 0.001 AND g LESS 0.001 AND b LESS 0.001)
+    message(FATAL_ERROR "the ply region is black: ${r} ${g} ${b}")
+  endif()
+elseif(CHECK STREQUAL "furnace")
+  foreach(v ${r} ${g} ${b})
+    if(v LESS "${LOW}" OR v GREATER "${HIGH}")
+      message(FATAL_ERROR "white furnace: ply region mean ${v} outside [${LOW}, ${HIGH}]")
+    endif()
+  endforeach()
+endif()
