@@ -1,0 +1,82 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// Inference cost of the model's MLPs: the kernel's fused loop (kernel/mlp.h, what Cycles runs, one
+// sample at a time) against Eigen (the trainer's forward, single sample and batched per sample).
+//
+//   build/cpp_core/bench_mlp --benchmark_min_time=0.2
+#include <benchmark/benchmark.h>
+
+#include <random>
+
+#include "neuralyarn/kernel/mlp.h"
+#include "neuralyarn/train/mlp.h"
+
+namespace {
+
+using neuralyarn::train::Mlp;
+using neuralyarn::train::MlpShape;
+
+MlpShape shape_of(int which)
+{
+  if (which == 0) {
+    return MlpShape{{3, 7, 7, 1}, ny::kMlpHeadSigmoid};
+  }
+  if (which == 1) {
+    return MlpShape{{6, 21, 21, 3}, ny::kMlpHeadExp};
+  }
+  return MlpShape{{6, 21, 21, 21, 3}, ny::kMlpHeadExp};
+}
+
+const char *name_of(int which) { return which == 0 ? "T 3-7-7-1" : which == 1 ? "M 6-21-21-3" : "M 6-21-21-21-3"; }
+
+void BM_kernel(benchmark::State &state)
+{
+  const Mlp<float> m(shape_of(int(state.range(0))), 1);
+  const std::vector<float> flat = m.to_flat();
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+  std::vector<float> inputs(6 * 1024);
+  for (float &v : inputs) {
+    v = U(rng);
+  }
+  float out[ny::kMlpMaxWidth];
+  size_t i = 0;
+  for (auto _ : state) {
+    ny::mlp_forward(flat.data(), &inputs[(i++ & 1023) * 6], out);
+    benchmark::DoNotOptimize(out[0]);
+  }
+  state.SetLabel(name_of(int(state.range(0))));
+}
+
+void BM_eigen_single(benchmark::State &state)
+{
+  const Mlp<float> m(shape_of(int(state.range(0))), 1);
+  const int n_in = m.shape().widths.front();
+  Mlp<float>::Mat x = Mlp<float>::Mat::Random(n_in, 1);
+  for (auto _ : state) {
+    const Mlp<float>::Mat y = m.forward(x);
+    benchmark::DoNotOptimize(y.data());
+  }
+  state.SetLabel(name_of(int(state.range(0))));
+}
+
+void BM_eigen_batch1024(benchmark::State &state)
+{
+  const Mlp<float> m(shape_of(int(state.range(0))), 1);
+  const int n_in = m.shape().widths.front();
+  Mlp<float>::Mat x = Mlp<float>::Mat::Random(n_in, 1024);
+  for (auto _ : state) {
+    const Mlp<float>::Mat y = m.forward(x);
+    benchmark::DoNotOptimize(y.data());
+  }
+  state.SetItemsProcessed(int64_t(state.iterations()) * 1024);
+  state.SetLabel(name_of(int(state.range(0))));
+}
+
+BENCHMARK(BM_kernel)->DenseRange(0, 2);
+BENCHMARK(BM_eigen_single)->DenseRange(0, 2);
+BENCHMARK(BM_eigen_batch1024)->DenseRange(0, 2);
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,83 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// Training-side MLP: the same networks as kernel/mlp.h (channel-wise PReLU hidden layers, identity /
+// sigmoid / exp head), batched with Eigen, with exact backpropagation and Adam. `to_flat()` writes the
+// kernel's array layout, so what is trained is bit-for-bit what renders.
+//
+// Scalar is float for training and double for the finite-difference gradient tests.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "neuralyarn/kernel/mlp.h"
+
+namespace neuralyarn::train {
+
+struct MlpShape {
+  std::vector<int> widths; /* w_0 (inputs) .. w_L (outputs) */
+  ny::MlpHead head = ny::kMlpHeadIdentity;
+};
+
+enum class Loss {
+  kMse,    /* mean of (y - t)^2 over all outputs (the paper's) */
+  kLogMse, /* mean of (log(y + eps) - log(t + eps))^2: relative errors, for targets spanning decades */
+};
+
+template<class S> class Mlp {
+ public:
+  using Mat = Eigen::Matrix<S, Eigen::Dynamic, Eigen::Dynamic>;
+  using Vec = Eigen::Matrix<S, Eigen::Dynamic, 1>;
+
+  /* He-initialised weights for PReLU slope 0.25 (PyTorch's default), zero biases, slopes 0.25. Throws
+   * ParameterError for widths outside [1, kMlpMaxWidth] or more than kMlpMaxLayers layers. */
+  Mlp(const MlpShape &shape, uint64_t seed);
+
+  /* From / to the kernel's flat array (kernel/mlp.h). from_flat validates the header and the size. */
+  static Mlp from_flat(const std::vector<float> &flat);
+  std::vector<float> to_flat() const;
+
+  const MlpShape &shape() const { return shape_; }
+  int num_layers() const { return int(W_.size()); }
+
+  /* Y = f(X) for a batch: X is w_0 x B, Y is w_L x B. */
+  Mat forward(const Mat &X) const;
+
+  /* Loss of the batch against targets T (w_L x B) and its gradient with respect to every parameter,
+   * in the order of params(). `eps` is the log loss's offset. */
+  S loss_and_gradient(const Mat &X, const Mat &T, Loss loss, S eps, Vec *gradient) const;
+
+  /* All parameters as one vector (W_0, b_0, a_0, W_1, ...; W column-major) and back. */
+  Vec params() const;
+  void set_params(const Vec &p);
+  int num_params() const;
+
+ private:
+  MlpShape shape_;
+  std::vector<Mat> W_; /* w_{l+1} x w_l */
+  std::vector<Vec> b_; /* w_{l+1}       */
+  std::vector<Vec> a_; /* w_{l+1}, hidden layers only */
+};
+
+/* Adam (Kingma & Ba 2015) with bias correction. */
+template<class S> class Adam {
+ public:
+  using Vec = typename Mlp<S>::Vec;
+  Adam(int n, S learning_rate, S beta1 = S(0.9), S beta2 = S(0.999), S epsilon = S(1e-8));
+  void step(Vec *params, const Vec &gradient);
+  void set_learning_rate(S lr) { lr_ = lr; }
+
+ private:
+  Vec m_, v_;
+  S lr_, b1_, b2_, eps_;
+  long t_ = 0;
+};
+
+extern template class Mlp<float>;
+extern template class Mlp<double>;
+extern template class Adam<float>;
+extern template class Adam<double>;
+
+}  // namespace neuralyarn::train

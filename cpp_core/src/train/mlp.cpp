@@ -1,0 +1,367 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/train/mlp.h"
+
+#include <cmath>
+#include <random>
+#include <string>
+
+#include "neuralyarn/presets.h" /* ParameterError */
+
+namespace neuralyarn::train {
+
+namespace {
+constexpr double kInitSlope = 0.25;
+
+void validate_shape(const MlpShape &s)
+{
+  const int L = int(s.widths.size()) - 1;
+  if (L < 1 || L > ny::kMlpMaxLayers) {
+    throw ParameterError("widths", "an MLP needs 1 to " + std::to_string(ny::kMlpMaxLayers) + " weight layers, got " +
+                                       std::to_string(L));
+  }
+  for (int w : s.widths) {
+    if (w < 1 || w > ny::kMlpMaxWidth) {
+      throw ParameterError("widths", "MLP widths must be in [1, " + std::to_string(ny::kMlpMaxWidth) + "], got " +
+                                         std::to_string(w));
+    }
+  }
+  if (s.head != ny::kMlpHeadIdentity && s.head != ny::kMlpHeadSigmoid && s.head != ny::kMlpHeadExp) {
+    throw ParameterError("head", "unknown MLP head " + std::to_string(int(s.head)));
+  }
+}
+}  // namespace
+
+template<class S> Mlp<S>::Mlp(const MlpShape &shape, uint64_t seed) : shape_(shape)
+{
+  validate_shape(shape);
+  std::mt19937_64 rng(seed);
+  const int L = int(shape.widths.size()) - 1;
+  for (int l = 0; l < L; l++) {
+    const int n_in = shape.widths[size_t(l)], n_out = shape.widths[size_t(l) + 1];
+    std::normal_distribution<double> normal(0.0, std::sqrt(2.0 / ((1.0 + kInitSlope * kInitSlope) * n_in)));
+    Mat W(n_out, n_in);
+    for (int j = 0; j < n_in; j++) {
+      for (int i = 0; i < n_out; i++) {
+        W(i, j) = S(normal(rng));
+      }
+    }
+    W_.push_back(W);
+    b_.push_back(Vec::Zero(n_out));
+    if (l < L - 1) {
+      a_.push_back(Vec::Constant(n_out, S(kInitSlope)));
+    }
+  }
+}
+
+template<class S> Mlp<S> Mlp<S>::from_flat(const std::vector<float> &f)
+{
+  auto fail = [](const std::string &what) { throw ParameterError("network", "invalid network array: " + what); };
+  if (f.size() < 4 || !(f[0] >= 1 && f[0] <= ny::kMlpMaxLayers) || f[0] != std::floor(f[0])) {
+    fail("bad layer count");
+  }
+  const int L = int(f[0]);
+  if (f.size() < size_t(L) + 3) {
+    fail("truncated header");
+  }
+  MlpShape shape;
+  for (int l = 0; l <= L; l++) {
+    const float w = f[size_t(1 + l)];
+    if (!(w >= 1 && w <= ny::kMlpMaxWidth) || w != std::floor(w)) {
+      fail("bad width at layer " + std::to_string(l));
+    }
+    shape.widths.push_back(int(w));
+  }
+  const float head = f[size_t(L) + 2];
+  if (!(head == 0.0f || head == 1.0f || head == 2.0f)) {
+    fail("bad head");
+  }
+  shape.head = ny::MlpHead(int(head));
+  if (int(f.size()) != ny::mlp_param_count(L, shape.widths.data())) {
+    fail("size " + std::to_string(f.size()) + " does not match the shape (" +
+         std::to_string(ny::mlp_param_count(L, shape.widths.data())) + ")");
+  }
+  for (float v : f) {
+    if (!std::isfinite(v)) {
+      fail("non-finite value");
+    }
+  }
+  Mlp m(shape, 0);
+  size_t k = size_t(L) + 3;
+  for (int l = 0; l < L; l++) {
+    Mat &W = m.W_[size_t(l)];
+    for (int j = 0; j < W.cols(); j++) {
+      for (int i = 0; i < W.rows(); i++) {
+        W(i, j) = S(f[k++]); /* column-major, as kernel/mlp.h */
+      }
+    }
+    for (int i = 0; i < W.rows(); i++) {
+      m.b_[size_t(l)](i) = S(f[k++]);
+    }
+    if (l < L - 1) {
+      for (int i = 0; i < W.rows(); i++) {
+        m.a_[size_t(l)](i) = S(f[k++]);
+      }
+    }
+  }
+  return m;
+}
+
+template<class S> std::vector<float> Mlp<S>::to_flat() const
+{
+  const int L = num_layers();
+  std::vector<float> f;
+  f.push_back(float(L));
+  for (int w : shape_.widths) {
+    f.push_back(float(w));
+  }
+  f.push_back(float(int(shape_.head)));
+  for (int l = 0; l < L; l++) {
+    const Mat &W = W_[size_t(l)];
+    for (int j = 0; j < W.cols(); j++) {
+      for (int i = 0; i < W.rows(); i++) {
+        f.push_back(float(W(i, j))); /* column-major, as kernel/mlp.h */
+      }
+    }
+    for (int i = 0; i < W.rows(); i++) {
+      f.push_back(float(b_[size_t(l)](i)));
+    }
+    if (l < L - 1) {
+      for (int i = 0; i < W.rows(); i++) {
+        f.push_back(float(a_[size_t(l)](i)));
+      }
+    }
+  }
+  return f;
+}
+
+namespace {
+template<class S> S head_value(int head, S z)
+{
+  if (head == ny::kMlpHeadSigmoid) {
+    return z >= 0 ? S(1) / (S(1) + std::exp(-z)) : std::exp(z) / (S(1) + std::exp(z));
+  }
+  if (head == ny::kMlpHeadExp) {
+    return std::exp(std::min(z, S(ny::kMlpMaxExpArgument)));
+  }
+  return z;
+}
+/* d head / dz, given z and y = head(z). */
+template<class S> S head_derivative(int head, S z, S y)
+{
+  if (head == ny::kMlpHeadSigmoid) {
+    return y * (S(1) - y);
+  }
+  if (head == ny::kMlpHeadExp) {
+    return z < S(ny::kMlpMaxExpArgument) ? y : S(0);
+  }
+  return S(1);
+}
+}  // namespace
+
+template<class S> typename Mlp<S>::Mat Mlp<S>::forward(const Mat &X) const
+{
+  Mat A = X;
+  const int L = num_layers();
+  for (int l = 0; l < L; l++) {
+    Mat Z = (W_[size_t(l)] * A).colwise() + b_[size_t(l)];
+    if (l < L - 1) {
+      const Vec &a = a_[size_t(l)];
+      for (int j = 0; j < Z.cols(); j++) {
+        for (int i = 0; i < Z.rows(); i++) {
+          if (Z(i, j) < 0) {
+            Z(i, j) *= a(i);
+          }
+        }
+      }
+    }
+    else {
+      Z = Z.unaryExpr([this](S z) { return head_value<S>(int(shape_.head), z); });
+    }
+    A = std::move(Z);
+  }
+  return A;
+}
+
+template<class S> S Mlp<S>::loss_and_gradient(const Mat &X, const Mat &T, Loss loss, S eps, Vec *gradient) const
+{
+  const int L = num_layers();
+  /* Forward, keeping pre-activations Z_l and activations A_l (A_0 = X). */
+  std::vector<Mat> Zs, As;
+  As.push_back(X);
+  for (int l = 0; l < L; l++) {
+    Mat Z = (W_[size_t(l)] * As.back()).colwise() + b_[size_t(l)];
+    Mat A = Z;
+    if (l < L - 1) {
+      const Vec &a = a_[size_t(l)];
+      for (int j = 0; j < A.cols(); j++) {
+        for (int i = 0; i < A.rows(); i++) {
+          if (A(i, j) < 0) {
+            A(i, j) *= a(i);
+          }
+        }
+      }
+    }
+    else {
+      A = Z.unaryExpr([this](S z) { return head_value<S>(int(shape_.head), z); });
+    }
+    Zs.push_back(std::move(Z));
+    As.push_back(std::move(A));
+  }
+  const Mat &Y = As.back();
+  const S n = S(Y.size());
+  S value = 0;
+  Mat dY(Y.rows(), Y.cols());
+  for (int j = 0; j < Y.cols(); j++) {
+    for (int i = 0; i < Y.rows(); i++) {
+      if (loss == Loss::kMse) {
+        const S r = Y(i, j) - T(i, j);
+        value += r * r;
+        dY(i, j) = S(2) * r / n;
+      }
+      else {
+        const S r = std::log(Y(i, j) + eps) - std::log(T(i, j) + eps);
+        value += r * r;
+        dY(i, j) = S(2) * r / ((Y(i, j) + eps) * n);
+      }
+    }
+  }
+  value /= n;
+  if (!gradient) {
+    return value;
+  }
+
+  /* Backward. */
+  std::vector<Mat> dW(static_cast<size_t>(L));
+  std::vector<Vec> db(static_cast<size_t>(L)), da(a_.size());
+  Mat dZ(Y.rows(), Y.cols());
+  for (int j = 0; j < Y.cols(); j++) {
+    for (int i = 0; i < Y.rows(); i++) {
+      dZ(i, j) = dY(i, j) * head_derivative<S>(int(shape_.head), Zs.back()(i, j), Y(i, j));
+    }
+  }
+  for (int l = L - 1; l >= 0; l--) {
+    dW[size_t(l)] = dZ * As[size_t(l)].transpose();
+    db[size_t(l)] = dZ.rowwise().sum();
+    if (l == 0) {
+      break;
+    }
+    const Mat dA = W_[size_t(l)].transpose() * dZ;
+    const Mat &Zp = Zs[size_t(l) - 1];
+    const Vec &a = a_[size_t(l) - 1];
+    Vec dslope = Vec::Zero(a.size());
+    Mat dZp(dA.rows(), dA.cols());
+    for (int j = 0; j < dA.cols(); j++) {
+      for (int i = 0; i < dA.rows(); i++) {
+        const S z = Zp(i, j);
+        if (z < 0) {
+          dZp(i, j) = dA(i, j) * a(i);
+          dslope(i) += dA(i, j) * z;
+        }
+        else {
+          dZp(i, j) = dA(i, j);
+        }
+      }
+    }
+    da[size_t(l) - 1] = dslope;
+    dZ = std::move(dZp);
+  }
+  gradient->resize(num_params());
+  int k = 0;
+  for (int l = 0; l < L; l++) {
+    const Mat &g = dW[size_t(l)];
+    for (int j = 0; j < g.cols(); j++) {
+      for (int i = 0; i < g.rows(); i++) {
+        (*gradient)(k++) = g(i, j);
+      }
+    }
+    for (int i = 0; i < db[size_t(l)].size(); i++) {
+      (*gradient)(k++) = db[size_t(l)](i);
+    }
+    if (l < L - 1) {
+      for (int i = 0; i < da[size_t(l)].size(); i++) {
+        (*gradient)(k++) = da[size_t(l)](i);
+      }
+    }
+  }
+  return value;
+}
+
+template<class S> int Mlp<S>::num_params() const
+{
+  int n = 0;
+  for (int l = 0; l < num_layers(); l++) {
+    n += int(W_[size_t(l)].size() + b_[size_t(l)].size());
+    if (l < num_layers() - 1) {
+      n += int(a_[size_t(l)].size());
+    }
+  }
+  return n;
+}
+
+template<class S> typename Mlp<S>::Vec Mlp<S>::params() const
+{
+  Vec p(num_params());
+  int k = 0;
+  for (int l = 0; l < num_layers(); l++) {
+    const Mat &W = W_[size_t(l)];
+    for (int j = 0; j < W.cols(); j++) {
+      for (int i = 0; i < W.rows(); i++) {
+        p(k++) = W(i, j);
+      }
+    }
+    for (int i = 0; i < b_[size_t(l)].size(); i++) {
+      p(k++) = b_[size_t(l)](i);
+    }
+    if (l < num_layers() - 1) {
+      for (int i = 0; i < a_[size_t(l)].size(); i++) {
+        p(k++) = a_[size_t(l)](i);
+      }
+    }
+  }
+  return p;
+}
+
+template<class S> void Mlp<S>::set_params(const Vec &p)
+{
+  int k = 0;
+  for (int l = 0; l < num_layers(); l++) {
+    Mat &W = W_[size_t(l)];
+    for (int j = 0; j < W.cols(); j++) {
+      for (int i = 0; i < W.rows(); i++) {
+        W(i, j) = p(k++);
+      }
+    }
+    for (int i = 0; i < b_[size_t(l)].size(); i++) {
+      b_[size_t(l)](i) = p(k++);
+    }
+    if (l < num_layers() - 1) {
+      for (int i = 0; i < a_[size_t(l)].size(); i++) {
+        a_[size_t(l)](i) = p(k++);
+      }
+    }
+  }
+}
+
+template<class S>
+Adam<S>::Adam(int n, S learning_rate, S beta1, S beta2, S epsilon)
+    : m_(Vec::Zero(n)), v_(Vec::Zero(n)), lr_(learning_rate), b1_(beta1), b2_(beta2), eps_(epsilon)
+{
+}
+
+template<class S> void Adam<S>::step(Vec *params, const Vec &g)
+{
+  t_++;
+  m_ = b1_ * m_ + (S(1) - b1_) * g;
+  v_ = b2_ * v_ + (S(1) - b2_) * g.cwiseProduct(g);
+  const S c1 = S(1) - std::pow(b1_, S(t_)), c2 = S(1) - std::pow(b2_, S(t_));
+  for (int i = 0; i < params->size(); i++) {
+    (*params)(i) -= lr_ * (m_(i) / c1) / (std::sqrt(v_(i) / c2) + eps_);
+  }
+}
+
+template class Mlp<float>;
+template class Mlp<double>;
+template class Adam<float>;
+template class Adam<double>;
+
+}  // namespace neuralyarn::train

@@ -1,0 +1,178 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// The MLP used for T and M: exact gradients (against central finite differences in double), kernel
+// inference equal to the trainer's forward pass, the flat array's validation, and that Adam trains.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <random>
+
+#include "neuralyarn/kernel/mlp.h"
+#include "neuralyarn/presets.h"
+#include "neuralyarn/train/mlp.h"
+
+using namespace neuralyarn;
+using train::Loss;
+using train::Mlp;
+using train::MlpShape;
+
+namespace {
+
+template<class S> typename Mlp<S>::Mat random_matrix(int rows, int cols, std::mt19937_64 &rng, double lo, double hi)
+{
+  std::uniform_real_distribution<double> U(lo, hi);
+  typename Mlp<S>::Mat m(rows, cols);
+  for (int j = 0; j < cols; j++) {
+    for (int i = 0; i < rows; i++) {
+      m(i, j) = S(U(rng));
+    }
+  }
+  return m;
+}
+
+/* The He initialisation perturbed everywhere (biases and slopes too), so that both PReLU branches and
+ * non-trivial slopes are exercised while outputs stay in a trained network's range. */
+template<class S> void randomize(Mlp<S> &m, std::mt19937_64 &rng)
+{
+  typename Mlp<S>::Vec p = m.params();
+  std::normal_distribution<double> N(0.0, 0.3);
+  for (int i = 0; i < p.size(); i++) {
+    p(i) += S(N(rng));
+  }
+  m.set_params(p);
+}
+
+struct ShapeCase {
+  std::vector<int> widths;
+  ny::MlpHead head;
+};
+
+const ShapeCase kShapes[] = {
+    {{3, 7, 7, 1}, ny::kMlpHeadSigmoid},   /* the paper's T network */
+    {{6, 21, 21, 3}, ny::kMlpHeadExp},     /* the paper's M network */
+    {{6, 21, 21, 21, 3}, ny::kMlpHeadExp}, /* the authors' M network */
+    {{2, 5, 4}, ny::kMlpHeadIdentity},
+};
+
+}  // namespace
+
+TEST(Mlp, GradientMatchesCentralDifferences)
+{
+  std::mt19937_64 rng(3);
+  for (const ShapeCase &sc : kShapes) {
+    for (Loss loss : {Loss::kMse, Loss::kLogMse}) {
+      Mlp<double> m(MlpShape{sc.widths, sc.head}, 11);
+      randomize(m, rng);
+      const int B = 16;
+      const auto X = random_matrix<double>(sc.widths.front(), B, rng, -1.5, 1.5);
+      const auto T = random_matrix<double>(sc.widths.back(), B, rng, 0.05, 0.95);
+      Mlp<double>::Vec g;
+      m.loss_and_gradient(X, T, loss, 1e-3, &g);
+      const Mlp<double>::Vec p0 = m.params();
+      ASSERT_EQ(g.size(), p0.size());
+      double worst = 0.0;
+      const double g_max = g.cwiseAbs().maxCoeff();
+      for (int k = 0; k < p0.size(); k++) {
+        const double h = 1e-6 * std::max(1.0, std::abs(p0(k)));
+        Mlp<double>::Vec p = p0;
+        p(k) += h;
+        m.set_params(p);
+        const double up = m.loss_and_gradient(X, T, loss, 1e-3, nullptr);
+        p(k) -= 2 * h;
+        m.set_params(p);
+        const double down = m.loss_and_gradient(X, T, loss, 1e-3, nullptr);
+        m.set_params(p0);
+        const double fd = (up - down) / (2 * h);
+        /* Central differences are O(h^2) ~ 1e-12 accurate; cancellation adds ~1e-16 / h ~ 1e-10 of the
+         * loss (~1e-9 absolute here), hence the floor of 1e-4 of the largest gradient component. */
+        const double err = std::abs(fd - g(k)) / (std::abs(fd) + std::abs(g(k)) + 1e-4 * g_max);
+        if (err > worst && std::getenv("NY_TEST_DEBUG")) {
+          std::printf("k %d fd %.10g g %.10g gmax %.3g\n", k, fd, g(k), g_max);
+        }
+        worst = std::max(worst, err);
+      }
+      EXPECT_LT(worst, 1e-5) << "widths " << sc.widths.size() << " loss " << int(loss);
+    }
+  }
+}
+
+TEST(Mlp, KernelInferenceEqualsTrainerForward)
+{
+  std::mt19937_64 rng(5);
+  for (const ShapeCase &sc : kShapes) {
+    Mlp<float> m(MlpShape{sc.widths, sc.head}, 7);
+    randomize(m, rng);
+    const std::vector<float> flat = m.to_flat();
+    EXPECT_EQ(int(flat.size()), ny::mlp_param_count(int(sc.widths.size()) - 1, sc.widths.data()));
+    const auto X = random_matrix<float>(sc.widths.front(), 1000, rng, -2.0, 2.0);
+    const auto Y = m.forward(X);
+    for (int j = 0; j < X.cols(); j++) {
+      float in[ny::kMlpMaxWidth], out[ny::kMlpMaxWidth];
+      for (int i = 0; i < X.rows(); i++) {
+        in[i] = X(i, j);
+      }
+      ny::mlp_forward(flat.data(), in, out);
+      for (int i = 0; i < Y.rows(); i++) {
+        /* Same float operations up to summation order (Eigen's GEMM vs a dot-product loop). */
+        ASSERT_NEAR(out[i], Y(i, j), 2e-5f * (1.0f + std::abs(Y(i, j)))) << "sample " << j;
+      }
+    }
+  }
+}
+
+TEST(Mlp, FlatArrayRoundTripsAndIsValidated)
+{
+  Mlp<float> m(MlpShape{{6, 21, 21, 3}, ny::kMlpHeadExp}, 9);
+  const std::vector<float> flat = m.to_flat();
+  EXPECT_EQ(Mlp<float>::from_flat(flat).to_flat(), flat);
+  std::vector<float> bad = flat;
+  bad.pop_back();
+  EXPECT_THROW(Mlp<float>::from_flat(bad), ParameterError);
+  bad = flat;
+  bad[20] = NAN;
+  EXPECT_THROW(Mlp<float>::from_flat(bad), ParameterError);
+  bad = flat;
+  bad[5] = 3.0f; /* head */
+  EXPECT_THROW(Mlp<float>::from_flat(bad), ParameterError);
+  bad = flat;
+  bad[1] = 0.0f; /* width */
+  EXPECT_THROW(Mlp<float>::from_flat(bad), ParameterError);
+  EXPECT_THROW(Mlp<float>(MlpShape{{6, 100, 3}, ny::kMlpHeadExp}, 1), ParameterError);
+  EXPECT_THROW(Mlp<float>(MlpShape{{6}, ny::kMlpHeadExp}, 1), ParameterError);
+}
+
+TEST(Mlp, HeadsStayFinite)
+{
+  for (float z : {-1e30f, -100.0f, -1.0f, 0.0f, 1.0f, 100.0f, 1e30f}) {
+    const float s = ny::mlp_apply_head(ny::kMlpHeadSigmoid, z), e = ny::mlp_apply_head(ny::kMlpHeadExp, z);
+    EXPECT_TRUE(std::isfinite(s) && s >= 0.0f && s <= 1.0f) << z;
+    EXPECT_TRUE(std::isfinite(e) && e >= 0.0f) << z;
+  }
+}
+
+/* Adam on the T shape fits a smooth probability-like target: the loss falls by 50x. */
+TEST(Mlp, AdamTrainsTheTShape)
+{
+  std::mt19937_64 rng(21);
+  const int B = 2048;
+  const auto X = random_matrix<float>(3, B, rng, -1.0, 1.0);
+  Mlp<float>::Mat T(1, B);
+  for (int j = 0; j < B; j++) {
+    const float z = 2.0f * std::sin(2.0f * X(0, j)) + X(1, j) * X(2, j) - 0.5f * X(2, j);
+    T(0, j) = 1.0f / (1.0f + std::exp(-z));
+  }
+  Mlp<float> m(MlpShape{{3, 7, 7, 1}, ny::kMlpHeadSigmoid}, 4);
+  train::Adam<float> adam(m.num_params(), 1e-2f);
+  Mlp<float>::Vec g;
+  const float initial = m.loss_and_gradient(X, T, Loss::kMse, 0.0f, nullptr);
+  for (int it = 0; it < 3000; it++) {
+    m.loss_and_gradient(X, T, Loss::kMse, 0.0f, &g);
+    Mlp<float>::Vec p = m.params();
+    adam.step(&p, g);
+    m.set_params(p);
+  }
+  const float final_loss = m.loss_and_gradient(X, T, Loss::kMse, 0.0f, nullptr);
+  EXPECT_LT(final_loss, initial / 50.0f) << "initial " << initial << " final " << final_loss;
+}
