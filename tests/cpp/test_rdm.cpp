@@ -205,10 +205,9 @@ TEST(PlyTracer, MatchesBruteForceInTheSlab)
 {
   for (const char *name : {"fleece", "silk", "polyester", "cotton"}) {
     for (bool mirrored : {false, true}) {
-      const geometry::Ply ply = make_ply(find_preset(name));
-      rdm::TracerOptions to;
-      to.mirrored = mirrored;
-      const rdm::PlyTracer tracer(ply, to);
+      const geometry::Ply base = make_ply(find_preset(name));
+      const geometry::Ply ply = mirrored ? geometry::Ply(base.params(), geometry::mirrored(base.cross_section())) : base;
+      const rdm::PlyTracer tracer(ply);
       std::mt19937_64 rng(17);
       std::uniform_real_distribution<float> U(0.0f, 1.0f);
       int compared = 0, hits = 0;
@@ -317,7 +316,8 @@ TEST(Gather, TransmissionProbabilityMatchesStraightEmbreeRays)
     const rdm::RdmMaps maps = rdm::gather(preset, small_options(6 * 8 * 3000, bins, false, false));
     const geometry::Ply ply = make_ply(preset);
     const double len = 60.0;
-    const rdm::EmbreePly ply_a(ply, -len, len, 256, false), ply_b(ply, -len, len, 256, true);
+    const geometry::Ply ply_mirror(ply.params(), geometry::mirrored(ply.cross_section()));
+    const rdm::EmbreePly ply_a(ply, -len, len, 256), ply_b(ply_mirror, -len, len, 256);
     const rdm::PlyTracer tracer(ply); /* only for the bounding radius */
     const float Rb = tracer.bound_radius();
     const double period = std::isfinite(ply.pitch()) ? ply.pitch() : 1.0;
@@ -379,7 +379,8 @@ TEST(Gather, ReflectionMapMatchesNextEventEstimation)
   const rdm::RdmMaps maps = rdm::gather(preset, small_options(3 * 4 * 30000, bins, false, true));
   const geometry::Ply ply = make_ply(preset);
   const double len = 60.0;
-  const rdm::EmbreePly ply_a(ply, -len, len, 256, false), ply_b(ply, -len, len, 256, true);
+  const geometry::Ply ply_mirror(ply.params(), geometry::mirrored(ply.cross_section()));
+  const rdm::EmbreePly ply_a(ply, -len, len, 256), ply_b(ply_mirror, -len, len, 256);
   const rdm::PlyTracer tracer(ply);
   const float Rb = tracer.bound_radius(), r = tracer.fiber_radius();
   const ny::FiberBsdfParams fp = preset.fiber_params();

@@ -213,6 +213,15 @@ PlyCrossSection pack_cross_section(const PlyParams &params, uint64_t seed)
   return cs;
 }
 
+PlyCrossSection mirrored(const PlyCrossSection &cs)
+{
+  PlyCrossSection m = cs;
+  for (auto &c : m.centers) {
+    c.x() = -c.x(); /* centres are stored as (y, z) */
+  }
+  return m;
+}
+
 Ply::Ply(const PlyParams &params, PlyCrossSection cross_section)
     : params_(params), cs_(std::move(cross_section)), twist_rate_(kPi * params.alpha / params.R)
 {

@@ -16,24 +16,10 @@ struct EmbreePly::Impl {
   const unsigned *indices = nullptr;
 };
 
-EmbreePly::EmbreePly(const geometry::Ply &ply, double x0, double x1, int segments_per_turn, bool mirrored)
+EmbreePly::EmbreePly(const geometry::Ply &ply, double x0, double x1, int segments_per_turn)
     : impl_(std::make_unique<Impl>())
 {
-  /* The mirrored ply has the cross-section mirrored (y -> -y) at x = 0 and the same Z twist, exactly as
-   * PlyTracer builds it. */
-  const double w = ply.twist_rate();
-  auto point = [&](int i, double x) -> Eigen::Vector3d {
-    if (!mirrored) {
-      return ply.fiber_point(i, x);
-    }
-    const Eigen::Vector3d p0 = ply.fiber_point(i, 0.0);
-    const double y = -p0.y(), z = p0.z(), c = std::cos(w * x), s = std::sin(w * x);
-    return Eigen::Vector3d(x, c * y - s * z, s * y + c * z);
-  };
-  const double turns = std::isfinite(ply.pitch()) ? (x1 - x0) / ply.pitch() : 0.0;
-  const float radius = float(ply.fiber_radius());
-  const geometry::CurveSet curves = geometry::tessellate_curves(
-      ply.num_fibers(), point, [radius](int) { return radius; }, x0, x1, turns, segments_per_turn, ply.params().R);
+  const geometry::CurveSet curves = geometry::export_fibers(ply, x0, x1, segments_per_turn);
   impl_->device = rtcNewDevice("threads=1");
   if (!impl_->device) {
     throw std::runtime_error("Embree: cannot create a device (error " + std::to_string(rtcGetDeviceError(nullptr)) + ")");

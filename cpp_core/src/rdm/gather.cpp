@@ -423,13 +423,10 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
   pp.rho = preset.rho;
   pp.alpha = preset.alpha;
   pp.R = 1.0;
-  const geometry::Ply ply(pp, geometry::pack_cross_section(pp, opt.packing_seed));
+  const geometry::PlyCrossSection cs = geometry::pack_cross_section(pp, opt.packing_seed);
   Geometry geo;
-  TracerOptions to = opt.tracer;
-  to.mirrored = false;
-  geo.tracer[0] = std::make_unique<PlyTracer>(ply, to);
-  to.mirrored = true;
-  geo.tracer[1] = std::make_unique<PlyTracer>(ply, to);
+  geo.tracer[0] = std::make_unique<PlyTracer>(geometry::Ply(pp, cs), opt.tracer);
+  geo.tracer[1] = std::make_unique<PlyTracer>(geometry::Ply(pp, geometry::mirrored(cs)), opt.tracer);
   const FiberLobeSampler sampler(preset.fiber_params(), opt.plain_estimator);
   for (int t = 0; t <= opt.bins.theta_i; t++) {
     geo.cos_theta_edge.push_back(std::cos(0.5 * kPi * t / opt.bins.theta_i));

@@ -43,15 +43,8 @@ PlyTracer::PlyTracer(const geometry::Ply &ply, const TracerOptions &options)
   std::vector<float> ymin(static_cast<size_t>(N)), ymax(static_cast<size_t>(N)), zmin(static_cast<size_t>(N)),
       zmax(static_cast<size_t>(N));
   for (int i = 0; i < N; i++) {
-    Eigen::Vector3d p0 = ply.fiber_point(i, 0.0);
-    Eigen::Vector3d p1 = ply.fiber_point(i, double(L_));
-    if (options.mirrored) {
-      p0.y() = -p0.y();
-      p1.y() = -p1.y();
-      /* The mirrored cross-section twisted the same way: rotate the mirrored start point. */
-      const double c = std::cos(w_ * double(L_)), s = std::sin(w_ * double(L_));
-      p1 = Eigen::Vector3d(double(L_), c * p0.y() - s * p0.z(), s * p0.y() + c * p0.z());
-    }
+    const Eigen::Vector3d p0 = ply.fiber_point(i, 0.0);
+    const Eigen::Vector3d p1 = ply.fiber_point(i, double(L_));
     const Eigen::Vector3d axis = (p1 - p0).normalized();
     fibers_[size_t(i)].a = make_vec3(float(p0.x()), float(p0.y()), float(p0.z()));
     fibers_[size_t(i)].axis = make_vec3(float(axis.x()), float(axis.y()), float(axis.z()));

@@ -45,6 +45,10 @@ struct PlyCrossSection {
  * reach; rho = 0.5 with the presets' N is easy). */
 PlyCrossSection pack_cross_section(const PlyParams &params, uint64_t seed);
 
+/* The cross-section mirrored y -> -y. A ply built from it, with the same Z twist, is the original ply
+ * rotated by pi about the z axis: its mirror image in the sense of the RDM's half-turn symmetry. */
+PlyCrossSection mirrored(const PlyCrossSection &cross_section);
+
 /* A ply's fibers as helices. */
 class Ply {
  public:

@@ -21,9 +21,8 @@ struct EmbreeHit {
 
 class EmbreePly {
  public:
-  /* The fibers of `ply` over x in [x0, x1]; `mirrored` builds the ply rotated by pi about the z axis
-   * (the cross-section mirrored y -> -y), as PlyTracer does. */
-  EmbreePly(const geometry::Ply &ply, double x0, double x1, int segments_per_turn, bool mirrored = false);
+  /* The fibers of `ply` over x in [x0, x1]. */
+  EmbreePly(const geometry::Ply &ply, double x0, double x1, int segments_per_turn);
   ~EmbreePly();
   EmbreePly(const EmbreePly &) = delete;
   EmbreePly &operator=(const EmbreePly &) = delete;

@@ -37,7 +37,6 @@ namespace neuralyarn::rdm {
 struct TracerOptions {
   double sagitta = 0.01;   /* largest chord deviation from the helix, in fiber radii      */
   double cell_size = 2.0;  /* grid cell side in fiber radii                               */
-  bool mirrored = false;   /* build the ply rotated by pi about the z axis (see gather.h) */
 };
 
 /* A ray in canonical slab coordinates plus the slab it is in. */
