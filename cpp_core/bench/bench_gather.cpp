@@ -77,13 +77,7 @@ std::vector<Query> record_queries(const rdm::PlyTracer &tracer, const FiberPrese
       if (!sampler.sample(ny::to_local(f, -ray.d), ny::make_rgb(1.0f), u, &wo, &w, &alb)) {
         break;
       }
-      const ny::Vec3 d = ny::normalize(ny::to_world(f, wo));
-      ray.o = hit.point;
-      if (ny::dot(d, hit.normal) < 0.0f) {
-        ray.o = tracer.far_side(hit.fiber, hit.point, d);
-      }
-      ray.d = d;
-      tracer.canonicalize(&ray);
+      tracer.leave_fiber(hit, ny::normalize(ny::to_world(f, wo)), &ray);
       ray.slab = 0;
       exclude = hit.fiber;
     }

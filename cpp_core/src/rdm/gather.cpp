@@ -245,15 +245,8 @@ void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const Gath
       alive = false;
       break;
     }
-    const Vec3 d_new = ny::normalize(ny::to_world(frame, wo_f));
-    Vec3 origin = hit.point;
-    if (ny::dot(d_new, hit.normal) < 0.0f) {
-      /* Into the fiber: the path crosses it and leaves from the far side. */
-      origin = tracer.far_side(hit.fiber, hit.point, d_new);
-    }
-    ray.o = origin;
-    ray.d = d_new;
-    tracer.canonicalize(&ray);
+    /* Into the fiber, the path crosses it and leaves from the far side (D7). */
+    tracer.leave_fiber(hit, ny::normalize(ny::to_world(frame, wo_f)), &ray);
     exclude = hit.fiber;
     /* Russian roulette: survive with q = min(1, max channel), then divide by q. */
     const float q = std::min(1.0f, std::max(beta[0], std::max(beta[1], beta[2])));

@@ -207,6 +207,13 @@ Vec3 PlyTracer::far_side(int fiber, Vec3 p, Vec3 d) const
   return c + dp * (r_ / len);
 }
 
+void PlyTracer::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
+{
+  ray->o = ny::dot(d, hit.normal) < 0.0f ? far_side(hit.fiber, hit.point, d) : hit.point;
+  ray->d = d;
+  canonicalize(ray);
+}
+
 bool PlyTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const
 {
   float travelled = 0.0f;

@@ -82,6 +82,10 @@ class PlyTracer {
    * D7). The result lies on the tube's surface with d pointing outward there. */
   ny::Vec3 far_side(int fiber, ny::Vec3 p, ny::Vec3 d) const;
 
+  /* The ray a path continues with after scattering at `hit` into direction d: from the hit point if d
+   * points out of the tube, else from far_side(); in canonical coordinates of the slab it starts in. */
+  void leave_fiber(const TubeHit &hit, ny::Vec3 d, SlabRay *ray) const;
+
   /* Entry distance of the ray (canonical coordinates) into tube `fiber` of the slab, ignoring the slab's
    * x range; +inf if it misses or starts inside. (Brute-force reference for tests.) */
   float intersect_fiber(int fiber, ny::Vec3 o, ny::Vec3 d) const { return intersect_tube(fibers_[size_t(fiber)], o, d); }
