@@ -158,14 +158,6 @@ void bench_queries(const FiberPreset &preset, const rdm::TracerOptions &topt, si
               100.0 * double(agree) / double(qs.size()), hits_tracer, hits_embree, self_hits, entry_mismatch);
 }
 
-rdm::MapResolution parse_bins(const std::string &s)
-{
-  rdm::MapResolution b;
-  char x;
-  std::istringstream in(s);
-  in >> b.theta_i >> x >> b.phi_i >> x >> b.theta_o >> x >> b.phi_o;
-  return b;
-}
 
 }  // namespace
 
@@ -214,7 +206,7 @@ int main(int argc, char **argv)
           rdm::GatherOptions opt;
           opt.paths = uint64_t(paths);
           opt.threads = threads;
-          opt.bins = parse_bins(bins);
+          opt.bins = rdm::parse_resolution(bins);
           opt.tracer = topt;
           opt.seed = uint64_t(k + 1);
           opt.plain_estimator = plain != 0;
@@ -246,7 +238,7 @@ int main(int argc, char **argv)
       rdm::GatherOptions opt;
       opt.paths = uint64_t(paths);
       opt.threads = threads;
-      opt.bins = parse_bins(bins);
+      opt.bins = rdm::parse_resolution(bins);
       opt.tracer = topt;
       const rdm::RdmMaps maps = rdm::gather(find_preset(n), opt);
       const rdm::GatherStats &s = maps.stats;

@@ -116,18 +116,6 @@ uint64_t parse_count(const std::string &text)
   return uint64_t(v * mult);
 }
 
-rdm::MapResolution parse_bins(const std::string &text)
-{
-  rdm::MapResolution b;
-  char x1, x2, x3;
-  std::istringstream in(text);
-  if (!(in >> b.theta_i >> x1 >> b.phi_i >> x2 >> b.theta_o >> x3 >> b.phi_o) || x1 != 'x' || x2 != 'x' ||
-      x3 != 'x' || !in.eof()) {
-    throw ParameterError("bins", "--bins must look like 22x90x45x90 (theta_i x phi_i x theta_o x phi_o), got '" +
-                                     text + "'");
-  }
-  return b;
-}
 
 /* A one-line progress bar on stderr, redrawn at most 4 times a second (every 10 % when stderr is not a
  * terminal, so logs stay short). */
@@ -192,7 +180,7 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
   opt.seed = seed;
   opt.packing_seed = packing_seed;
   opt.threads = threads;
-  opt.bins = parse_bins(bins_text);
+  opt.bins = rdm::parse_resolution(bins_text);
   opt.symmetrize = !no_symmetrize;
   opt.variance = variance;
   rdm::validate(opt);

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <sstream>
 #include <cstdio>
 #include <cstdlib>
 
@@ -375,6 +376,19 @@ double RdmMaps::outgoing_solid_angle(int to) const
 {
   const double t0 = kPi * to / bins.theta_o, t1 = kPi * (to + 1) / bins.theta_o;
   return (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / bins.phi_o;
+}
+
+MapResolution parse_resolution(const std::string &text)
+{
+  MapResolution b;
+  char x1 = 0, x2 = 0, x3 = 0;
+  std::istringstream in(text);
+  if (!(in >> b.theta_i >> x1 >> b.phi_i >> x2 >> b.theta_o >> x3 >> b.phi_o) || x1 != 'x' || x2 != 'x' ||
+      x3 != 'x' || !in.eof()) {
+    throw ParameterError("bins", "--bins must look like 22x90x45x90 (theta_i x phi_i x theta_o x phi_o), got '" +
+                                     text + "'");
+  }
+  return b;
 }
 
 void validate(const GatherOptions &o)

@@ -105,6 +105,10 @@ struct RdmMaps {
  * ParameterError for invalid options or geometry that cannot be packed. */
 RdmMaps gather(const FiberPreset &preset, const GatherOptions &options);
 
+/* "22x90x45x90" (theta_i x phi_i x theta_o x phi_o); throws ParameterError("bins") otherwise. Their
+ * ranges are checked by validate(GatherOptions). */
+MapResolution parse_resolution(const std::string &text);
+
 /* Validates options without gathering (the CLI calls it before allocating anything). */
 void validate(const GatherOptions &options);
 
