@@ -8,7 +8,6 @@
 #include <cmath>
 #include <cstdio>
 #include <mutex>
-#include <sstream>
 #include <thread>
 #include <exception>
 #include <filesystem>
