@@ -85,51 +85,28 @@ template<class S> Mlp<S> Mlp<S>::from_flat(const std::vector<float> &f)
       fail("non-finite value");
     }
   }
+  /* After the header the array is params() in float: W column-major, b, slopes, layer by layer. */
   Mlp m(shape, 0);
-  size_t k = size_t(L) + 3;
-  for (int l = 0; l < L; l++) {
-    Mat &W = m.W_[size_t(l)];
-    for (int j = 0; j < W.cols(); j++) {
-      for (int i = 0; i < W.rows(); i++) {
-        W(i, j) = S(f[k++]); /* column-major, as kernel/mlp.h */
-      }
-    }
-    for (int i = 0; i < W.rows(); i++) {
-      m.b_[size_t(l)](i) = S(f[k++]);
-    }
-    if (l < L - 1) {
-      for (int i = 0; i < W.rows(); i++) {
-        m.a_[size_t(l)](i) = S(f[k++]);
-      }
-    }
+  Vec p(m.num_params());
+  for (int i = 0; i < p.size(); i++) {
+    p(i) = S(f[size_t(L) + 3 + size_t(i)]);
   }
+  m.set_params(p);
   return m;
 }
 
 template<class S> std::vector<float> Mlp<S>::to_flat() const
 {
-  const int L = num_layers();
   std::vector<float> f;
-  f.push_back(float(L));
+  f.push_back(float(num_layers()));
   for (int w : shape_.widths) {
     f.push_back(float(w));
   }
   f.push_back(float(int(shape_.head)));
-  for (int l = 0; l < L; l++) {
-    const Mat &W = W_[size_t(l)];
-    for (int j = 0; j < W.cols(); j++) {
-      for (int i = 0; i < W.rows(); i++) {
-        f.push_back(float(W(i, j))); /* column-major, as kernel/mlp.h */
-      }
-    }
-    for (int i = 0; i < W.rows(); i++) {
-      f.push_back(float(b_[size_t(l)](i)));
-    }
-    if (l < L - 1) {
-      for (int i = 0; i < W.rows(); i++) {
-        f.push_back(float(a_[size_t(l)](i)));
-      }
-    }
+  /* params() is already in the kernel's order (W column-major, b, slopes; layer by layer). */
+  const Vec p = params();
+  for (int i = 0; i < p.size(); i++) {
+    f.push_back(float(p(i)));
   }
   return f;
 }
@@ -158,26 +135,29 @@ template<class S> S head_derivative(int head, S z, S y)
 }
 }  // namespace
 
-template<class S> typename Mlp<S>::Mat Mlp<S>::forward(const Mat &X) const
+template<class S> typename Mlp<S>::Mat Mlp<S>::layer(int l, const Mat &A, Mat *Z) const
 {
-  Mat A = X;
-  const int L = num_layers();
-  for (int l = 0; l < L; l++) {
-    Mat Z = (W_[size_t(l)] * A).colwise() + b_[size_t(l)];
-    if (l < L - 1) {
-      const Vec &a = a_[size_t(l)];
-      for (int j = 0; j < Z.cols(); j++) {
-        for (int i = 0; i < Z.rows(); i++) {
-          if (Z(i, j) < 0) {
-            Z(i, j) *= a(i);
-          }
+  *Z = (W_[size_t(l)] * A).colwise() + b_[size_t(l)];
+  if (l < num_layers() - 1) {
+    Mat out = *Z;
+    const Vec &a = a_[size_t(l)];
+    for (int j = 0; j < out.cols(); j++) {
+      for (int i = 0; i < out.rows(); i++) {
+        if (out(i, j) < 0) {
+          out(i, j) *= a(i); /* channel-wise PReLU */
         }
       }
     }
-    else {
-      Z = Z.unaryExpr([this](S z) { return head_value<S>(int(shape_.head), z); });
-    }
-    A = std::move(Z);
+    return out;
+  }
+  return Z->unaryExpr([this](S z) { return head_value<S>(int(shape_.head), z); });
+}
+
+template<class S> typename Mlp<S>::Mat Mlp<S>::forward(const Mat &X) const
+{
+  Mat A = X, Z;
+  for (int l = 0; l < num_layers(); l++) {
+    A = layer(l, A, &Z);
   }
   return A;
 }
@@ -189,21 +169,8 @@ template<class S> S Mlp<S>::loss_and_gradient(const Mat &X, const Mat &T, Loss l
   std::vector<Mat> Zs, As;
   As.push_back(X);
   for (int l = 0; l < L; l++) {
-    Mat Z = (W_[size_t(l)] * As.back()).colwise() + b_[size_t(l)];
-    Mat A = Z;
-    if (l < L - 1) {
-      const Vec &a = a_[size_t(l)];
-      for (int j = 0; j < A.cols(); j++) {
-        for (int i = 0; i < A.rows(); i++) {
-          if (A(i, j) < 0) {
-            A(i, j) *= a(i);
-          }
-        }
-      }
-    }
-    else {
-      A = Z.unaryExpr([this](S z) { return head_value<S>(int(shape_.head), z); });
-    }
+    Mat Z;
+    Mat A = layer(l, As.back(), &Z);
     Zs.push_back(std::move(Z));
     As.push_back(std::move(A));
   }

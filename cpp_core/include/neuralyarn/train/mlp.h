@@ -55,6 +55,10 @@ template<class S> class Mlp {
   int num_params() const;
 
  private:
+  /* Layer l applied to activations A: returns its output (PReLU, or the head for the last layer) and
+   * stores the pre-activation in *Z for backpropagation. */
+  Mat layer(int l, const Mat &A, Mat *Z) const;
+
   MlpShape shape_;
   std::vector<Mat> W_; /* w_{l+1} x w_l */
   std::vector<Vec> b_; /* w_{l+1}       */
