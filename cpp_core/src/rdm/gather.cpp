@@ -32,7 +32,8 @@ constexpr uint64_t kChunk = 8192;
 /* Fixed-point scale of the accumulators: weights are added as round(w * 2^32). */
 constexpr double kFixedScale = 4294967296.0;
 constexpr double kInvFixedScale = 1.0 / kFixedScale;
-/* Largest weight accepted into a fixed-point sum (a bin can then take 2^31 of them before overflow). */
+/* Largest weight accepted into a fixed-point sum: 2^10 * 2^32 per add leaves room for 2^22 such adds per
+ * bin (in practice weights are <= ~3, so ~6e9 paths per bin). Larger weights are counted as invalid. */
 constexpr float kMaxWeight = 1024.0f;
 constexpr int kEventBins = 4096;
 constexpr double kDisplacementBin = 0.02; /* ply radii */
@@ -292,10 +293,6 @@ void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const Gath
   for (int c = 0; c < 3; c++) {
     if (!(beta[c] <= kMaxWeight)) {
       ls.invalid++;
-      if (std::getenv("NY_DEBUG_WEIGHTS")) {
-        std::fprintf(stderr, "invalid weight: path %llu events %d beta %g %g %g\n", (unsigned long long)k, events,
-                     double(beta[0]), double(beta[1]), double(beta[2]));
-      }
       return;
     }
   }
