@@ -8,8 +8,6 @@
 #include <limits>
 #include <memory>
 #include <sstream>
-#include <cstdio>
-#include <cstdlib>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
