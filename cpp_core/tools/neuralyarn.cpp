@@ -16,6 +16,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "cli_common.h"
+#include "model_commands.h"
 #include "neuralyarn/fiber_report.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/rdm/gather.h"
@@ -25,41 +27,9 @@
 
 namespace fs = std::filesystem;
 using namespace neuralyarn;
+using namespace neuralyarn::cli;
 
 namespace {
-
-/* CLI::Range lets NaN through (every comparison with NaN is false): reject non-finite values first. */
-CLI::Validator finite_range(double lo, double hi)
-{
-  return CLI::Validator(
-      [lo, hi](std::string &s) -> std::string {
-        double v = 0.0;
-        if (!CLI::detail::lexical_cast(s, v) || !std::isfinite(v)) {
-          return "value '" + s + "' is not a finite number";
-        }
-        if (v < lo || v > hi) {
-          return "value " + s + " is outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
-        }
-        return std::string();
-      },
-      "finite in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
-}
-
-FiberPreset resolve_preset(const std::string &name, const std::string &params_file)
-{
-  if (!params_file.empty()) {
-    return load_preset_file(params_file);
-  }
-  return find_preset(name);
-}
-
-void print_preset(const FiberPreset &p)
-{
-  std::printf("%-10s N=%-4d rho=%.3f alpha=%.3f C_R=(%.3f, %.3f, %.3f) C_TT=(%.3f, %.3f, %.3f) "
-              "beta_R=%.3f beta_TT=%.3f gamma_TT=%.3f deg\n",
-              p.name.c_str(), p.N, p.rho, p.alpha, p.C_R[0], p.C_R[1], p.C_R[2], p.C_TT[0], p.C_TT[1], p.C_TT[2],
-              p.beta_R_deg, p.beta_TT_deg, p.gamma_TT_deg);
-}
 
 int run_fiber(const std::string &preset_name, const std::string &params_file, double theta_i, double phi_i,
               int samples, uint64_t seed, const std::string &out)
@@ -94,80 +64,6 @@ int run_fiber(const std::string &preset_name, const std::string &params_file, do
   return 0;
 }
 
-
-/* "10000000", "1e7", "10M", "2.5k": a positive integer path count. */
-uint64_t parse_count(const std::string &text)
-{
-  std::string s = text;
-  double mult = 1.0;
-  if (!s.empty()) {
-    const char suffix = s.back();
-    if (suffix == 'k' || suffix == 'K') mult = 1e3;
-    if (suffix == 'M' || suffix == 'm') mult = 1e6;
-    if (suffix == 'G' || suffix == 'g') mult = 1e9;
-    if (mult != 1.0) s.pop_back();
-  }
-  double v = 0.0;
-  if (!CLI::detail::lexical_cast(s, v) || !std::isfinite(v) || v * mult < 1.0 || v * mult > 1e12 ||
-      std::floor(v * mult) != v * mult) {
-    throw ParameterError("paths", "--paths must be a whole number in [1, 1e12] (e.g. 1e7 or 10M), got '" + text + "'");
-  }
-  return uint64_t(v * mult);
-}
-
-
-/* A one-line progress bar on stderr, redrawn at most 4 times a second (every 10 % when stderr is not a
- * terminal, so logs stay short). */
-class ProgressBar {
- public:
-  explicit ProgressBar(bool enabled) : enabled_(enabled), tty_(isatty(2)), start_(Clock::now()) {}
-  void update(uint64_t done, uint64_t total)
-  {
-    if (!enabled_) return;
-    std::lock_guard<std::mutex> lock(mutex_);
-    const auto now = Clock::now();
-    const double frac = double(done) / double(total);
-    if (tty_) {
-      if (done < total && now - last_ < std::chrono::milliseconds(250)) return;
-    }
-    else {
-      if (done < total && int(frac * 10) == last_decile_) return;
-      last_decile_ = int(frac * 10);
-    }
-    last_ = now;
-    const double secs = std::chrono::duration<double>(now - start_).count();
-    const double rate = secs > 0 ? double(done) / secs : 0.0;
-    const double eta = rate > 0 ? double(total - done) / rate : 0.0;
-    const int width = 30, filled = int(frac * width);
-    std::string bar(size_t(filled), '#');
-    bar.append(size_t(width - filled), '.');
-    std::fprintf(stderr, "%s[%s] %5.1f%%  %.3gM / %.3gM paths  %.2fM paths/s  ETA %.0fs%s", tty_ ? "\r" : "",
-                 bar.c_str(), 100.0 * frac, double(done) / 1e6, double(total) / 1e6, rate / 1e6, eta,
-                 tty_ ? (done >= total ? "\n" : "") : "\n");
-    std::fflush(stderr);
-  }
-
- private:
-  using Clock = std::chrono::steady_clock;
-  bool enabled_, tty_;
-  Clock::time_point start_, last_{};
-  int last_decile_ = -1;
-  std::mutex mutex_;
-};
-
-void check_writable(const std::string &out)
-{
-  const fs::path parent = fs::path(out).has_parent_path() ? fs::path(out).parent_path() : fs::path(".");
-  if (!fs::is_directory(parent)) {
-    throw std::runtime_error("output directory '" + parent.string() + "' does not exist");
-  }
-  if (::access(parent.c_str(), W_OK) != 0) {
-    throw std::runtime_error("output directory '" + parent.string() + "' is not writable");
-  }
-  if (fs::is_directory(out)) {
-    throw std::runtime_error("output path '" + out + "' is a directory");
-  }
-}
 
 int run_gather(const std::string &preset_name, const std::string &params_file, const std::string &paths_text,
                uint64_t seed, uint64_t packing_seed, int threads, const std::string &bins_text, bool no_symmetrize, bool variance,
@@ -282,9 +178,15 @@ int main(int argc, char **argv)
   scene->add_flag("--white-furnace", s_opt.white_furnace, "Uniform white background, no lights");
   scene->add_option("--out", s_out, "Scene file to write (.xml)")->required();
 
+  auto model_commands = add_model_commands(app);
+
   CLI11_PARSE(app, argc, argv);
 
   try {
+    const int rc = model_commands->run();
+    if (rc >= 0) {
+      return rc;
+    }
     if (presets->parsed()) {
       for (const auto &p : builtin_presets()) {
         print_preset(p);

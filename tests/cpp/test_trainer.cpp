@@ -5,6 +5,7 @@
 // reproducible from its seed.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "neuralyarn/presets.h"
@@ -49,7 +50,17 @@ TEST(Dataset, TransmissionSamplesAreUnitUniformAndSplit)
     mean_z += z;
     const int ti = rdm::bin_of(std::acos(z), 0.0, M_PI / 2, 22), pi = rdm::bin_of(std::atan2(y, x), -M_PI, M_PI, 90);
     ASSERT_FALSE(train::is_validation_bin(maps.bins, ti, pi));
-    ASSERT_EQ(tr.Y(0, j), maps.p_t[maps.incident_index(ti, pi)]);
+    /* Bilinear between bin centres: within the range of the 3 x 3 neighbourhood of the bin. */
+    float lo = 1.0f, hi = 0.0f;
+    for (int dt = -1; dt <= 1; dt++) {
+      for (int dp = -1; dp <= 1; dp++) {
+        const float v = maps.p_t[maps.incident_index(std::clamp(ti + dt, 0, 21), (pi + dp + 90) % 90)];
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+      }
+    }
+    ASSERT_GE(tr.Y(0, j), lo - 1e-6f);
+    ASSERT_LE(tr.Y(0, j), hi + 1e-6f);
   }
   /* Uniform in solid angle over the hemisphere: E[cos theta] = 1/2, standard error 0.29/sqrt(n). */
   EXPECT_NEAR(mean_z / tr.X.cols(), 0.5, 5 * 0.29 / std::sqrt(double(tr.X.cols())));
@@ -77,4 +88,46 @@ TEST(Trainer, TNetworkLearnsTransmissionAndIsReproducible)
   EXPECT_LT(a.validation_mse, 0.01f);
   const train::TrainResult b = train::train_network(shape, tr, va, o);
   EXPECT_EQ(a.net.to_flat(), b.net.to_flat()) << "training is not reproducible from its seed";
+  /* Gradients are summed in fixed chunks: the same bits on one thread. */
+  o.threads = 1;
+  const train::TrainResult c = train::train_network(shape, tr, va, o);
+  EXPECT_EQ(a.net.to_flat(), c.net.to_flat()) << "training depends on the thread count";
+}
+
+TEST(Trainer, DivergenceStopsWithAMessageAndFiniteWeights)
+{
+  const rdm::RdmMaps &maps = fleece_maps();
+  const train::Dataset tr = train::sample_transmission(maps, 4096, 1, false);
+  train::TrainOptions o;
+  o.steps = 200;
+  o.learning_rate = 1e30f; /* absurd: the first step overflows the weights */
+  const train::MlpShape shape{{3, 7, 7, 1}, ny::kMlpHeadExp};
+  const train::TrainResult r = train::train_network(shape, tr, {}, o);
+  EXPECT_TRUE(r.diverged);
+  EXPECT_NE(r.message.find("diverged"), std::string::npos);
+  EXPECT_LT(r.steps_done, 200);
+  for (float v : r.net.to_flat()) {
+    ASSERT_TRUE(std::isfinite(v));
+  }
+}
+
+TEST(Dataset, MultipleScatteringSamplesCarryTheirBinsValue)
+{
+  const rdm::RdmMaps &maps = fleece_maps();
+  const train::Dataset d = train::sample_multiple_scattering(maps, 20000, 4, false);
+  ASSERT_EQ(d.X.rows(), 6);
+  ASSERT_EQ(d.Y.rows(), 3);
+  double mean_zo = 0.0;
+  for (int j = 0; j < d.X.cols(); j++) {
+    const double zi = d.X(2, j), zo = d.X(5, j);
+    ASSERT_GE(zi, 0.0);
+    mean_zo += zo;
+    const int ti = rdm::bin_of(std::acos(zi), 0.0, M_PI / 2, 22);
+    const int pi = rdm::bin_of(std::atan2(double(d.X(1, j)), double(d.X(0, j))), -M_PI, M_PI, 90);
+    const int to = rdm::bin_of(std::acos(zo), 0.0, M_PI, 4);
+    const int po = rdm::bin_of(std::atan2(double(d.X(4, j)), double(d.X(3, j))), -M_PI, M_PI, 4);
+    ASSERT_EQ(d.Y(1, j), maps.m[maps.map_index(ti, pi, to, po) + 1]);
+  }
+  /* w_o uniform on the whole sphere: E[cos theta_o] = 0, standard deviation 1/sqrt(3). */
+  EXPECT_NEAR(mean_zo / d.X.cols(), 0.0, 5 * 0.577 / std::sqrt(double(d.X.cols())));
 }

@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "neuralyarn/io.h"
 #include "neuralyarn/version.h"
 
 namespace neuralyarn::rdm {
@@ -80,16 +81,6 @@ struct Payload {
 };
 
 static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "map files are little endian");
-
-std::string utc_now()
-{
-  const std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
 
 json stats_json(const GatherStats &s)
 {
@@ -187,40 +178,23 @@ void save_maps(const RdmMaps &maps, const std::string &path)
   append_le<uint64_t>(head, header.size());
   head += header;
 
-  const fs::path target(path);
-  if (target.has_parent_path() && !fs::is_directory(target.parent_path())) {
-    fail(path, "directory '" + target.parent_path().string() + "' does not exist");
+  try {
+    write_file_atomically(path, head, pl.bytes);
   }
-  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) {
-      fail(path, "cannot create '" + tmp + "': " + std::strerror(errno));
-    }
-    out.write(head.data(), std::streamsize(head.size()));
-    out.write(pl.bytes.data(), std::streamsize(pl.bytes.size()));
-    out.flush();
-    if (!out) {
-      out.close();
-      std::remove(tmp.c_str());
-      fail(path, "write failed (disk full?)");
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, target, ec);
-  if (ec) {
-    std::remove(tmp.c_str());
-    fail(path, "cannot rename the temporary file into place: " + ec.message());
+  catch (const std::runtime_error &e) {
+    fail(path, e.what());
   }
 }
 
 RdmMaps load_maps(const std::string &path)
 {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    fail(path, "cannot open: " + std::string(std::strerror(errno)));
+  std::string data;
+  try {
+    data = read_file(path);
   }
-  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  catch (const std::runtime_error &e) {
+    fail(path, e.what());
+  }
   if (data.size() < 20 || std::memcmp(data.data(), kMagic, 8) != 0) {
     fail(path, "not a neuralyarn RDM file (bad magic; was it transferred in text mode or truncated?)");
   }

@@ -4,13 +4,66 @@
 #include <cmath>
 #include <random>
 
+#include "neuralyarn/kernel/fiber_bsdf.h"
+#include "neuralyarn/kernel/frames.h"
 #include "neuralyarn/presets.h" /* ParameterError */
 
 namespace neuralyarn::train {
 
 namespace {
 constexpr double kPi = 3.14159265358979323846;
+
+void check_count(int n)
+{
+  if (n < 1) {
+    throw ParameterError("samples", "the number of training samples must be >= 1");
+  }
 }
+
+/* Draws w_i uniformly on the hemisphere until it lands in a bin of the requested split that has paths. */
+struct IncidentSampler {
+  const rdm::RdmMaps &maps;
+  bool validation;
+  std::mt19937_64 rng;
+  std::uniform_real_distribution<double> U{0.0, 1.0};
+  long tries = 0;
+
+  void draw(double *theta, double *phi, int *ti, int *pi)
+  {
+    const rdm::MapResolution &b = maps.bins;
+    for (;;) {
+      if (++tries > 100000000L) {
+        throw ParameterError("maps", "no incident bin with paths is available for this split");
+      }
+      *theta = std::acos(1.0 - U(rng)); /* cos(theta) uniform in (0, 1] */
+      *phi = -kPi + 2.0 * kPi * U(rng);
+      *ti = rdm::bin_of(*theta, 0.0, 0.5 * kPi, b.theta_i);
+      *pi = rdm::bin_of(*phi, -kPi, kPi, b.phi_i);
+      if (is_validation_bin(b, *ti, *pi) == validation && maps.count[maps.incident_index(*ti, *pi)] > 0) {
+        return;
+      }
+    }
+  }
+};
+
+/* Bilinear interpolation of a per-incident-bin table between bin centres. */
+float interpolate_incident(const rdm::RdmMaps &maps, const std::vector<float> &table, int channels, int c,
+                           double theta, double phi)
+{
+  const rdm::MapResolution &b = maps.bins;
+  const double ft = theta / (0.5 * kPi) * b.theta_i - 0.5;
+  const double fp = (phi + kPi) / (2.0 * kPi) * b.phi_i - 0.5;
+  const int t0 = int(std::floor(ft)), p0 = int(std::floor(fp));
+  const double wt = ft - t0, wp = fp - p0;
+  auto at = [&](int t, int p) {
+    t = std::min(std::max(t, 0), b.theta_i - 1);
+    p = ((p % b.phi_i) + b.phi_i) % b.phi_i;
+    return double(table[maps.incident_index(t, p) * size_t(channels) + size_t(c)]);
+  };
+  return float((1 - wt) * ((1 - wp) * at(t0, p0) + wp * at(t0, p0 + 1)) +
+               wt * ((1 - wp) * at(t0 + 1, p0) + wp * at(t0 + 1, p0 + 1)));
+}
+}  // namespace
 
 bool is_validation_bin(const rdm::MapResolution &bins, int theta_i, int phi_i)
 {
@@ -25,36 +78,110 @@ Eigen::Vector3f entry_direction(double theta, double phi)
                          float(std::cos(theta)));
 }
 
-Dataset sample_transmission(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation)
+Dataset sample_incident_table(const rdm::RdmMaps &maps, const std::vector<float> &table, int channels, int n,
+                              uint64_t seed, bool validation, bool interpolate)
 {
-  if (n < 1) {
-    throw ParameterError("samples", "the number of training samples must be >= 1");
+  check_count(n);
+  if (channels < 1 || table.size() != maps.bins.incident() * size_t(channels)) {
+    throw ParameterError("table", "an incident table needs one entry per incident bin and channel");
   }
-  const rdm::MapResolution &b = maps.bins;
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> U(0.0, 1.0);
+  IncidentSampler s{maps, validation, std::mt19937_64(seed)};
   Dataset d;
   d.X.resize(3, n);
-  d.Y.resize(1, n);
-  int k = 0;
-  for (int tries = 0; k < n; tries++) {
-    if (tries > 1000 * n) {
-      throw ParameterError("maps", "no incident bin is available for this split");
-    }
-    /* Uniform on the hemisphere: cos(theta) uniform in [0, 1]. */
-    const double theta = std::acos(U(rng));
-    const double phi = -kPi + 2.0 * kPi * U(rng);
-    const int ti = rdm::bin_of(theta, 0.0, 0.5 * kPi, b.theta_i);
-    const int pi = rdm::bin_of(phi, -kPi, kPi, b.phi_i);
-    if (is_validation_bin(b, ti, pi) != validation || maps.count[maps.incident_index(ti, pi)] == 0) {
-      continue;
-    }
+  d.Y.resize(channels, n);
+  for (int k = 0; k < n; k++) {
+    double theta, phi;
+    int ti, pi;
+    s.draw(&theta, &phi, &ti, &pi);
     const Eigen::Vector3f w = entry_direction(theta, phi);
     d.X(0, k) = w.x();
     d.X(1, k) = w.y();
     d.X(2, k) = w.z();
-    d.Y(0, k) = maps.p_t[maps.incident_index(ti, pi)];
-    k++;
+    for (int c = 0; c < channels; c++) {
+      d.Y(c, k) = interpolate ? interpolate_incident(maps, table, channels, c, theta, phi)
+                              : table[maps.incident_index(ti, pi) * size_t(channels) + size_t(c)];
+    }
+  }
+  return d;
+}
+
+Dataset sample_transmission(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation)
+{
+  return sample_incident_table(maps, maps.p_t, 1, n, seed, validation, true);
+}
+
+std::vector<double> map_energy(const rdm::RdmMaps &maps, const std::vector<float> &map)
+{
+  const rdm::MapResolution &b = maps.bins;
+  std::vector<double> e(b.incident() * 3, 0.0);
+  for (int ti = 0; ti < b.theta_i; ti++) {
+    for (int pi = 0; pi < b.phi_i; pi++) {
+      double *out = &e[maps.incident_index(ti, pi) * 3];
+      for (int to = 0; to < b.theta_o; to++) {
+        const double dO = maps.outgoing_solid_angle(to);
+        for (int po = 0; po < b.phi_o; po++) {
+          const float *v = &map[maps.map_index(ti, pi, to, po)];
+          for (int c = 0; c < 3; c++) {
+            out[c] += double(v[c]) * dO;
+          }
+        }
+      }
+    }
+  }
+  return e;
+}
+
+std::vector<float> reflection_scale_table(const rdm::RdmMaps &maps)
+{
+  const rdm::MapResolution &b = maps.bins;
+  const std::vector<double> E = map_energy(maps, maps.r);
+  const ny::TwistRotation twist = ny::make_twist_rotation(float(maps.preset.alpha));
+  const ny::FiberBsdfParams fiber = maps.preset.fiber_params();
+  std::vector<float> rho(b.incident(), 0.0f);
+  for (int ti = 0; ti < b.theta_i; ti++) {
+    for (int pi = 0; pi < b.phi_i; pi++) {
+      const Eigen::Vector3f w = entry_direction(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i),
+                                                rdm::bin_center(pi, -kPi, kPi, b.phi_i));
+      const ny::Vec3 wf = ny::yarn_to_surface_fiber(twist, ny::make_vec3(w.x(), w.y(), w.z()));
+      const ny::Rgb F = ny::schlick_fresnel(fiber.C_R, ny::cos_theta(wf));
+      const double *e = &E[maps.incident_index(ti, pi) * 3];
+      const double lobe = 0.5 * double(ny::average(F));
+      rho[maps.incident_index(ti, pi)] = lobe > 0.0 ? float((e[0] + e[1] + e[2]) / 3.0 / lobe) : 0.0f;
+    }
+  }
+  return rho;
+}
+
+Dataset sample_reflection_scale(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation)
+{
+  return sample_incident_table(maps, reflection_scale_table(maps), 1, n, seed, validation, true);
+}
+
+Dataset sample_multiple_scattering(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation)
+{
+  check_count(n);
+  const rdm::MapResolution &b = maps.bins;
+  IncidentSampler s{maps, validation, std::mt19937_64(seed)};
+  Dataset d;
+  d.X.resize(6, n);
+  d.Y.resize(3, n);
+  for (int k = 0; k < n; k++) {
+    double theta_i, phi_i;
+    int ti, pi;
+    s.draw(&theta_i, &phi_i, &ti, &pi);
+    const double theta_o = std::acos(1.0 - 2.0 * s.U(s.rng)); /* uniform on the sphere */
+    const double phi_o = -kPi + 2.0 * kPi * s.U(s.rng);
+    const int to = rdm::bin_of(theta_o, 0.0, kPi, b.theta_o);
+    const int po = rdm::bin_of(phi_o, -kPi, kPi, b.phi_o);
+    const Eigen::Vector3f wi = entry_direction(theta_i, phi_i), wo = entry_direction(theta_o, phi_o);
+    for (int c = 0; c < 3; c++) {
+      d.X(c, k) = wi(c);
+      d.X(3 + c, k) = wo(c);
+    }
+    const float *v = &maps.m[maps.map_index(ti, pi, to, po)];
+    d.Y(0, k) = v[0];
+    d.Y(1, k) = v[1];
+    d.Y(2, k) = v[2];
   }
   return d;
 }

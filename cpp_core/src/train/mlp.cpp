@@ -9,6 +9,42 @@
 
 namespace neuralyarn::train {
 
+std::vector<int> parse_widths(const std::string &text)
+{
+  std::vector<int> w;
+  size_t pos = 0;
+  while (pos <= text.size()) {
+    const size_t dash = text.find('-', pos);
+    const std::string part = text.substr(pos, dash == std::string::npos ? std::string::npos : dash - pos);
+    size_t used = 0;
+    int v = 0;
+    try {
+      v = std::stoi(part, &used);
+    }
+    catch (const std::exception &) {
+      used = 0;
+    }
+    if (part.empty() || used != part.size()) {
+      throw ParameterError("widths", "'" + text + "' is not a list of widths like 6-21-21-3");
+    }
+    w.push_back(v);
+    if (dash == std::string::npos) {
+      break;
+    }
+    pos = dash + 1;
+  }
+  return w;
+}
+
+std::string format_widths(const std::vector<int> &widths)
+{
+  std::string s;
+  for (size_t i = 0; i < widths.size(); i++) {
+    s += (i ? "-" : "") + std::to_string(widths[i]);
+  }
+  return s;
+}
+
 namespace {
 constexpr double kInitSlope = 0.25;
 
@@ -38,7 +74,8 @@ template<class S> Mlp<S>::Mlp(const MlpShape &shape, uint64_t seed) : shape_(sha
   const int L = int(shape.widths.size()) - 1;
   for (int l = 0; l < L; l++) {
     const int n_in = shape.widths[size_t(l)], n_out = shape.widths[size_t(l) + 1];
-    std::normal_distribution<double> normal(0.0, std::sqrt(2.0 / ((1.0 + kInitSlope * kInitSlope) * n_in)));
+    const double slope = shape.activation == Activation::kPrelu ? kInitSlope : 0.0;
+    std::normal_distribution<double> normal(0.0, std::sqrt(2.0 / ((1.0 + slope * slope) * n_in)));
     Mat W(n_out, n_in);
     for (int j = 0; j < n_in; j++) {
       for (int i = 0; i < n_out; i++) {
@@ -48,7 +85,7 @@ template<class S> Mlp<S>::Mlp(const MlpShape &shape, uint64_t seed) : shape_(sha
     W_.push_back(W);
     b_.push_back(Vec::Zero(n_out));
     if (l < L - 1) {
-      a_.push_back(Vec::Constant(n_out, S(kInitSlope)));
+      a_.push_back(Vec::Constant(n_out, S(slope)));
     }
   }
 }
@@ -97,6 +134,9 @@ template<class S> Mlp<S> Mlp<S>::from_flat(const std::vector<float> &f)
 
 template<class S> std::vector<float> Mlp<S>::to_flat() const
 {
+  if (shape_.activation == Activation::kElu) {
+    throw ParameterError("activation", "the kernel implements PReLU (and ReLU), not ELU");
+  }
   std::vector<float> f;
   f.push_back(float(num_layers()));
   for (int w : shape_.widths) {
@@ -140,6 +180,9 @@ template<class S> typename Mlp<S>::Mat Mlp<S>::layer(int l, const Mat &A, Mat *Z
   *Z = (W_[size_t(l)] * A).colwise() + b_[size_t(l)];
   if (l < num_layers() - 1) {
     Mat out = *Z;
+    if (shape_.activation == Activation::kElu) {
+      return out.unaryExpr([](S z) { return z > 0 ? z : std::expm1(z); });
+    }
     const Vec &a = a_[size_t(l)];
     for (int j = 0; j < out.cols(); j++) {
       for (int i = 0; i < out.rows(); i++) {
@@ -220,7 +263,10 @@ template<class S> S Mlp<S>::loss_and_gradient(const Mat &X, const Mat &T, Loss l
     for (int j = 0; j < dA.cols(); j++) {
       for (int i = 0; i < dA.rows(); i++) {
         const S z = Zp(i, j);
-        if (z < 0) {
+        if (shape_.activation == Activation::kElu) {
+          dZp(i, j) = z > 0 ? dA(i, j) : dA(i, j) * std::exp(z);
+        }
+        else if (z < 0) {
           dZp(i, j) = dA(i, j) * a(i);
           dslope(i) += dA(i, j) * z;
         }
@@ -229,7 +275,8 @@ template<class S> S Mlp<S>::loss_and_gradient(const Mat &X, const Mat &T, Loss l
         }
       }
     }
-    da[size_t(l) - 1] = dslope;
+    /* ReLU's slopes are the constant 0 and ELU has none: no gradient. */
+    da[size_t(l) - 1] = shape_.activation == Activation::kPrelu ? dslope : Vec::Zero(a.size());
     dZ = std::move(dZp);
   }
   gradient->resize(num_params());

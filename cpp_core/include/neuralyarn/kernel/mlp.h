@@ -63,7 +63,7 @@ NY_KERNEL_FN float mlp_apply_head(int head, float z)
 NY_KERNEL_FN void mlp_forward(const float *params, const float *input, float *output)
 {
   const int L = (int)params[0];
-  int widths[kMlpMaxLayers + 1];
+  int widths[kMlpMaxLayers + 1] = {0};
   for (int l = 0; l <= L; l++) {
     widths[l] = (int)params[1 + l];
   }

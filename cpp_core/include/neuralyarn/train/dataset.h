@@ -1,14 +1,16 @@
 // SPDX-License-Identifier: Apache-2.0
 //
-// Training data drawn from the radiance distribution maps (issue 4): directions are sampled uniformly in
-// solid angle (so the loss weighs every direction equally, not every bin), jittered within their bins, and
-// paired with the bin's value. A deterministic tenth of the incident bins is held out for validation.
+// Training data drawn from the radiance distribution maps (issue 4). Directions are sampled uniformly in
+// solid angle (so the loss weighs every direction equally, not every bin, whose solid angles differ by
+// 30x between pole and equator), jittered within their bins, and paired with the map's value there. A
+// deterministic tenth of the incident bins is held out for validation.
 //
 // Network inputs are Cartesian unit vectors in the entry (yarn-local) frame, x = ply axis, z = normal, as
-// the paper and the authors' code use: T sees w_i (3 values), M sees (w_i, w_o) (6 values).
+// the paper and the authors' code use: T and R see w_i (3 values), M sees (w_i, w_o) (6 values).
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/train/mlp.h"
@@ -23,11 +25,30 @@ struct Dataset {
 /* True for the incident bins held out for validation (about one in ten, fixed by the bin index). */
 bool is_validation_bin(const rdm::MapResolution &bins, int theta_i, int phi_i);
 
-/* P(T | w_i) samples: w_i uniform over the upper hemisphere restricted to training (or validation) bins,
- * target the bin's P(T). */
+/* A function of w_i tabulated per incident bin (`channels` values per bin), sampled at n directions
+ * uniform on the upper hemisphere restricted to training (or validation) bins that received paths. The
+ * target is the bilinear interpolation between bin centres (clamped in theta, periodic in phi) when
+ * `interpolate`, else the bin's own value. */
+Dataset sample_incident_table(const rdm::RdmMaps &maps, const std::vector<float> &table, int channels, int n,
+                              uint64_t seed, bool validation, bool interpolate);
+
+/* P(T | w_i) (the map's p_t), bilinearly interpolated. */
 Dataset sample_transmission(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation);
+
+/* The R-energy factor rho_R per incident bin: the R map's energy (channel mean) divided by the analytic
+ * lobe's energy F(theta~_i) / 2 at the bin centre (kernel/yarn_bsdf.h). */
+std::vector<float> reflection_scale_table(const rdm::RdmMaps &maps);
+Dataset sample_reflection_scale(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation);
+
+/* S_M |cos theta_o| samples: w_i uniform on the upper hemisphere (training or validation bins), w_o
+ * uniform on the sphere, target the M map's RGB value of their bin. */
+Dataset sample_multiple_scattering(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation);
 
 /* The unit vector of polar angle theta (from the normal) and azimuth phi = atan2(y, x) in the entry frame. */
 Eigen::Vector3f entry_direction(double theta, double phi);
+
+/* Energy of the R and M maps per incident bin, channel by channel: sum over w_o of value * solid angle.
+ * Row-major [theta_i][phi_i][rgb]. */
+std::vector<double> map_energy(const rdm::RdmMaps &maps, const std::vector<float> &map);
 
 }  // namespace neuralyarn::train

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -16,10 +17,19 @@
 
 namespace neuralyarn::train {
 
+/* Hidden-layer activation. Only PReLU (and ReLU, its slope-0 case) exist in the kernel; ELU and ReLU are
+ * here for the paper's ablation (docs/benchmarks.md). */
+enum class Activation { kPrelu, kRelu, kElu };
+
 struct MlpShape {
   std::vector<int> widths; /* w_0 (inputs) .. w_L (outputs) */
   ny::MlpHead head = ny::kMlpHeadIdentity;
+  Activation activation = Activation::kPrelu;
 };
+
+/* "6-21-21-3" -> {6, 21, 21, 3}; ParameterError on anything else. */
+std::vector<int> parse_widths(const std::string &text);
+std::string format_widths(const std::vector<int> &widths);
 
 enum class Loss {
   kMse,    /* mean of (y - t)^2 over all outputs (the paper's) */
@@ -31,11 +41,13 @@ template<class S> class Mlp {
   using Mat = Eigen::Matrix<S, Eigen::Dynamic, Eigen::Dynamic>;
   using Vec = Eigen::Matrix<S, Eigen::Dynamic, 1>;
 
-  /* He-initialised weights for PReLU slope 0.25 (PyTorch's default), zero biases, slopes 0.25. Throws
+  /* He-initialised weights for PReLU slope 0.25 (PyTorch's default), zero biases, slopes 0.25 (ReLU and
+   * ELU: no slopes; ReLU exports as PReLU with slopes 0). Throws
    * ParameterError for widths outside [1, kMlpMaxWidth] or more than kMlpMaxLayers layers. */
   Mlp(const MlpShape &shape, uint64_t seed);
 
-  /* From / to the kernel's flat array (kernel/mlp.h). from_flat validates the header and the size. */
+  /* From / to the kernel's flat array (kernel/mlp.h). from_flat validates the header and the size;
+   * to_flat throws ParameterError for ELU, which the kernel does not implement. */
   static Mlp from_flat(const std::vector<float> &flat);
   std::vector<float> to_flat() const;
 

@@ -1,0 +1,309 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// The aggregated yarn BSDF of the paper (Sec. 3), done as the paper writes it:
+//
+//   S(w_i, w_o) = S_T + S_R + S_M
+//   S_T = P_T(w_i) delta(w_i + w_o)                                  a true delta transmission lobe
+//   S_R = rho_R(w_i) S_f^R(w~_i, w~_o)             if w_i.n > 0 and w_o.n > 0, else 0
+//   S_M = MLP_M(w_i, w_o)                                            (the network models S_M |cos theta_o|)
+//
+// in the yarn frame of frames.h (x = yarn tangent, z = normal of the bounding cylinder), w~ = M w the
+// surface-fiber frame rotated by phi~ = atan(pi alpha) about n. S_f^R is the R lobe of the Khungurn
+// fiber BSDF (fiber_bsdf.h with C_TT = 0). The paper weights it by 1 - P_T(w_i); measured against the
+// gathered R map that factor is off by 0.6x at normal incidence to 6x at grazing incidence, so rho_R(w_i)
+// is a third tiny network (3-7-7-1, exp head) trained on the map's R energy: the lobe's energy is exactly
+// rho_R F(theta~_i) / 2 (docs/decisions.md D13).
+//
+// Both arguments point away from the surface. The first is the direction the maps call incident (the
+// light side when the maps were gathered; a path tracer passes the direction toward the previous vertex,
+// using reciprocity), the second the one that is evaluated or sampled. eval returns S |cos theta_o|, the
+// map's own quantity, without the delta lobe.
+//
+// Importance sampling (paper Sec. 3.4), with the fixes of docs/decisions.md D12:
+//   lobe T with p_T = P_T(w_i), R with (1 - p_T) kappa_R, M with (1 - p_T)(1 - kappa_R);
+//   R: theta~_o ~ TN(-theta~_i, beta_R) on [-pi/2, pi/2], phi~_o uniform on the upper half [-pi/2, pi/2];
+//   M: with kappa_M, theta~_o ~ TN(-theta~_i, beta_M), phi~_o ~ vonMises(0, gamma_M^-2) (centred on n);
+//      otherwise uniform on the sphere.
+// Every density is in the surface-fiber frame (the rotation about n preserves solid angle), and the fit
+// (host code, fit/proxy.h) uses exactly these functions. The non-delta pdf is returned *conditional on
+// not choosing T*, i.e. it integrates to 1; the full mixture density is (1 - p_T) times it. That is what
+// both users need: a renderer that keeps T as a separate transparent closure (Cycles) uses the
+// conditional pdf directly, and yarn_sample() reports the selection probability alongside.
+//
+// The networks are read from a flat float array (kernel/mlp.h layout) whose header is described at
+// yarn_params_from_flat(); the Cycles patch uploads exactly this array to a lookup table.
+#pragma once
+
+#include "fiber_bsdf.h"
+#include "frames.h"
+#include "mlp.h"
+#include "platform.h"
+#include "sampling.h"
+
+namespace ny {
+
+/* Layout of the model's flat array (all floats; counts and offsets are exact integers below 2^24). */
+enum YarnFlatField {
+  kYarnFlatVersion = 0,   /* kYarnFlatFormat                                                  */
+  kYarnFlatSize = 1,      /* total number of floats                                           */
+  kYarnFlatAlpha = 2,     /* twist alpha                                                      */
+  kYarnFlatC_R = 3,       /* 3 floats: the surface fibers' C_R                                */
+  kYarnFlatBeta_R = 6,    /* radians                                                          */
+  kYarnFlatKappa_R = 7,   /* P(R | not T)                                                     */
+  kYarnFlatBeta_M = 8,    /* radians                                                          */
+  kYarnFlatGamma_M = 9,   /* radians (von Mises concentration 1 / gamma_M^2)                  */
+  kYarnFlatKappa_M = 10,  /* weight of the (theta, phi) lobe inside M                         */
+  kYarnFlatAlbedo_M = 11, /* 3 floats: M albedo averaged over w_i (a closure-weight estimate) */
+  kYarnFlatOffset_T = 14, /* offset of the T network                                          */
+  kYarnFlatOffset_R = 15, /* offset of the R-energy network                                   */
+  kYarnFlatOffset_M = 16, /* offset of the M network                                          */
+  kYarnFlatHeader = 17
+};
+constexpr float kYarnFlatFormat = 1.0f;
+
+struct YarnBsdfParams {
+  const float *net_T; /* 3 -> 1, sigmoid head: P_T(w_i)          */
+  const float *net_R; /* 3 -> 1, exp head: rho_R(w_i)            */
+  const float *net_M; /* 6 -> 3, exp head: S_M |cos theta_o|     */
+  TwistRotation twist;
+  FiberBsdfParams fiber; /* C_R, beta_R of the surface fibers; C_TT = 0 (R only) */
+  float kappa_R;
+  float beta_M, gamma_M, kappa_M;
+  Rgb albedo_M;
+};
+
+/* Reads the parameters from a flat array that the host has validated (model/model.h does). */
+NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(const float *f)
+{
+  YarnBsdfParams p;
+  p.net_T = f + (int)f[kYarnFlatOffset_T];
+  p.net_R = f + (int)f[kYarnFlatOffset_R];
+  p.net_M = f + (int)f[kYarnFlatOffset_M];
+  p.twist = make_twist_rotation(f[kYarnFlatAlpha]);
+  p.fiber.C_R = make_rgb(f[kYarnFlatC_R], f[kYarnFlatC_R + 1], f[kYarnFlatC_R + 2]);
+  p.fiber.C_TT = make_rgb(0.0f);
+  p.fiber.beta_R = f[kYarnFlatBeta_R];
+  p.fiber.beta_TT = f[kYarnFlatBeta_R]; /* unused: C_TT = 0 */
+  p.fiber.gamma_TT = 1.0f;              /* unused */
+  p.kappa_R = f[kYarnFlatKappa_R];
+  p.beta_M = f[kYarnFlatBeta_M];
+  p.gamma_M = f[kYarnFlatGamma_M];
+  p.kappa_M = f[kYarnFlatKappa_M];
+  p.albedo_M = make_rgb(f[kYarnFlatAlbedo_M], f[kYarnFlatAlbedo_M + 1], f[kYarnFlatAlbedo_M + 2]);
+  return p;
+}
+
+/* Everything that depends on w_i only. */
+struct YarnLobes {
+  bool valid;     /* w_i strictly above the surface; otherwise the BSDF is zero */
+  Vec3 wi;        /* yarn frame            */
+  Vec3 wi_f;      /* surface-fiber frame   */
+  float P_T;      /* P(T | w_i)            */
+  Rgb weight_R;   /* rho_R F(theta~_i): the R lobe's energy is half of it (upper half of azimuths) */
+  float p_T, p_R, p_M; /* lobe selection probabilities, summing to 1 */
+  LongitudinalLobe m_R;
+  TruncatedNormal tn_R, tn_M;
+  float kappa_vm; /* von Mises concentration of the M azimuth */
+};
+
+NY_KERNEL_FN float yarn_transmission(const YarnBsdfParams &p, Vec3 wi)
+{
+  const float in[3] = {wi.x, wi.y, wi.z};
+  float out[1];
+  mlp_forward(p.net_T, in, out);
+  return clampf(out[0], 0.0f, 1.0f);
+}
+
+NY_KERNEL_FN float yarn_reflection_scale(const YarnBsdfParams &p, Vec3 wi)
+{
+  const float in[3] = {wi.x, wi.y, wi.z};
+  float out[1];
+  mlp_forward(p.net_R, in, out);
+  return out[0];
+}
+
+/* `with_eval` = false skips the cos^2 normaliser of the R lobe, which only eval needs. */
+NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_eval = true)
+{
+  YarnLobes l;
+  l.wi = wi;
+  l.wi_f = yarn_to_surface_fiber(p.twist, wi);
+  l.valid = wi.z > 0.0f;
+  l.P_T = l.valid ? yarn_transmission(p, wi) : 0.0f;
+  const float theta_i = theta_of(l.wi_f);
+  const Rgb F = schlick_fresnel(p.fiber.C_R, cos_theta(l.wi_f));
+  l.weight_R = l.valid ? F * yarn_reflection_scale(p, wi) : make_rgb(0.0f);
+  l.p_T = l.P_T;
+  l.p_R = (1.0f - l.P_T) * p.kappa_R;
+  l.p_M = (1.0f - l.P_T) * (1.0f - p.kappa_R);
+  if (with_eval) {
+    l.m_R = make_longitudinal_lobe(-theta_i, p.fiber.beta_R);
+  }
+  else {
+    l.m_R = LongitudinalLobe{-theta_i, p.fiber.beta_R, 0.0f};
+  }
+  l.tn_R = make_truncated_normal(-theta_i, p.fiber.beta_R, -kHalfPi, kHalfPi);
+  l.tn_M = make_truncated_normal(-theta_i, p.beta_M, -kHalfPi, kHalfPi);
+  l.kappa_vm = 1.0f / (p.gamma_M * p.gamma_M);
+  return l;
+}
+
+/* S_R |cos theta~_o|, w_o in the surface-fiber frame. The cosine is the fiber's own (longitudinal), so
+ * that the lobe's energy is exactly rho_R F / 2: half of the fiber's R albedo, the half whose
+ * azimuth leaves the surface. */
+NY_KERNEL_FN Rgb yarn_eval_R_fiber(const YarnLobes &l, Vec3 wo_f)
+{
+  if (!l.valid || !(wo_f.z > 0.0f)) {
+    return make_rgb(0.0f);
+  }
+  return l.weight_R * (longitudinal_eval(l.m_R, theta_of(wo_f)) * kInvTwoPi * cos_theta(wo_f));
+}
+
+NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo)
+{
+  if (!l.valid) {
+    return make_rgb(0.0f);
+  }
+  const float in[6] = {l.wi.x, l.wi.y, l.wi.z, wo.x, wo.y, wo.z};
+  float out[3];
+  mlp_forward(p.net_M, in, out);
+  return make_rgb(out[0], out[1], out[2]);
+}
+
+/* Smallest cos(theta~_o) used to turn a (theta, phi) density into solid angle (as fiber_bsdf.h). */
+constexpr float kYarnMinCosTheta = 1e-7f;
+
+/* Densities of the R and M proposals in solid angle, w_o in the surface-fiber frame. */
+NY_KERNEL_FN float yarn_pdf_R_fiber(const YarnLobes &l, Vec3 wo_f)
+{
+  if (!(wo_f.z > 0.0f)) {
+    return 0.0f;
+  }
+  return truncated_normal_pdf(l.tn_R, theta_of(wo_f)) * kInvPi / fmaxf(cos_theta(wo_f), kYarnMinCosTheta);
+}
+
+/* The M proxy alone: kappa_M TN(theta~_o) vM(phi~_o) / cos theta~_o + (1 - kappa_M) / 4 pi. The fit
+ * (model/proxy_fit.h) maximises the likelihood of exactly this function. */
+NY_KERNEL_FN float yarn_m_proxy_pdf(const TruncatedNormal &tn_M, float kappa_vm, float kappa_M, Vec3 wo_f)
+{
+  const float lobe = truncated_normal_pdf(tn_M, theta_of(wo_f)) * von_mises_pdf(phi_of(wo_f), kappa_vm) /
+                     fmaxf(cos_theta(wo_f), kYarnMinCosTheta);
+  return kappa_M * lobe + (1.0f - kappa_M) * kInvFourPi;
+}
+
+NY_KERNEL_FN float yarn_pdf_M_fiber(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo_f)
+{
+  return yarn_m_proxy_pdf(l.tn_M, l.kappa_vm, p.kappa_M, wo_f);
+}
+
+/* Non-delta part: eval = (S_R + S_M) |cos theta_o|. */
+NY_KERNEL_FN Rgb yarn_eval_lobes(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo)
+{
+  if (!l.valid) {
+    return make_rgb(0.0f);
+  }
+  const Vec3 wo_f = yarn_to_surface_fiber(p.twist, wo);
+  return yarn_eval_R_fiber(l, wo_f) + yarn_eval_M(p, l, wo);
+}
+
+/* Density of the non-delta sampler, conditional on not choosing T (integrates to 1 over the sphere). */
+NY_KERNEL_FN float yarn_pdf_lobes(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo)
+{
+  if (!l.valid) {
+    return 0.0f;
+  }
+  const Vec3 wo_f = yarn_to_surface_fiber(p.twist, wo);
+  return p.kappa_R * yarn_pdf_R_fiber(l, wo_f) + (1.0f - p.kappa_R) * yarn_pdf_M_fiber(p, l, wo_f);
+}
+
+NY_KERNEL_FN Rgb yarn_eval(const YarnBsdfParams &p, Vec3 wi, Vec3 wo, float *pdf)
+{
+  const YarnLobes l = yarn_lobes(p, wi);
+  if (pdf) {
+    *pdf = yarn_pdf_lobes(p, l, wo);
+  }
+  return yarn_eval_lobes(p, l, wo);
+}
+
+NY_KERNEL_FN float yarn_pdf(const YarnBsdfParams &p, Vec3 wi, Vec3 wo)
+{
+  return yarn_pdf_lobes(p, yarn_lobes(p, wi, false), wo);
+}
+
+struct YarnSample {
+  Vec3 wo;      /* yarn frame */
+  Rgb weight;   /* eval / pdf for the non-delta lobes; P_T / p_T = 1 for T (with include_T) */
+  float pdf;    /* non-delta: conditional density (see above); T: the selection probability p_T */
+  bool delta;   /* the T lobe was chosen: wo = -wi exactly */
+};
+
+/* Draws w_o with three uniform numbers in [0, 1). With include_T = false the T lobe is never chosen (a
+ * renderer that adds T as its own transparent closure); the weight of a non-delta sample is then
+ * eval / pdf, and with include_T = true it is eval / ((1 - p_T) pdf), the mixture's weight. Returns false
+ * when w_i is not above the surface or nothing is scattered. */
+NY_KERNEL_FN bool yarn_sample(const YarnBsdfParams &p, Vec3 wi, float u_lobe, float u1, float u2, bool include_T,
+                              YarnSample *s)
+{
+  s->wo = make_vec3(0.0f, 0.0f, 1.0f);
+  s->weight = make_rgb(0.0f);
+  s->pdf = 0.0f;
+  s->delta = false;
+  const YarnLobes l = yarn_lobes(p, wi);
+  if (!l.valid) {
+    return false;
+  }
+  float u = u_lobe;
+  if (include_T) {
+    if (u < l.p_T) {
+      s->wo = -wi;
+      s->weight = make_rgb(1.0f);
+      s->pdf = l.p_T;
+      s->delta = true;
+      return true;
+    }
+    if (!(l.p_T < 1.0f)) {
+      return false;
+    }
+    u = clampf((u - l.p_T) / (1.0f - l.p_T), 0.0f, 0.99999994f);
+  }
+  Vec3 wo_f;
+  if (u < p.kappa_R) {
+    /* R: the specular cone of the surface fibers, upper half of the azimuths. */
+    const float theta = sample_truncated_normal(l.tn_R, u1);
+    const float phi = kPi * u2 - kHalfPi;
+    wo_f = direction_from_angles(theta, phi);
+  }
+  else {
+    const float v = clampf((u - p.kappa_R) / (1.0f - p.kappa_R), 0.0f, 0.99999994f);
+    if (v < p.kappa_M) {
+      /* M lobe; the rescaled selection number is the von Mises acceptance variate. */
+      const float v_accept = clampf(v / p.kappa_M, 0.0f, 0.99999994f);
+      const float theta = sample_truncated_normal(l.tn_M, u1);
+      const float phi = sample_von_mises(l.kappa_vm, u2, v_accept);
+      wo_f = direction_from_angles(theta, phi);
+    }
+    else {
+      wo_f = sample_uniform_sphere(u1, u2);
+    }
+  }
+  s->wo = surface_fiber_to_yarn(p.twist, wo_f);
+  const float pdf = p.kappa_R * yarn_pdf_R_fiber(l, wo_f) + (1.0f - p.kappa_R) * yarn_pdf_M_fiber(p, l, wo_f);
+  if (!(pdf > 0.0f)) {
+    return false;
+  }
+  const Rgb f = yarn_eval_R_fiber(l, wo_f) + yarn_eval_M(p, l, s->wo);
+  s->pdf = pdf;
+  s->weight = f * (1.0f / (include_T ? (1.0f - l.p_T) * pdf : pdf));
+  return true;
+}
+
+/* A closure-weight estimate of the albedo: P_T + the R lobe's exact energy + the mean M albedo. */
+NY_KERNEL_FN Rgb yarn_albedo_estimate(const YarnBsdfParams &p, const YarnLobes &l)
+{
+  if (!l.valid) {
+    return make_rgb(0.0f);
+  }
+  return make_rgb(l.P_T) + l.weight_R * 0.5f + p.albedo_M;
+}
+
+}  // namespace ny

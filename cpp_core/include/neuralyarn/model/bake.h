@@ -1,0 +1,56 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// From maps to a model: train the T, R and M networks, fit the sampling proxy, record where it all came
+// from. `neuralyarn train`, `fit` and `bake` are thin wrappers around these functions.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "neuralyarn/model/model.h"
+#include "neuralyarn/model/proxy_fit.h"
+#include "neuralyarn/rdm/gather.h"
+#include "neuralyarn/train/trainer.h"
+
+namespace neuralyarn::model {
+
+struct NetworkOptions {
+  std::string widths;
+  int samples = 0;     /* training samples drawn from the maps (validation: a tenth of that) */
+  int steps = 0;
+  int batch = 0;
+  float learning_rate = 0.0f;
+  float final_learning_rate_fraction = 0.1f;
+  train::Loss loss = train::Loss::kMse;
+  float log_eps = 1e-3f;
+};
+
+/* Defaults measured in docs/benchmarks.md ("Training"). */
+struct TrainModelOptions {
+  NetworkOptions T{"3-7-7-1", 200000, 1500, 2048, 2e-2f, 0.05f, train::Loss::kMse, 1e-3f};
+  NetworkOptions R{"3-7-7-1", 200000, 1500, 2048, 2e-2f, 0.05f, train::Loss::kMse, 1e-3f};
+  NetworkOptions M{"6-21-21-3", 2000000, 6000, 4096, 1e-2f, 0.05f, train::Loss::kMse, 1e-3f};
+  uint64_t seed = 1;
+  int threads = 0;
+  ProxyFitOptions fit;
+  bool fit_proxy = true;
+  /* Progress: stage name ("T", "R", "M", "fit") and the fraction done within it. */
+  std::function<void(const std::string &stage, double fraction)> progress;
+};
+
+/* Trains one network of the model on its dataset; throws ParameterError if it diverges (the message says
+ * so and the model is not written). */
+NetworkRecord train_one(const char *name, const rdm::RdmMaps &maps, const NetworkOptions &options, ny::MlpHead head,
+                        uint64_t seed, int threads, const std::function<void(double)> &progress);
+
+/* The whole model from maps. */
+YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &options);
+
+/* Re-fits the sampling proxy of `model` on `maps` (which must be of the same preset). */
+ProxyFitResult fit_model_proxy(YarnModel *model, const rdm::RdmMaps &maps, const ProxyFitOptions &options);
+
+/* Provenance of the maps, for the model file. */
+nlohmann::json maps_provenance(const rdm::RdmMaps &maps);
+
+}  // namespace neuralyarn::model

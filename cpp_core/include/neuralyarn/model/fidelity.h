@@ -1,0 +1,51 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// How well a model reproduces the maps it was trained on (issue 4, item 7), and how well its sampler
+// works. `neuralyarn check` prints these numbers; bake stores them in the model.
+//
+// Per incident bin (at its centre direction; the map holds the bin average):
+//   albedo  = P_T + E_R + integral of S_M |cos| over the sphere     vs the map's exit energy
+//   E_R     = rho_R F / 2 (exact for the analytic lobe)             vs the R map's energy
+//   E_M     = sum over the map's outgoing bins of MLP_M * solid angle vs the M map's energy
+// averaged over incident bins weighted by solid angle (w_i uniform on the hemisphere), channel by channel.
+//
+// Sampling efficiency: the relative variance Var[X] / E[X]^2 of one-sample estimates X of the non-delta
+// albedo, X = eval / pdf with the model's sampler versus X = 4 pi eval with uniform sphere sampling,
+// averaged over incident directions (the paper's "importance vs uniform" figure as a number), and the same
+// with kappa_R chosen per w_i as E_R / (E_R + E_M) instead of the global constant.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "neuralyarn/model/model.h"
+#include "neuralyarn/rdm/gather.h"
+
+namespace neuralyarn::model {
+
+struct FidelityOptions {
+  int variance_directions = 64;
+  int variance_samples = 4096;
+  uint64_t seed = 5;
+};
+
+struct FidelityReport {
+  double albedo_mae = 0, albedo_mae_rel = 0, albedo_max_rel = 0; /* model vs map exit energy */
+  double T_rmse = 0;                                               /* P_T model vs map        */
+  double R_energy_mae_rel = 0, M_energy_mae_rel = 0;
+  double M_rel_l1 = 0;         /* sum |M_model - M_map| dw / sum M_map dw, averaged over w_i (incl. map noise) */
+  double rel_var_importance = 0, rel_var_uniform = 0, rel_var_per_wi_kappa_R = 0;
+  double seconds = 0;
+  nlohmann::json to_json() const;
+};
+
+FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, const FidelityOptions &options = {});
+
+/* Side-by-side PNG for one incident direction: the M map and the M network, the R map and the analytic R
+ * lobe, over (phi_o horizontal, theta_o vertical), each pair on the same log scale. */
+void write_comparison_image(const YarnModel &model, const rdm::RdmMaps &maps, double theta_i_deg, double phi_i_deg,
+                            const std::string &path);
+
+}  // namespace neuralyarn::model

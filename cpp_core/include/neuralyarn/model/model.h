@@ -1,0 +1,69 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// A trained neural yarn model: the three networks (T, R, M), the fitted sampling proxy, the preset it
+// was trained for, and where it came from. Stored as versioned JSON (docs/file_formats.md, "Model
+// file"); kernel_flat() produces the float array of kernel/yarn_bsdf.h that renderers upload.
+#pragma once
+
+#include <array>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "neuralyarn/presets.h"
+#include "neuralyarn/train/mlp.h"
+
+namespace neuralyarn::model {
+
+constexpr int kModelFormatVersion = 1;
+
+class ModelError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/* One trained network and how it was trained. */
+struct NetworkRecord {
+  train::MlpShape shape;
+  std::vector<float> flat; /* kernel/mlp.h layout */
+  nlohmann::json training; /* loss, steps, batch, learning rate, samples, losses, seconds, ... */
+};
+
+/* Importance-sampling proxy of kernel/yarn_bsdf.h (angles in radians). */
+struct SamplingProxy {
+  double kappa_R = 0.5; /* P(R | not T)                         */
+  double beta_M = 0.5;  /* longitudinal width of the M lobe      */
+  double gamma_M = 1.0; /* azimuthal width (vM concentration 1/gamma^2) */
+  double kappa_M = 0.5; /* weight of the lobe against uniform    */
+};
+
+struct YarnModel {
+  FiberPreset preset;
+  NetworkRecord T, R, M;
+  SamplingProxy proxy;
+  std::array<double, 3> albedo_M{}; /* M albedo averaged over w_i on the hemisphere */
+  nlohmann::json provenance = nlohmann::json::object(); /* maps, seeds, code version, dates */
+  nlohmann::json fidelity = nlohmann::json::object();   /* the numbers of `neuralyarn check`, if run */
+
+  /* The kernel's array: header (kernel/yarn_bsdf.h YarnFlatField), then the T, R and M networks. */
+  std::vector<float> kernel_flat() const;
+};
+
+/* The architectures the kernel expects: inputs, outputs and head of each network. */
+void check_network(const NetworkRecord &net, const char *name, int inputs, int outputs, ny::MlpHead head);
+
+nlohmann::json model_to_json(const YarnModel &model);
+/* Validates everything (format, version, preset, network shapes, sizes, finiteness, proxy ranges);
+ * throws ModelError whose message starts with `source` and names the problem. */
+YarnModel model_from_json(const nlohmann::json &j, const std::string &source);
+
+void save_model(const YarnModel &model, const std::string &path);
+YarnModel load_model(const std::string &path);
+
+/* Shipped models: models/<name>.json under the source tree (NEURALYARN_MODELS_DIR overrides). Returns
+ * the path; throws ModelError listing the search location if there is none. */
+std::string builtin_model_path(const std::string &preset_name);
+
+}  // namespace neuralyarn::model

@@ -1,0 +1,167 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/model/bake.h"
+
+#include <cmath>
+
+#include "neuralyarn/io.h"
+#include "neuralyarn/train/dataset.h"
+#include "neuralyarn/version.h"
+
+namespace neuralyarn::model {
+
+using nlohmann::json;
+
+namespace {
+const char *loss_name(train::Loss l) { return l == train::Loss::kMse ? "mse" : "log_mse"; }
+
+train::Dataset dataset_for(const char *name, const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation)
+{
+  const std::string s(name);
+  if (s == "T") {
+    return train::sample_transmission(maps, n, seed, validation);
+  }
+  if (s == "R") {
+    return train::sample_reflection_scale(maps, n, seed, validation);
+  }
+  return train::sample_multiple_scattering(maps, n, seed, validation);
+}
+}  // namespace
+
+NetworkRecord train_one(const char *name, const rdm::RdmMaps &maps, const NetworkOptions &o, ny::MlpHead head,
+                        uint64_t seed, int threads, const std::function<void(double)> &progress)
+{
+  train::MlpShape shape;
+  shape.widths = train::parse_widths(o.widths);
+  shape.head = head;
+  train::Dataset tr = dataset_for(name, maps, o.samples, seed * 1000003u + 1u, false);
+  train::Dataset va = dataset_for(name, maps, std::max(1, o.samples / 10), seed * 1000003u + 2u, true);
+  /* With an exp head, each output channel is trained on its targets divided by their mean s_c and
+   * log s_c is added to the output bias afterwards (exp(z + log s) = s exp(z): exactly the same network).
+   * Without it the MSE of a dim channel (fleece's red M energy is 1/10 of its blue) is ignored and that
+   * channel comes out 3x too dark (docs/decisions.md D14). */
+  Eigen::VectorXf scale = Eigen::VectorXf::Ones(tr.Y.rows());
+  if (head == ny::kMlpHeadExp) {
+    for (int c = 0; c < tr.Y.rows(); c++) {
+      const float mean = tr.Y.row(c).mean();
+      scale(c) = mean > 0.0f ? mean : 1.0f;
+      tr.Y.row(c) /= scale(c);
+      va.Y.row(c) /= scale(c);
+    }
+  }
+  train::TrainOptions to;
+  to.steps = o.steps;
+  to.batch = o.batch;
+  to.learning_rate = o.learning_rate;
+  to.final_learning_rate_fraction = o.final_learning_rate_fraction;
+  to.loss = o.loss;
+  to.log_eps = o.log_eps;
+  to.seed = seed;
+  to.threads = threads;
+  to.record_every = std::max(1, o.steps / 100);
+  if (progress) {
+    to.progress = [&](int step, int steps, float) { progress(double(step) / std::max(1, steps)); };
+  }
+  const train::TrainResult r = train::train_network(shape, tr, va, to);
+  if (r.diverged) {
+    throw ParameterError(std::string("network ") + name, r.message);
+  }
+  train::Mlp<float> net = r.net;
+  if (head == ny::kMlpHeadExp) {
+    train::Mlp<float>::Vec params = net.params();
+    const long out0 = params.size() - scale.size(); /* the last layer's bias ends the parameter vector */
+    for (int c = 0; c < scale.size(); c++) {
+      params(out0 + c) += std::log(scale(c));
+    }
+    net.set_params(params);
+  }
+  NetworkRecord rec;
+  rec.shape = shape;
+  rec.flat = net.to_flat();
+  rec.training = {{"loss", loss_name(o.loss)},
+                  {"log_eps", o.log_eps},
+                  {"samples", o.samples},
+                  {"steps", r.steps_done},
+                  {"batch", o.batch},
+                  {"learning_rate", o.learning_rate},
+                  {"final_learning_rate_fraction", o.final_learning_rate_fraction},
+                  {"seed", seed},
+                  {"target_scale", std::vector<float>(scale.data(), scale.data() + scale.size())},
+                  {"initial_loss", r.initial_loss},
+                  {"train_loss", r.train_loss},
+                  {"validation_loss", r.validation_loss},
+                  {"train_mse", r.train_mse},
+                  {"validation_mse", r.validation_mse},
+                  {"seconds", r.seconds}};
+  return rec;
+}
+
+json maps_provenance(const rdm::RdmMaps &maps)
+{
+  const rdm::MapResolution &b = maps.bins;
+  return {{"paths", maps.paths},
+          {"seed", maps.seed},
+          {"packing_seed", maps.packing_seed},
+          {"symmetrized", maps.symmetrized},
+          {"bins", std::to_string(b.theta_i) + "x" + std::to_string(b.phi_i) + "x" + std::to_string(b.theta_o) + "x" +
+                       std::to_string(b.phi_o)}};
+}
+
+ProxyFitResult fit_model_proxy(YarnModel *model, const rdm::RdmMaps &maps, const ProxyFitOptions &options)
+{
+  const ProxyFitResult r = fit_sampling_proxy(maps, options);
+  model->proxy = r.proxy;
+  model->provenance["proxy_fit"] = {{"samples", options.samples},         {"seed", options.seed},
+                                    {"nll", r.nll},                       {"nll_uniform", r.nll_uniform},
+                                    {"evaluations", r.evaluations},       {"seconds", r.seconds}};
+  return r;
+}
+
+YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
+{
+  YarnModel m;
+  m.preset = maps.preset;
+  auto stage = [&](const char *name) -> std::function<void(double)> {
+    if (!o.progress) {
+      return {};
+    }
+    return [&o, name](double f) { o.progress(name, f); };
+  };
+  m.T = train_one("T", maps, o.T, ny::kMlpHeadSigmoid, o.seed, o.threads, stage("T"));
+  m.R = train_one("R", maps, o.R, ny::kMlpHeadExp, o.seed + 1, o.threads, stage("R"));
+  m.M = train_one("M", maps, o.M, ny::kMlpHeadExp, o.seed + 2, o.threads, stage("M"));
+  /* Mean M albedo over w_i uniform on the hemisphere (the renderer's closure-weight estimate). */
+  const std::vector<double> EM = train::map_energy(maps, maps.m);
+  double wsum = 0.0;
+  const rdm::MapResolution &b = maps.bins;
+  for (int ti = 0; ti < b.theta_i; ti++) {
+    const double w = std::cos(0.5 * M_PI * ti / b.theta_i) - std::cos(0.5 * M_PI * (ti + 1) / b.theta_i);
+    for (int pi = 0; pi < b.phi_i; pi++) {
+      for (int c = 0; c < 3; c++) {
+        m.albedo_M[size_t(c)] += w * EM[maps.incident_index(ti, pi) * 3 + size_t(c)];
+      }
+      wsum += w;
+    }
+  }
+  for (double &a : m.albedo_M) {
+    a /= wsum;
+  }
+  m.provenance = {{"maps", maps_provenance(maps)},
+                  {"training_seed", o.seed},
+                  {"created", utc_now()},
+                  {"code_version", std::string(kVersion) + "+" + kGitRevision}};
+  if (o.fit_proxy) {
+    if (o.progress) {
+      o.progress("fit", 0.0);
+    }
+    fit_model_proxy(&m, maps, o.fit);
+    if (o.progress) {
+      o.progress("fit", 1.0);
+    }
+  }
+  else {
+    m.proxy.kappa_R = global_kappa_R(maps);
+  }
+  return m;
+}
+
+}  // namespace neuralyarn::model

@@ -1,0 +1,258 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/model/fidelity.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <random>
+
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+#include <tbb/parallel_for.h>
+
+#include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/train/dataset.h"
+
+namespace neuralyarn::model {
+
+using nlohmann::json;
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+ny::Vec3 vec(const Eigen::Vector3f &v) { return ny::make_vec3(v.x(), v.y(), v.z()); }
+
+double channel(const ny::Rgb &c, int k) { return k == 0 ? c.r : (k == 1 ? c.g : c.b); }
+
+/* Integral of the M network over the sphere: midpoint rule on a fixed 64 x 128 (theta, phi) grid with
+ * exact cell solid angles, whatever the maps' resolution (M lobes are tens of degrees wide). */
+ny::Rgb m_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l)
+{
+  constexpr int nt = 64, np = 128;
+  double e[3] = {0, 0, 0};
+  for (int to = 0; to < nt; to++) {
+    const double t0 = kPi * to / nt, t1 = kPi * (to + 1) / nt;
+    const double dO = (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / np, th = 0.5 * (t0 + t1);
+    for (int po = 0; po < np; po++) {
+      const ny::Vec3 wo = vec(train::entry_direction(th, -kPi + 2.0 * kPi * (po + 0.5) / np));
+      const ny::Rgb v = ny::yarn_eval_M(p, l, wo);
+      e[0] += v.r * dO;
+      e[1] += v.g * dO;
+      e[2] += v.b * dO;
+    }
+  }
+  return ny::make_rgb(float(e[0]), float(e[1]), float(e[2]));
+}
+
+double incident_weight(const rdm::MapResolution &b, int ti)
+{
+  return std::cos(0.5 * kPi * ti / b.theta_i) - std::cos(0.5 * kPi * (ti + 1) / b.theta_i);
+}
+}  // namespace
+
+json FidelityReport::to_json() const
+{
+  return {{"albedo_mae", albedo_mae},
+          {"albedo_mae_rel", albedo_mae_rel},
+          {"albedo_max_rel", albedo_max_rel},
+          {"T_rmse", T_rmse},
+          {"R_energy_mae_rel", R_energy_mae_rel},
+          {"M_energy_mae_rel", M_energy_mae_rel},
+          {"M_rel_l1", M_rel_l1},
+          {"rel_var_importance", rel_var_importance},
+          {"rel_var_uniform", rel_var_uniform},
+          {"rel_var_per_wi_kappa_R", rel_var_per_wi_kappa_R}};
+}
+
+FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, const FidelityOptions &o)
+{
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<float> flat = model.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  const rdm::MapResolution &b = maps.bins;
+  const std::vector<double> ER = train::map_energy(maps, maps.r), EM = train::map_energy(maps, maps.m);
+
+  struct Row {
+    double w = 0, a_abs = 0, a_rel = 0, a_max = 0, t2 = 0, r_rel = 0, m_rel = 0, l1 = 0;
+  };
+  std::vector<Row> rows(b.incident());
+  tbb::parallel_for(0, int(b.incident()), [&](int k) {
+    const int ti = k / b.phi_i, pi = k % b.phi_i;
+    Row &row = rows[size_t(k)];
+    if (maps.count[size_t(k)] == 0) {
+      return;
+    }
+    row.w = incident_weight(b, ti);
+    const ny::Vec3 wi = vec(train::entry_direction(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i),
+                                                   rdm::bin_center(pi, -kPi, kPi, b.phi_i)));
+    const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+    const ny::Rgb e_m = m_energy(p, l);
+    const ny::Rgb e_r = l.weight_R * 0.5f;
+    double l1 = 0, mass = 0;
+    for (int to = 0; to < b.theta_o; to++) {
+      const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), dO = maps.outgoing_solid_angle(to);
+      for (int po = 0; po < b.phi_o; po++) {
+        const ny::Rgb v =
+            ny::yarn_eval_M(p, l, vec(train::entry_direction(th, rdm::bin_center(po, -kPi, kPi, b.phi_o))));
+        const float *m = &maps.m[maps.map_index(ti, pi, to, po)];
+        for (int c = 0; c < 3; c++) {
+          l1 += std::abs(channel(v, c) - m[c]) * dO;
+          mass += m[c] * dO;
+        }
+      }
+    }
+    row.l1 = mass > 0 ? l1 / mass : 0.0;
+    const double pt = l.P_T - maps.p_t[size_t(k)];
+    row.t2 = pt * pt;
+    for (int c = 0; c < 3; c++) {
+      const double a_model = l.P_T + channel(e_r, c) + channel(e_m, c);
+      const double a_map = maps.exit_energy[size_t(k) * 3 + size_t(c)];
+      const double err = std::abs(a_model - a_map);
+      row.a_abs += err / 3.0;
+      const double rel = a_map > 1e-6 ? err / a_map : 0.0;
+      row.a_rel += rel / 3.0;
+      row.a_max = std::max(row.a_max, rel);
+    }
+    const double er_map = (ER[size_t(k) * 3] + ER[size_t(k) * 3 + 1] + ER[size_t(k) * 3 + 2]) / 3.0;
+    const double em_map = (EM[size_t(k) * 3] + EM[size_t(k) * 3 + 1] + EM[size_t(k) * 3 + 2]) / 3.0;
+    row.r_rel = er_map > 1e-6 ? std::abs(ny::average(e_r) - er_map) / er_map : 0.0;
+    row.m_rel = em_map > 1e-6 ? std::abs(ny::average(e_m) - em_map) / em_map : 0.0;
+  });
+  FidelityReport r;
+  double wsum = 0;
+  for (const Row &row : rows) {
+    wsum += row.w;
+    r.albedo_mae += row.w * row.a_abs;
+    r.albedo_mae_rel += row.w * row.a_rel;
+    r.albedo_max_rel = std::max(r.albedo_max_rel, row.a_max);
+    r.T_rmse += row.w * row.t2;
+    r.R_energy_mae_rel += row.w * row.r_rel;
+    r.M_energy_mae_rel += row.w * row.m_rel;
+    r.M_rel_l1 += row.w * row.l1;
+  }
+  r.albedo_mae /= wsum;
+  r.albedo_mae_rel /= wsum;
+  r.T_rmse = std::sqrt(r.T_rmse / wsum);
+  r.R_energy_mae_rel /= wsum;
+  r.M_energy_mae_rel /= wsum;
+  r.M_rel_l1 /= wsum;
+
+  /* Sampling efficiency. */
+  std::vector<double> rv_imp(size_t(o.variance_directions)), rv_uni(rv_imp.size()), rv_opt(rv_imp.size());
+  tbb::parallel_for(0, o.variance_directions, [&](int d) {
+    std::mt19937_64 rng(o.seed * 7919u + uint64_t(d));
+    std::uniform_real_distribution<float> U(0.0f, 1.0f);
+    const double theta = std::acos(1.0 - U(rng)), phi = -kPi + 2 * kPi * U(rng);
+    const ny::Vec3 wi = vec(train::entry_direction(theta, phi));
+    const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+    ny::YarnBsdfParams q = p;
+    const double er = ny::average(l.weight_R) * 0.5, em = ny::average(m_energy(p, l));
+    q.kappa_R = float(er + em > 0 ? er / (er + em) : 0.5);
+    auto stats = [&](const ny::YarnBsdfParams &pp, int mode) {
+      double s = 0, s2 = 0;
+      for (int i = 0; i < o.variance_samples; i++) {
+        double x = 0;
+        if (mode == 0) {
+          ny::YarnSample ys;
+          if (ny::yarn_sample(pp, wi, U(rng), U(rng), U(rng), false, &ys)) {
+            x = ny::average(ys.weight);
+          }
+        }
+        else {
+          const ny::Vec3 wo = ny::sample_uniform_sphere(U(rng), U(rng));
+          x = ny::average(ny::yarn_eval_lobes(pp, l, wo)) * 4.0 * kPi;
+        }
+        s += x;
+        s2 += x * x;
+      }
+      const double mean = s / o.variance_samples;
+      const double var = s2 / o.variance_samples - mean * mean;
+      return mean > 0 ? var / (mean * mean) : 0.0;
+    };
+    rv_imp[size_t(d)] = stats(p, 0);
+    rv_uni[size_t(d)] = stats(p, 1);
+    rv_opt[size_t(d)] = stats(q, 0);
+  });
+  for (int d = 0; d < o.variance_directions; d++) {
+    r.rel_var_importance += rv_imp[size_t(d)] / o.variance_directions;
+    r.rel_var_uniform += rv_uni[size_t(d)] / o.variance_directions;
+    r.rel_var_per_wi_kappa_R += rv_opt[size_t(d)] / o.variance_directions;
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+void write_comparison_image(const YarnModel &model, const rdm::RdmMaps &maps, double theta_i_deg, double phi_i_deg,
+                            const std::string &path)
+{
+  const std::vector<float> flat = model.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  const rdm::MapResolution &b = maps.bins;
+  const int ti = rdm::bin_of(theta_i_deg * kPi / 180.0, 0.0, 0.5 * kPi, b.theta_i);
+  const int pi = rdm::bin_of(phi_i_deg * kPi / 180.0, -kPi, kPi, b.phi_i);
+  const ny::Vec3 wi = vec(train::entry_direction(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i),
+                                                 rdm::bin_center(pi, -kPi, kPi, b.phi_i)));
+  const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+  const int scale = std::max(1, 360 / b.phi_o), pw = b.phi_o * scale, ph = b.theta_o * scale;
+  const int gap = 8, header = 24, W = 4 * pw + 3 * gap, H = ph + header;
+  OIIO::ImageBuf img(OIIO::ImageSpec(W, H, 3, OIIO::TypeDesc::FLOAT));
+  const float bg[3] = {0.08f, 0.08f, 0.09f};
+  OIIO::ImageBufAlgo::fill(img, OIIO::cspan<float>(bg, 3));
+  /* Panels: 0 M map, 1 M network, 2 R map, 3 R analytic. Each pair shares its map's maximum. */
+  auto value = [&](int panel, int to, int po) {
+    const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), ph_o = rdm::bin_center(po, -kPi, kPi, b.phi_o);
+    const ny::Vec3 wo = vec(train::entry_direction(th, ph_o));
+    const float *mm = &maps.m[maps.map_index(ti, pi, to, po)];
+    const float *rr = &maps.r[maps.map_index(ti, pi, to, po)];
+    switch (panel) {
+      case 0:
+        return ny::make_rgb(mm[0], mm[1], mm[2]);
+      case 1:
+        return ny::yarn_eval_M(p, l, wo);
+      case 2:
+        return ny::make_rgb(rr[0], rr[1], rr[2]);
+      default:
+        return ny::yarn_eval_R_fiber(l, ny::yarn_to_surface_fiber(p.twist, wo));
+    }
+  };
+  float vmax[2] = {0, 0};
+  for (int to = 0; to < b.theta_o; to++) {
+    for (int po = 0; po < b.phi_o; po++) {
+      for (int pair = 0; pair < 2; pair++) {
+        const ny::Rgb v = value(2 * pair, to, po);
+        vmax[pair] = std::max({vmax[pair], v.r, v.g, v.b});
+      }
+    }
+  }
+  for (int panel = 0; panel < 4; panel++) {
+    const float vm = vmax[panel / 2];
+    for (int to = 0; to < b.theta_o; to++) {
+      for (int po = 0; po < b.phi_o; po++) {
+        const ny::Rgb v = value(panel, to, po);
+        float px[3];
+        for (int c = 0; c < 3; c++) {
+          const double x = channel(v, c);
+          /* Two and a half decades on a log scale. */
+          px[c] = (vm > 0 && x > 0) ? float(std::clamp((std::log10(x / vm) + 2.5) / 2.5, 0.0, 1.0)) : 0.0f;
+        }
+        for (int dy = 0; dy < scale; dy++) {
+          for (int dx = 0; dx < scale; dx++) {
+            img.setpixel(panel * (pw + gap) + po * scale + dx, header + to * scale + dy, px, 3);
+          }
+        }
+      }
+    }
+  }
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), "%s  theta_i %.0f phi_i %.0f deg | M map | M network | R map | R analytic (log10, 2.5 decades)",
+                model.preset.name.c_str(), theta_i_deg, phi_i_deg);
+  const float white[3] = {0.9f, 0.9f, 0.9f};
+  if (!OIIO::ImageBufAlgo::render_text(img, 6, 17, buf, 14, "DejaVuSans", white)) {
+    (void)img.geterror();
+  }
+  if (!img.write(path)) {
+    throw std::runtime_error("cannot write '" + path + "': " + img.geterror());
+  }
+}
+
+}  // namespace neuralyarn::model

@@ -1,0 +1,265 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/model/model.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+
+#include "neuralyarn/io.h"
+#include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/version.h"
+
+#ifndef NEURALYARN_SOURCE_DIR
+#  define NEURALYARN_SOURCE_DIR "."
+#endif
+
+namespace neuralyarn::model {
+
+using nlohmann::json;
+
+namespace {
+
+const char *head_name(ny::MlpHead h)
+{
+  switch (h) {
+    case ny::kMlpHeadSigmoid:
+      return "sigmoid";
+    case ny::kMlpHeadExp:
+      return "exp";
+    default:
+      return "identity";
+  }
+}
+
+json network_to_json(const NetworkRecord &n)
+{
+  json j;
+  j["widths"] = n.shape.widths;
+  j["head"] = head_name(n.shape.head);
+  j["activation"] = "prelu";
+  j["kernel_array"] = n.flat;
+  j["training"] = n.training;
+  return j;
+}
+
+NetworkRecord network_from_json(const json &j, const std::string &source, const char *name)
+{
+  const std::string where = source + ": network " + name + ": ";
+  NetworkRecord n;
+  if (!j.is_object()) {
+    throw ModelError(where + "must be an object");
+  }
+  if (j.value("activation", "prelu") != "prelu") {
+    throw ModelError(where + "activation '" + j.value("activation", "") + "' is not supported (prelu only)");
+  }
+  std::vector<float> flat;
+  try {
+    for (const json &v : j.at("kernel_array")) {
+      if (!v.is_number()) {
+        throw ModelError(where + "kernel_array holds a non-number");
+      }
+      flat.push_back(v.get<float>());
+    }
+  }
+  catch (const json::exception &e) {
+    throw ModelError(where + "missing or malformed kernel_array (" + e.what() + ")");
+  }
+  try {
+    const train::Mlp<float> net = train::Mlp<float>::from_flat(flat);
+    n.shape = net.shape();
+  }
+  catch (const std::exception &e) {
+    throw ModelError(where + e.what());
+  }
+  /* The descriptive keys must agree with the array's own header. */
+  if (j.contains("widths") && j["widths"] != json(n.shape.widths)) {
+    throw ModelError(where + "'widths' disagrees with the kernel array's header");
+  }
+  if (j.contains("head") && j["head"] != head_name(n.shape.head)) {
+    throw ModelError(where + "'head' disagrees with the kernel array's header");
+  }
+  n.flat = std::move(flat);
+  n.training = j.value("training", json::object());
+  return n;
+}
+
+double finite_in(const json &j, const char *key, double lo, double hi, const std::string &where)
+{
+  if (!j.contains(key) || !j[key].is_number()) {
+    throw ModelError(where + "missing number '" + key + "'");
+  }
+  const double v = j[key].get<double>();
+  if (!std::isfinite(v) || v < lo || v > hi) {
+    throw ModelError(where + "'" + key + "' = " + std::to_string(v) + " is outside [" + std::to_string(lo) + ", " +
+                     std::to_string(hi) + "]");
+  }
+  return v;
+}
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+}  // namespace
+
+void check_network(const NetworkRecord &net, const char *name, int inputs, int outputs, ny::MlpHead head)
+{
+  const auto &w = net.shape.widths;
+  if (w.empty() || w.front() != inputs || w.back() != outputs || net.shape.head != head) {
+    throw ModelError(std::string("network ") + name + " must map " + std::to_string(inputs) + " inputs to " +
+                     std::to_string(outputs) + " outputs with a " + head_name(head) + " head, got " +
+                     train::format_widths(w) + " " + head_name(net.shape.head));
+  }
+}
+
+std::vector<float> YarnModel::kernel_flat() const
+{
+  std::vector<float> f(ny::kYarnFlatHeader, 0.0f);
+  f[ny::kYarnFlatVersion] = ny::kYarnFlatFormat;
+  f[ny::kYarnFlatAlpha] = float(preset.alpha);
+  const ny::FiberBsdfParams fp = preset.fiber_params();
+  f[ny::kYarnFlatC_R] = fp.C_R.r;
+  f[ny::kYarnFlatC_R + 1] = fp.C_R.g;
+  f[ny::kYarnFlatC_R + 2] = fp.C_R.b;
+  f[ny::kYarnFlatBeta_R] = fp.beta_R;
+  f[ny::kYarnFlatKappa_R] = float(proxy.kappa_R);
+  f[ny::kYarnFlatBeta_M] = float(proxy.beta_M);
+  f[ny::kYarnFlatGamma_M] = float(proxy.gamma_M);
+  f[ny::kYarnFlatKappa_M] = float(proxy.kappa_M);
+  for (int c = 0; c < 3; c++) {
+    f[ny::kYarnFlatAlbedo_M + c] = float(albedo_M[size_t(c)]);
+  }
+  f[ny::kYarnFlatOffset_T] = float(f.size());
+  f.insert(f.end(), T.flat.begin(), T.flat.end());
+  f[ny::kYarnFlatOffset_R] = float(f.size());
+  f.insert(f.end(), R.flat.begin(), R.flat.end());
+  f[ny::kYarnFlatOffset_M] = float(f.size());
+  f.insert(f.end(), M.flat.begin(), M.flat.end());
+  f[ny::kYarnFlatSize] = float(f.size());
+  return f;
+}
+
+json model_to_json(const YarnModel &m)
+{
+  json j;
+  j["format"] = "neuralyarn-model";
+  j["version"] = kModelFormatVersion;
+  j["code_version"] = std::string(kVersion) + "+" + kGitRevision;
+  j["preset"] = preset_to_json(m.preset);
+  j["networks"] = {{"T", network_to_json(m.T)}, {"R", network_to_json(m.R)}, {"M", network_to_json(m.M)}};
+  j["sampling"] = {{"kappa_R", m.proxy.kappa_R},
+                   {"beta_M_deg", m.proxy.beta_M / kDeg},
+                   {"gamma_M_deg", m.proxy.gamma_M / kDeg},
+                   {"kappa_M", m.proxy.kappa_M}};
+  j["albedo_M"] = m.albedo_M;
+  j["provenance"] = m.provenance;
+  j["fidelity"] = m.fidelity;
+  return j;
+}
+
+YarnModel model_from_json(const json &j, const std::string &source)
+{
+  const std::string where = source + ": ";
+  if (!j.is_object() || j.value("format", "") != "neuralyarn-model") {
+    throw ModelError(where + "not a neuralyarn model (the key \"format\" must be \"neuralyarn-model\")");
+  }
+  if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int>() != kModelFormatVersion) {
+    throw ModelError(where + "model format version " + (j.contains("version") ? j["version"].dump() : "(missing)") +
+                     " is not supported (this build reads version " + std::to_string(kModelFormatVersion) + ")");
+  }
+  YarnModel m;
+  try {
+    m.preset = preset_from_json(j.at("preset"), "model");
+  }
+  catch (const json::exception &) {
+    throw ModelError(where + "missing 'preset'");
+  }
+  catch (const std::exception &e) {
+    throw ModelError(where + "preset: " + e.what());
+  }
+  if (!j.contains("networks") || !j["networks"].is_object()) {
+    throw ModelError(where + "missing 'networks'");
+  }
+  const json &nets = j["networks"];
+  for (const char *name : {"T", "R", "M"}) {
+    if (!nets.contains(name)) {
+      throw ModelError(where + "missing network '" + name + "'");
+    }
+  }
+  m.T = network_from_json(nets["T"], source, "T");
+  m.R = network_from_json(nets["R"], source, "R");
+  m.M = network_from_json(nets["M"], source, "M");
+  try {
+    check_network(m.T, "T", 3, 1, ny::kMlpHeadSigmoid);
+    check_network(m.R, "R", 3, 1, ny::kMlpHeadExp);
+    check_network(m.M, "M", 6, 3, ny::kMlpHeadExp);
+  }
+  catch (const ModelError &e) {
+    throw ModelError(where + e.what());
+  }
+  if (!j.contains("sampling") || !j["sampling"].is_object()) {
+    throw ModelError(where + "missing 'sampling'");
+  }
+  const json &s = j["sampling"];
+  const std::string ws = where + "sampling: ";
+  m.proxy.kappa_R = finite_in(s, "kappa_R", 0.0, 1.0, ws);
+  m.proxy.beta_M = finite_in(s, "beta_M_deg", 0.01, 360.0, ws) * kDeg;
+  m.proxy.gamma_M = finite_in(s, "gamma_M_deg", 0.01, 1e4, ws) * kDeg;
+  m.proxy.kappa_M = finite_in(s, "kappa_M", 0.0, 1.0, ws);
+  if (!j.contains("albedo_M") || !j["albedo_M"].is_array() || j["albedo_M"].size() != 3) {
+    throw ModelError(where + "'albedo_M' must be three numbers");
+  }
+  for (size_t c = 0; c < 3; c++) {
+    const json &v = j["albedo_M"][c];
+    if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < 0.0 || v.get<double>() > 1.5) {
+      throw ModelError(where + "'albedo_M' values must be finite, in [0, 1.5]");
+    }
+    m.albedo_M[c] = v.get<double>();
+  }
+  m.provenance = j.value("provenance", json::object());
+  m.fidelity = j.value("fidelity", json::object());
+  return m;
+}
+
+void save_model(const YarnModel &model, const std::string &path)
+{
+  try {
+    write_file_atomically(path, model_to_json(model).dump(1) + "\n", "");
+  }
+  catch (const std::runtime_error &e) {
+    throw ModelError("model file '" + path + "': " + e.what());
+  }
+}
+
+YarnModel load_model(const std::string &path)
+{
+  const std::string source = "model file '" + path + "'";
+  std::string text;
+  try {
+    text = read_file(path);
+  }
+  catch (const std::runtime_error &e) {
+    throw ModelError(source + ": " + e.what());
+  }
+  json j;
+  try {
+    j = json::parse(text);
+  }
+  catch (const json::exception &e) {
+    throw ModelError(source + ": not valid JSON (" + std::string(e.what()) + ")");
+  }
+  return model_from_json(j, source);
+}
+
+std::string builtin_model_path(const std::string &preset_name)
+{
+  namespace fs = std::filesystem;
+  const char *env = std::getenv("NEURALYARN_MODELS_DIR");
+  const fs::path dir = env && *env ? fs::path(env) : fs::path(NEURALYARN_SOURCE_DIR) / "models";
+  const fs::path p = dir / (preset_name + ".json");
+  if (!fs::exists(p)) {
+    throw ModelError("no shipped model '" + p.string() + "' (bake one with `neuralyarn bake --preset " + preset_name +
+                     "` or set NEURALYARN_MODELS_DIR)");
+  }
+  return p.string();
+}
+
+}  // namespace neuralyarn::model

@@ -1,0 +1,293 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "model_commands.h"
+
+#include <cstdio>
+#include <string>
+
+#include "cli_common.h"
+#include "neuralyarn/model/bake.h"
+#include "neuralyarn/model/fidelity.h"
+#include "neuralyarn/model/model.h"
+#include "neuralyarn/rdm/map_file.h"
+
+namespace neuralyarn::cli {
+
+namespace {
+
+using model::NetworkOptions;
+using model::TrainModelOptions;
+
+void add_network_options(CLI::App *cmd, const char *name, NetworkOptions *o)
+{
+  const std::string p = std::string("--") + name + "-";
+  cmd->add_option(p + "widths", o->widths, std::string("Layer widths of the ") + name + " network")
+      ->capture_default_str();
+  cmd->add_option(p + "samples", o->samples, "Training samples drawn from the maps")
+      ->check(CLI::Range(1, 100000000))
+      ->capture_default_str();
+  cmd->add_option(p + "steps", o->steps, "Adam steps")->check(CLI::Range(0, 10000000))->capture_default_str();
+  cmd->add_option(p + "batch", o->batch, "Mini-batch size (0: full batch)")
+      ->check(CLI::Range(0, 100000000))
+      ->capture_default_str();
+  cmd->add_option(p + "lr", o->learning_rate, "Initial learning rate")
+      ->check(finite_range(1e-7, 1.0))
+      ->capture_default_str();
+  cmd->add_option(p + "lr-final", o->final_learning_rate_fraction, "Final learning rate as a fraction of the initial")
+      ->check(finite_range(1e-6, 1.0))
+      ->capture_default_str();
+  cmd->add_option_function<std::string>(
+         p + "loss",
+         [o](const std::string &s) {
+           o->loss = s == "log" ? train::Loss::kLogMse : train::Loss::kMse;
+         },
+         "Loss: mse (the paper's) or log (MSE of log(y + eps))")
+      ->check(CLI::IsMember({"mse", "log"}));
+  cmd->add_option(p + "log-eps", o->log_eps, "Offset of the log loss")->check(finite_range(1e-9, 1.0))->capture_default_str();
+}
+
+void add_train_options(CLI::App *cmd, TrainModelOptions *o)
+{
+  add_network_options(cmd, "t", &o->T);
+  add_network_options(cmd, "r", &o->R);
+  add_network_options(cmd, "m", &o->M);
+  cmd->add_option("--train-seed", o->seed, "Seed of weights, training samples and mini-batches")->capture_default_str();
+  cmd->add_option("--fit-samples", o->fit.samples, "M exits drawn for the proxy fit")
+      ->check(CLI::Range(100, 100000000))
+      ->capture_default_str();
+}
+
+void print_network(const char *name, const model::NetworkRecord &n)
+{
+  const auto &t = n.training;
+  std::printf("network %s %-12s %s loss: train %.4g, validation %.4g (mse %.4g), %d steps in %.1f s\n", name,
+              train::format_widths(n.shape.widths).c_str(), t.value("loss", "").c_str(),
+              t.value("train_loss", 0.0), t.value("validation_loss", 0.0), t.value("validation_mse", 0.0),
+              t.value("steps", 0), t.value("seconds", 0.0));
+}
+
+void print_proxy(const model::YarnModel &m)
+{
+  const double deg = 180.0 / 3.14159265358979323846;
+  std::printf("sampling proxy   kappa_R %.4f, beta_M %.2f deg, gamma_M %.2f deg, kappa_M %.4f", m.proxy.kappa_R,
+              m.proxy.beta_M * deg, m.proxy.gamma_M * deg, m.proxy.kappa_M);
+  if (m.provenance.contains("proxy_fit")) {
+    const auto &f = m.provenance["proxy_fit"];
+    std::printf("  (M exits: -log L %.4f vs uniform %.4f)", f.value("nll", 0.0), f.value("nll_uniform", 0.0));
+  }
+  std::printf("\n");
+}
+
+void print_fidelity(const model::FidelityReport &r)
+{
+  std::printf("albedo vs map    mean abs error %.4f, mean relative error %.2f %%, max relative %.1f %%\n", r.albedo_mae,
+              100 * r.albedo_mae_rel, 100 * r.albedo_max_rel);
+  std::printf("P_T              rms error %.4f\n", r.T_rmse);
+  std::printf("energy vs map    R: mean relative error %.2f %%   M: %.2f %%\n", 100 * r.R_energy_mae_rel,
+              100 * r.M_energy_mae_rel);
+  std::printf("M lobe           relative L1 distance to the map %.3f (includes the map's own noise)\n", r.M_rel_l1);
+  std::printf("sampling         relative variance of the albedo estimate: importance %.3f, uniform %.3f (%.1fx); "
+              "kappa_R per w_i %.3f\n",
+              r.rel_var_importance, r.rel_var_uniform,
+              r.rel_var_importance > 0 ? r.rel_var_uniform / r.rel_var_importance : 0.0, r.rel_var_per_wi_kappa_R);
+}
+
+std::function<void(const std::string &, double)> bar_callback(ProgressBar *bar, const TrainModelOptions &o)
+{
+  auto current = std::make_shared<std::string>();
+  return [bar, current, &o](const std::string &stage, double f) {
+    if (*current != stage) {
+      *current = stage;
+      bar->stage(stage == "fit" ? "fit  " : "train " + stage, stage == "fit" ? "" : "steps");
+    }
+    const int steps = stage == "T" ? o.T.steps : stage == "R" ? o.R.steps : stage == "M" ? o.M.steps : 1;
+    bar->update(uint64_t(f * steps + 0.5), uint64_t(std::max(1, steps)));
+  };
+}
+
+class Commands : public ModelCommands {
+ public:
+  explicit Commands(CLI::App &app)
+  {
+    train_ = app.add_subcommand("train", "Train the T, R and M networks on maps and fit the sampling proxy");
+    train_->add_option("--maps", maps_, "Map file (.nyrdm) to train on")->required();
+    train_->add_option("--out", out_, "Model file to write (.json)")->required();
+    add_train_options(train_, &topt_);
+    train_->add_flag("--no-fit", no_fit_, "Skip the proxy fit (kappa_R only)");
+    train_->add_flag("--quiet", quiet_, "No progress bar");
+
+    fit_ = app.add_subcommand("fit", "Re-fit the importance-sampling proxy of a model on maps");
+    fit_->add_option("model", model_, "Model file (.json)")->required();
+    fit_->add_option("--maps", maps_, "Map file (.nyrdm)")->required();
+    fit_->add_option("--out", out_, "Model file to write (default: replace the input)");
+    fit_->add_option("--samples", topt_.fit.samples, "M exits drawn for the fit")
+        ->check(CLI::Range(100, 100000000))
+        ->capture_default_str();
+    fit_->add_option("--seed", topt_.fit.seed, "Seed of the drawn exits")->capture_default_str();
+
+    bake_ = app.add_subcommand("bake", "Gather maps, train, fit and check: a model from fiber parameters");
+    auto *bp = bake_->add_option("--preset", preset_, "Built-in preset name")->capture_default_str();
+    bake_->add_option("--params", params_, "Fiber parameter file (JSON)")->excludes(bp);
+    bake_->add_option("--out", out_, "Model file to write (.json)")->required();
+    bake_->add_option("--paths", paths_, "Paths to gather (1e7, 40M, ...)")->capture_default_str();
+    bake_->add_option("--seed", gopt_.seed, "Seed of the paths")->capture_default_str();
+    bake_->add_option("--packing-seed", gopt_.packing_seed, "Seed of the fiber cross-section")->capture_default_str();
+    bake_->add_option("--bins", bins_, "Map resolution")->capture_default_str();
+    bake_->add_option("--maps-out", maps_out_, "Also keep the gathered maps (.nyrdm)");
+    bake_->add_option("--image", image_, "Comparison image (PNG): maps next to the model");
+    bake_->add_option("--threads", threads_, "Worker threads (0: all cores); results do not depend on it")
+        ->capture_default_str();
+    add_train_options(bake_, &topt_);
+    bake_->add_flag("--quiet", quiet_, "No progress bar");
+
+    check_ = app.add_subcommand("check", "Fidelity of a model against maps (albedo, energies, sampling variance)");
+    check_->add_option("model", model_, "Model file (.json)")->required();
+    check_->add_option("--maps", maps_, "Map file (.nyrdm)")->required();
+    check_->add_option("--image", image_, "Comparison image (PNG)");
+    check_->add_option("--theta-i", theta_i_, "Incident polar angle of the image, degrees")
+        ->check(finite_range(0.0, 90.0))
+        ->capture_default_str();
+    check_->add_option("--phi-i", phi_i_, "Incident azimuth of the image, degrees")
+        ->check(finite_range(-180.0, 180.0))
+        ->capture_default_str();
+    check_->add_option("--max-albedo-error", max_err_, "Exit 1 if the mean relative albedo error exceeds this")
+        ->check(finite_range(0.0, 10.0));
+  }
+
+  int run() override
+  {
+    if (train_->parsed()) {
+      return run_train();
+    }
+    if (fit_->parsed()) {
+      return run_fit();
+    }
+    if (bake_->parsed()) {
+      return run_bake();
+    }
+    if (check_->parsed()) {
+      return run_check();
+    }
+    return -1;
+  }
+
+ private:
+  int run_train()
+  {
+    check_writable(out_);
+    const rdm::RdmMaps maps = rdm::load_maps(maps_);
+    topt_.fit_proxy = !no_fit_;
+    topt_.threads = threads_;
+    ProgressBar bar(!quiet_, "steps");
+    topt_.progress = bar_callback(&bar, topt_);
+    model::YarnModel m = model::train_model(maps, topt_);
+    m.provenance["maps"]["file"] = maps_;
+    model::save_model(m, out_);
+    print_networks(m);
+    std::printf("wrote %s\n", out_.c_str());
+    return 0;
+  }
+
+  int run_fit()
+  {
+    model::YarnModel m = model::load_model(model_);
+    const rdm::RdmMaps maps = rdm::load_maps(maps_);
+    require_same_preset(m, maps);
+    const std::string out = out_.empty() ? model_ : out_;
+    check_writable(out);
+    model::fit_model_proxy(&m, maps, topt_.fit);
+    model::save_model(m, out);
+    print_proxy(m);
+    std::printf("wrote %s\n", out.c_str());
+    return 0;
+  }
+
+  int run_bake()
+  {
+    check_writable(out_);
+    if (!maps_out_.empty()) {
+      check_writable(maps_out_);
+    }
+    const FiberPreset preset = resolve_preset(preset_, params_);
+    gopt_.paths = parse_count(paths_);
+    gopt_.bins = rdm::parse_resolution(bins_);
+    gopt_.threads = threads_;
+    rdm::validate(gopt_);
+    if (!quiet_) {
+      print_preset(preset);
+    }
+    ProgressBar bar(!quiet_, "paths");
+    bar.stage("gather", "paths");
+    gopt_.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };
+    const rdm::RdmMaps maps = rdm::gather(preset, gopt_);
+    if (!maps_out_.empty()) {
+      rdm::save_maps(maps, maps_out_);
+    }
+    topt_.threads = threads_;
+    topt_.progress = bar_callback(&bar, topt_);
+    model::YarnModel m = model::train_model(maps, topt_);
+    m.provenance["gather_seconds"] = maps.stats.seconds;
+    const model::FidelityReport r = model::check_model(m, maps);
+    m.fidelity = r.to_json();
+    m.fidelity["maps"] = "the maps the model was trained on";
+    model::save_model(m, out_);
+    std::printf("gathered         %llu paths in %.1f s\n", (unsigned long long)maps.paths, maps.stats.seconds);
+    print_networks(m);
+    print_fidelity(r);
+    if (!image_.empty()) {
+      model::write_comparison_image(m, maps, theta_i_, phi_i_, image_);
+      std::printf("wrote %s\n", image_.c_str());
+    }
+    std::printf("wrote %s\n", out_.c_str());
+    return 0;
+  }
+
+  int run_check()
+  {
+    const model::YarnModel m = model::load_model(model_);
+    const rdm::RdmMaps maps = rdm::load_maps(maps_);
+    require_same_preset(m, maps);
+    print_proxy(m);
+    const model::FidelityReport r = model::check_model(m, maps);
+    print_fidelity(r);
+    if (!image_.empty()) {
+      model::write_comparison_image(m, maps, theta_i_, phi_i_, image_);
+      std::printf("wrote %s\n", image_.c_str());
+    }
+    if (max_err_ >= 0.0 && r.albedo_mae_rel > max_err_) {
+      std::fprintf(stderr, "neuralyarn: albedo error %.4f exceeds --max-albedo-error %.4f\n", r.albedo_mae_rel, max_err_);
+      return 1;
+    }
+    return 0;
+  }
+
+  void print_networks(const model::YarnModel &m)
+  {
+    print_network("T", m.T);
+    print_network("R", m.R);
+    print_network("M", m.M);
+    print_proxy(m);
+  }
+
+  static void require_same_preset(const model::YarnModel &m, const rdm::RdmMaps &maps)
+  {
+    if (preset_to_json(m.preset) != preset_to_json(maps.preset)) {
+      throw std::runtime_error("the maps were gathered for preset '" + maps.preset.name +
+                               "' with other parameters than the model's ('" + m.preset.name + "')");
+    }
+  }
+
+  CLI::App *train_, *fit_, *bake_, *check_;
+  TrainModelOptions topt_;
+  rdm::GatherOptions gopt_;
+  std::string maps_, out_, model_, preset_ = "fleece", params_, paths_ = "4e7", bins_ = "22x90x45x90", maps_out_,
+                                   image_;
+  int threads_ = 0;
+  bool no_fit_ = false, quiet_ = false;
+  double theta_i_ = 45.0, phi_i_ = 0.0, max_err_ = -1.0;
+};
+
+}  // namespace
+
+std::unique_ptr<ModelCommands> add_model_commands(CLI::App &app) { return std::make_unique<Commands>(app); }
+
+}  // namespace neuralyarn::cli

@@ -1,0 +1,314 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// The aggregated yarn BSDF of kernel/yarn_bsdf.h on synthetic models (seeded random networks: every
+// property below must hold for any networks, not just trained ones):
+//   * the R lobe's energy is exactly rho_R F / 2 (quadrature);
+//   * the conditional pdf integrates to 1 and the sampler draws from it (chi-square), and the T lobe is
+//     chosen with probability P_T (binomial);
+//   * a sample's weight is eval / pdf;
+//   * w_i below the surface gives zero (never NaN), and 10^7 fuzzed calls are finite and non-negative;
+//   * the flat array round-trips through the model file, and the loader rejects bad files by name.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <boost/math/distributions/chi_squared.hpp>
+#include <tbb/parallel_for.h>
+
+#include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/model/model.h"
+
+using namespace neuralyarn;
+namespace fs = std::filesystem;
+
+namespace {
+
+/* A model with seeded random networks whose outputs sit in a plausible range (P_T ~ 0.1-0.5, rho_R ~ 1,
+ * M ~ 0.05). */
+model::YarnModel synthetic_model(const char *preset, uint64_t seed, double m_bias = -3.0)
+{
+  model::YarnModel m;
+  m.preset = find_preset(preset);
+  auto make = [&](std::vector<int> widths, ny::MlpHead head, uint64_t s, double bias) {
+    train::Mlp<float> net(train::MlpShape{widths, head}, s);
+    train::Mlp<float>::Vec p = net.params() * 0.6f;
+    const int out = widths.back();
+    for (int c = 0; c < out; c++) {
+      p(p.size() - out + c) += float(bias);
+    }
+    net.set_params(p);
+    model::NetworkRecord r;
+    r.shape = net.shape();
+    r.flat = net.to_flat();
+    return r;
+  };
+  m.T = make({3, 7, 7, 1}, ny::kMlpHeadSigmoid, seed, -1.0);
+  m.R = make({3, 7, 7, 1}, ny::kMlpHeadExp, seed + 1, 0.0);
+  m.M = make({6, 21, 21, 3}, ny::kMlpHeadExp, seed + 2, m_bias);
+  m.proxy = {0.3, 0.35, 0.9, 0.7};
+  m.albedo_M = {0.2, 0.3, 0.4};
+  return m;
+}
+
+ny::Vec3 from_polar(double theta, double phi)
+{
+  return ny::make_vec3(float(std::sin(theta) * std::cos(phi)), float(std::sin(theta) * std::sin(phi)),
+                       float(std::cos(theta)));
+}
+
+}  // namespace
+
+TEST(YarnBsdf, ReflectionLobeEnergyIsHalfTheFiberR)
+{
+  for (const char *preset : {"fleece", "polyester", "silk"}) {
+    const model::YarnModel m = synthetic_model(preset, 3);
+    const std::vector<float> flat = m.kernel_flat();
+    const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    for (double theta_i : {0.1, 0.7, 1.2, 1.5}) {
+      const ny::YarnLobes l = ny::yarn_lobes(p, from_polar(theta_i, 0.8));
+      /* Integrate over the surface-fiber frame's (theta~, phi~): dw = cos theta~ dtheta~ dphi~. */
+      const int nt = 6000, np = 64;
+      double e = 0.0;
+      for (int i = 0; i < nt; i++) {
+        const double th = -M_PI / 2 + M_PI * (i + 0.5) / nt;
+        for (int j = 0; j < np; j++) {
+          const double ph = -M_PI + 2 * M_PI * (j + 0.5) / np;
+          e += ny::average(ny::yarn_eval_R_fiber(l, ny::direction_from_angles(float(th), float(ph)))) *
+               std::cos(th) * (M_PI / nt) * (2 * M_PI / np);
+        }
+      }
+      EXPECT_NEAR(e, 0.5 * ny::average(l.weight_R), 2e-3 * ny::average(l.weight_R)) << preset << " " << theta_i;
+    }
+  }
+}
+
+TEST(YarnBsdf, PdfIntegratesToOneAndSamplerMatchesIt)
+{
+  const model::YarnModel m = synthetic_model("fleece", 5);
+  const std::vector<float> flat = m.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  /* Bins over the surface-fiber frame's (theta~, phi~); expected counts by 8 x 8 sub-quadrature. */
+  const int nt = 36, np = 48, sub = 8;
+  for (double theta_i : {0.2, 0.9, 1.45}) {
+    const ny::Vec3 wi = from_polar(theta_i, 0.4);
+    const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+    std::vector<double> expected(size_t(nt * np), 0.0);
+    double total = 0.0;
+    for (int i = 0; i < nt; i++) {
+      for (int j = 0; j < np; j++) {
+        double s = 0.0;
+        for (int a = 0; a < sub; a++) {
+          const double th = -M_PI / 2 + M_PI * (i + (a + 0.5) / sub) / nt;
+          for (int b = 0; b < sub; b++) {
+            const double ph = -M_PI + 2 * M_PI * (j + (b + 0.5) / sub) / np;
+            const ny::Vec3 wo = ny::surface_fiber_to_yarn(p.twist, ny::direction_from_angles(float(th), float(ph)));
+            s += ny::yarn_pdf_lobes(p, l, wo) * std::cos(th);
+          }
+        }
+        expected[size_t(i * np + j)] = s * (M_PI / nt / sub) * (2 * M_PI / np / sub);
+        total += expected[size_t(i * np + j)];
+      }
+    }
+    EXPECT_NEAR(total, 1.0, 5e-3) << "theta_i " << theta_i;
+    const int n = 1000000;
+    std::vector<double> observed(expected.size(), 0.0);
+    std::mt19937 rng(17);
+    std::uniform_real_distribution<float> U(0.0f, 1.0f);
+    for (int k = 0; k < n; k++) {
+      ny::YarnSample s;
+      ASSERT_TRUE(ny::yarn_sample(p, wi, U(rng), U(rng), U(rng), false, &s));
+      ASSERT_FALSE(s.delta);
+      const ny::Vec3 wf = ny::yarn_to_surface_fiber(p.twist, s.wo);
+      const int i = std::min(nt - 1, int((ny::theta_of(wf) + M_PI / 2) / M_PI * nt));
+      const int j = std::min(np - 1, int((ny::phi_of(wf) + M_PI) / (2 * M_PI) * np));
+      observed[size_t(i * np + j)] += 1.0;
+      if (k < 2000) {
+        /* weight = eval / pdf, and the pdf is the one pdf() reports. */
+        float pdf;
+        const ny::Rgb f = ny::yarn_eval(p, wi, s.wo, &pdf);
+        ASSERT_NEAR(s.pdf, pdf, 1e-4f * pdf + 1e-6f);
+        ASSERT_NEAR(s.weight.g, f.g / pdf, 1e-3f * (f.g / pdf) + 1e-6f);
+      }
+    }
+    /* Pool bins with fewer than 5 expected samples (Cochran's rule), then chi-square. */
+    double chi2 = 0.0, pooled_e = 0.0, pooled_o = 0.0;
+    int dof = -1;
+    for (size_t b = 0; b < expected.size(); b++) {
+      const double e = expected[b] / total * n;
+      if (e < 5.0) {
+        pooled_e += e;
+        pooled_o += observed[b];
+        continue;
+      }
+      chi2 += (observed[b] - e) * (observed[b] - e) / e;
+      dof++;
+    }
+    if (pooled_e > 0.0) {
+      chi2 += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e;
+      dof++;
+    }
+    const double pval = boost::math::cdf(boost::math::complement(boost::math::chi_squared(dof), chi2));
+    /* A fixed seed; 1e-3 would be a false alarm once in a thousand seeds, a wrong sampler (e.g. the pdf
+     * missing its 1/cos theta) gives p ~ 0. */
+    EXPECT_GT(pval, 1e-3) << "theta_i " << theta_i << " chi2 " << chi2 << " dof " << dof;
+  }
+}
+
+TEST(YarnBsdf, DeltaLobeIsChosenWithProbabilityPT)
+{
+  const model::YarnModel m = synthetic_model("silk", 9);
+  const std::vector<float> flat = m.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  for (double theta_i : {0.3, 1.0, 1.5}) {
+    const ny::Vec3 wi = from_polar(theta_i, -1.1);
+    const double P_T = ny::yarn_transmission(p, wi);
+    ASSERT_GT(P_T, 0.02);
+    const int n = 200000;
+    int deltas = 0;
+    for (int k = 0; k < n; k++) {
+      ny::YarnSample s;
+      ASSERT_TRUE(ny::yarn_sample(p, wi, U(rng), U(rng), U(rng), true, &s));
+      if (s.delta) {
+        deltas++;
+        ASSERT_EQ(s.wo.x, -wi.x);
+        ASSERT_EQ(s.wo.z, -wi.z);
+        ASSERT_EQ(s.weight.r, 1.0f); /* P_T / p_T */
+        ASSERT_NEAR(s.pdf, P_T, 1e-6);
+      }
+    }
+    const double sigma = std::sqrt(P_T * (1 - P_T) / n);
+    EXPECT_NEAR(double(deltas) / n, P_T, 5 * sigma) << "theta_i " << theta_i;
+  }
+}
+
+TEST(YarnBsdf, BelowTheSurfaceIsZeroNotNaN)
+{
+  const model::YarnModel m = synthetic_model("cotton", 2);
+  const std::vector<float> flat = m.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  for (const ny::Vec3 wi : {ny::make_vec3(0, 0, -1), ny::make_vec3(1, 0, 0), ny::make_vec3(0.6f, 0, -0.8f)}) {
+    float pdf = -1;
+    const ny::Rgb f = ny::yarn_eval(p, wi, ny::make_vec3(0, 0, 1), &pdf);
+    EXPECT_EQ(f.r, 0.0f);
+    EXPECT_EQ(pdf, 0.0f);
+    ny::YarnSample s;
+    EXPECT_FALSE(ny::yarn_sample(p, wi, 0.5f, 0.5f, 0.5f, true, &s));
+    EXPECT_EQ(s.weight.g, 0.0f);
+  }
+}
+
+TEST(YarnBsdf, TenMillionFuzzedCallsAreFiniteAndNonNegative)
+{
+  /* Random networks including extreme biases, every preset, w_i and w_o anywhere on the sphere, random
+   * numbers including the interval ends. */
+  std::atomic<long> bad{0};
+  const char *presets[] = {"fleece", "silk", "polyester", "cotton", "gabardine"};
+  std::vector<std::vector<float>> flats;
+  for (int k = 0; k < 5; k++) {
+    model::YarnModel m = synthetic_model(presets[k], 100 + uint64_t(k), k == 4 ? 20.0 : -3.0 - 2.0 * k);
+    if (k == 1) {
+      m.proxy = {1.0, 0.001, 0.001, 1.0}; /* all R, needle-sharp M lobe */
+    }
+    if (k == 2) {
+      m.proxy = {0.0, 3.0, 60.0, 0.0}; /* no R, uniform M */
+    }
+    flats.push_back(m.kernel_flat());
+  }
+  const long n = 2500000; /* x 4 calls */
+  tbb::parallel_for(long(0), long(64), [&](long chunk) {
+    std::mt19937_64 rng(uint64_t(chunk) * 7 + 1);
+    std::uniform_real_distribution<float> U(0.0f, 1.0f), S(-1.0f, 1.0f);
+    auto u = [&]() {
+      const float v = U(rng);
+      return v < 0.01f ? 0.0f : (v > 0.99f ? 0.99999994f : v);
+    };
+    for (long i = 0; i < n / 64; i++) {
+      const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flats[size_t(i % 5)].data());
+      ny::Vec3 wi = ny::normalize(ny::make_vec3(S(rng), S(rng), S(rng)));
+      if (i % 97 == 0) {
+        wi = ny::make_vec3(0.0f, 0.0f, 1.0f); /* exactly normal */
+      }
+      if (i % 89 == 0) {
+        wi = ny::make_vec3(1.0f, 0.0f, 0.0f); /* exactly along the tangent, grazing */
+      }
+      const ny::Vec3 wo = ny::normalize(ny::make_vec3(S(rng), S(rng), S(rng)));
+      float pdf = 0;
+      const ny::Rgb f = ny::yarn_eval(p, wi, wo, &pdf);
+      const float pdf2 = ny::yarn_pdf(p, wi, wo);
+      ny::YarnSample s;
+      const bool ok = ny::yarn_sample(p, wi, u(), u(), u(), (i & 1) != 0, &s);
+      const bool good = std::isfinite(f.r) && std::isfinite(f.g) && std::isfinite(f.b) && f.r >= 0 && f.g >= 0 &&
+                        f.b >= 0 && std::isfinite(pdf) && pdf >= 0 && std::isfinite(pdf2) && pdf2 >= 0 &&
+                        std::isfinite(s.weight.r) && std::isfinite(s.weight.g) && std::isfinite(s.weight.b) &&
+                        s.weight.r >= 0 && s.weight.g >= 0 && s.weight.b >= 0 && std::isfinite(s.pdf) &&
+                        s.pdf >= 0 && std::isfinite(s.wo.x) && std::isfinite(s.wo.y) && std::isfinite(s.wo.z) &&
+                        (!ok || std::abs(ny::length(s.wo) - 1.0f) < 1e-3f);
+      if (!good) {
+        bad++;
+      }
+    }
+  });
+  EXPECT_EQ(bad.load(), 0);
+}
+
+TEST(ModelFile, RoundTripsAndRejectsBadFiles)
+{
+  const fs::path dir = fs::temp_directory_path() / ("ny_model_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const model::YarnModel m = synthetic_model("gabardine", 11);
+  const std::string good = (dir / "good.json").string();
+  model::save_model(m, good);
+  const model::YarnModel back = model::load_model(good);
+  EXPECT_EQ(back.kernel_flat(), m.kernel_flat()) << "the model file does not round-trip exactly";
+
+  auto expect_error = [&](const std::string &name, const std::string &text, const std::string &needle) {
+    const std::string path = (dir / name).string();
+    std::ofstream(path) << text;
+    try {
+      model::load_model(path);
+      ADD_FAILURE() << name << " was accepted";
+    }
+    catch (const model::ModelError &e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << name << ": " << e.what();
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << "the message must name the file";
+    }
+  };
+  const nlohmann::json j = model::model_to_json(m);
+  expect_error("truncated.json", j.dump().substr(0, 500), "not valid JSON");
+  expect_error("other.json", R"({"format": "something-else"})", "not a neuralyarn model");
+  nlohmann::json v = j;
+  v["version"] = 2;
+  expect_error("version.json", v.dump(), "version 2 is not supported");
+  v = j;
+  v["networks"]["M"]["kernel_array"][40] = nullptr; /* what a NaN becomes in JSON */
+  expect_error("nan.json", v.dump(), "non-number");
+  v = j;
+  v["networks"]["M"]["kernel_array"].erase(v["networks"]["M"]["kernel_array"].size() - 1);
+  expect_error("short.json", v.dump(), "does not match the shape");
+  v = j;
+  v["networks"]["T"] = v["networks"]["R"]; /* exp head where a sigmoid is required */
+  expect_error("arch.json", v.dump(), "network T must map 3 inputs to 1 outputs with a sigmoid head");
+  v = j;
+  v["sampling"]["kappa_M"] = 1.5;
+  expect_error("kappa.json", v.dump(), "kappa_M");
+  v = j;
+  v["networks"].erase("R");
+  expect_error("missing.json", v.dump(), "missing network 'R'");
+  v = j;
+  v["networks"]["M"]["kernel_array"][10] = 1e39; /* overflows float */
+  expect_error("inf.json", v.dump(), "non-finite");
+  try {
+    model::load_model((dir / "does_not_exist.json").string());
+    ADD_FAILURE() << "a missing file was accepted";
+  }
+  catch (const model::ModelError &e) {
+    EXPECT_NE(std::string(e.what()).find("cannot open"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+}
