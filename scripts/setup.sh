@@ -67,5 +67,9 @@ if ((RUN_MAIN)); then
   "$BUILD/cpp_core/neuralyarn" fiber --preset fleece --out "$ROOT/out/fleece_fiber_lobe.png"
   # The radiance distribution maps of the default preset at the paper's resolution, from a short run
   # (the paper uses 50-100 M paths; pass --paths 1e8 for that, ~3.5 min on 2 cores).
-  "$BUILD/cpp_core/neuralyarn" gather --preset fleece --paths 4e6 --out "$ROOT/out/fleece.nyrdm"
+  "$BUILD/cpp_core/neuralyarn" gather --preset fleece --paths 4e6 --seed 2 --out "$ROOT/out/fleece.nyrdm"
+  # The shipped fleece model (models/fleece.json, baked by scripts/bake_models.sh from other seeds) checked
+  # against these fresh maps: albedo, energies, sampling variance, and the maps next to the networks.
+  "$BUILD/cpp_core/neuralyarn" check "$ROOT/models/fleece.json" --maps "$ROOT/out/fleece.nyrdm" \
+    --image "$ROOT/out/fleece_model_vs_maps.png" --theta-i 45 --phi-i 0
 fi

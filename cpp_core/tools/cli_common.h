@@ -111,13 +111,25 @@ class ProgressBar {
     const int width = 30, filled = int(frac * width);
     std::string bar(size_t(filled), '#');
     bar.append(size_t(width - filled), '.');
-    std::fprintf(stderr, "%s%s[%s] %5.1f%%  %.3gM / %.3gM %s  %.3gM %s/s  ETA %.0fs%s", tty_ ? "\r" : "",
-                 stage_.c_str(), bar.c_str(), 100.0 * frac, double(done) / 1e6, double(total) / 1e6, unit_.c_str(),
-                 rate / 1e6, unit_.c_str(), eta, tty_ ? (done >= total ? "\n" : "") : "\n");
+    std::fprintf(stderr, "%s%s[%s] %5.1f%%  %s / %s %s  %s %s/s  ETA %.0fs%s", tty_ ? "\r" : "", stage_.c_str(),
+                 bar.c_str(), 100.0 * frac, human(double(done)).c_str(), human(double(total)).c_str(), unit_.c_str(),
+                 human(rate).c_str(), unit_.c_str(), eta, tty_ ? (done >= total ? "\n" : "") : "\n");
     std::fflush(stderr);
   }
 
  private:
+  /* 1234 -> "1234", 4.2e7 -> "42M". */
+  static std::string human(double v)
+  {
+    char buf[32];
+    if (v >= 1e6) {
+      std::snprintf(buf, sizeof(buf), "%.3gM", v / 1e6);
+    }
+    else {
+      std::snprintf(buf, sizeof(buf), "%.0f", v);
+    }
+    return buf;
+  }
   using Clock = std::chrono::steady_clock;
   bool enabled_, tty_;
   std::string unit_, stage_;

@@ -81,6 +81,16 @@ void print_fidelity(const model::FidelityReport &r)
 {
   std::printf("albedo vs map    mean abs error %.4f, mean relative error %.2f %%, max relative %.1f %%\n", r.albedo_mae,
               100 * r.albedo_mae_rel, 100 * r.albedo_max_rel);
+  auto by_theta = [](const char *label, const std::vector<double> &v) {
+    std::printf("%-16s", label);
+    for (double x : v) {
+      std::printf(" %.0f", 100 * x);
+    }
+    std::printf("  (%% per theta_i bin, normal to grazing)\n");
+  };
+  by_theta("  albedo", r.albedo_rel_by_theta);
+  by_theta("  M energy", r.M_rel_by_theta);
+  by_theta("  R energy", r.R_rel_by_theta);
   std::printf("P_T              rms error %.4f\n", r.T_rmse);
   std::printf("energy vs map    R: mean relative error %.2f %%   M: %.2f %%\n", 100 * r.R_energy_mae_rel,
               100 * r.M_energy_mae_rel);
@@ -171,8 +181,17 @@ class Commands : public ModelCommands {
   }
 
  private:
+  /* Fail on a bad option before spending minutes on loading or gathering. */
+  void validate_train_options()
+  {
+    for (const NetworkOptions *n : {&topt_.T, &topt_.R, &topt_.M}) {
+      train::parse_widths(n->widths);
+    }
+  }
+
   int run_train()
   {
+    validate_train_options();
     check_writable(out_);
     const rdm::RdmMaps maps = rdm::load_maps(maps_);
     topt_.fit_proxy = !no_fit_;
@@ -203,6 +222,7 @@ class Commands : public ModelCommands {
 
   int run_bake()
   {
+    validate_train_options();
     check_writable(out_);
     if (!maps_out_.empty()) {
       check_writable(maps_out_);

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "neuralyarn/io.h"
+#include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/train/dataset.h"
 #include "neuralyarn/version.h"
 
@@ -27,14 +28,28 @@ train::Dataset dataset_for(const char *name, const rdm::RdmMaps &maps, int n, ui
 }
 }  // namespace
 
+void divide_by_escape(train::Dataset *d, const train::Mlp<float> &transmission)
+{
+  const train::Mlp<float>::Mat P_T = transmission.forward(d->X.topRows(3));
+  for (long j = 0; j < d->X.cols(); j++) {
+    d->Y.col(j) /= ny::yarn_escape(P_T(0, j));
+  }
+}
+
 NetworkRecord train_one(const char *name, const rdm::RdmMaps &maps, const NetworkOptions &o, ny::MlpHead head,
-                        uint64_t seed, int threads, const std::function<void(double)> &progress)
+                        uint64_t seed, int threads, const std::function<void(double)> &progress,
+                        const train::Mlp<float> *transmission)
 {
   train::MlpShape shape;
   shape.widths = train::parse_widths(o.widths);
   shape.head = head;
   train::Dataset tr = dataset_for(name, maps, o.samples, seed * 1000003u + 1u, false);
   train::Dataset va = dataset_for(name, maps, std::max(1, o.samples / 10), seed * 1000003u + 2u, true);
+  if (transmission) {
+    /* The M network learns S_M |cos| / (1 - P_T) (kernel/yarn_bsdf.h, docs/decisions.md D15). */
+    divide_by_escape(&tr, *transmission);
+    divide_by_escape(&va, *transmission);
+  }
   /* With an exp head, each output channel is trained on its targets divided by their mean s_c and
    * log s_c is added to the output bias afterwards (exp(z + log s) = s exp(z): exactly the same network).
    * Without it the MSE of a dim channel (fleece's red M energy is 1/10 of its blue) is ignored and that
@@ -126,9 +141,10 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
     }
     return [&o, name](double f) { o.progress(name, f); };
   };
-  m.T = train_one("T", maps, o.T, ny::kMlpHeadSigmoid, o.seed, o.threads, stage("T"));
-  m.R = train_one("R", maps, o.R, ny::kMlpHeadExp, o.seed + 1, o.threads, stage("R"));
-  m.M = train_one("M", maps, o.M, ny::kMlpHeadExp, o.seed + 2, o.threads, stage("M"));
+  m.T = train_one("T", maps, o.T, ny::kMlpHeadSigmoid, o.seed, o.threads, stage("T"), nullptr);
+  m.R = train_one("R", maps, o.R, ny::kMlpHeadExp, o.seed + 1, o.threads, stage("R"), nullptr);
+  const train::Mlp<float> transmission = train::Mlp<float>::from_flat(m.T.flat);
+  m.M = train_one("M", maps, o.M, ny::kMlpHeadExp, o.seed + 2, o.threads, stage("M"), &transmission);
   /* Mean M albedo over w_i uniform on the hemisphere (the renderer's closure-weight estimate). */
   const std::vector<double> EM = train::map_energy(maps, maps.m);
   double wsum = 0.0;

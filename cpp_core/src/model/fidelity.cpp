@@ -61,7 +61,10 @@ json FidelityReport::to_json() const
           {"M_rel_l1", M_rel_l1},
           {"rel_var_importance", rel_var_importance},
           {"rel_var_uniform", rel_var_uniform},
-          {"rel_var_per_wi_kappa_R", rel_var_per_wi_kappa_R}};
+          {"rel_var_per_wi_kappa_R", rel_var_per_wi_kappa_R},
+          {"albedo_rel_by_theta_i", albedo_rel_by_theta},
+          {"M_energy_rel_by_theta_i", M_rel_by_theta},
+          {"R_energy_rel_by_theta_i", R_rel_by_theta}};
 }
 
 FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, const FidelityOptions &o)
@@ -119,6 +122,15 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, con
     row.m_rel = em_map > 1e-6 ? std::abs(ny::average(e_m) - em_map) / em_map : 0.0;
   });
   FidelityReport r;
+  r.albedo_rel_by_theta.assign(size_t(b.theta_i), 0.0);
+  r.M_rel_by_theta.assign(size_t(b.theta_i), 0.0);
+  r.R_rel_by_theta.assign(size_t(b.theta_i), 0.0);
+  for (size_t k = 0; k < rows.size(); k++) {
+    const size_t ti = k / size_t(b.phi_i);
+    r.albedo_rel_by_theta[ti] += rows[k].a_rel / b.phi_i;
+    r.M_rel_by_theta[ti] += rows[k].m_rel / b.phi_i;
+    r.R_rel_by_theta[ti] += rows[k].r_rel / b.phi_i;
+  }
   double wsum = 0;
   for (const Row &row : rows) {
     wsum += row.w;

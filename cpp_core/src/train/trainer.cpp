@@ -70,7 +70,10 @@ TrainResult train_network(const MlpShape &shape, const Dataset &train, const Dat
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(o.threads));
   }
   const auto t0 = std::chrono::steady_clock::now();
-  TrainResult r{Mlp<float>(shape, o.seed), 0, 0, 0, 0, 0, {}, 0, false, {}, 0.0};
+  TrainResult r{o.initial ? *o.initial : Mlp<float>(shape, o.seed), 0, 0, 0, 0, 0, {}, 0, false, {}, 0.0};
+  if (r.net.shape().widths != shape.widths) {
+    throw ParameterError("initial", "the initial network's widths differ from the shape to train");
+  }
   Adam<float> adam(r.net.num_params(), o.learning_rate);
   std::mt19937_64 rng(o.seed ^ 0x5bd1e995u);
   const long n = train.X.cols();

@@ -5,14 +5,16 @@
 //   S(w_i, w_o) = S_T + S_R + S_M
 //   S_T = P_T(w_i) delta(w_i + w_o)                                  a true delta transmission lobe
 //   S_R = rho_R(w_i) S_f^R(w~_i, w~_o)             if w_i.n > 0 and w_o.n > 0, else 0
-//   S_M = MLP_M(w_i, w_o)                                            (the network models S_M |cos theta_o|)
+//   S_M = e(w_i) MLP_M(w_i, w_o),  e = max(1 - P_T(w_i), e_min)      (the product models S_M |cos theta_o|)
 //
 // in the yarn frame of frames.h (x = yarn tangent, z = normal of the bounding cylinder), w~ = M w the
 // surface-fiber frame rotated by phi~ = atan(pi alpha) about n. S_f^R is the R lobe of the Khungurn
 // fiber BSDF (fiber_bsdf.h with C_TT = 0). The paper weights it by 1 - P_T(w_i); measured against the
 // gathered R map that factor is off by 0.6x at normal incidence to 6x at grazing incidence, so rho_R(w_i)
 // is a third tiny network (3-7-7-1, exp head) trained on the map's R energy: the lobe's energy is exactly
-// rho_R F(theta~_i) / 2 (docs/decisions.md D13).
+// rho_R F(theta~_i) / 2 (docs/decisions.md D13). The M network learns S_M |cos| / (1 - P_T): the M energy
+// falls from 0.3 to 0.04 within 15 degrees of grazing because the light passes through, which the T
+// network already captures; divided by it, M is smooth there (D15).
 //
 // Both arguments point away from the surface. The first is the direction the maps call incident (the
 // light side when the maps were gathered; a path tracer passes the direction toward the previous vertex,
@@ -159,6 +161,11 @@ NY_KERNEL_FN Rgb yarn_eval_R_fiber(const YarnLobes &l, Vec3 wo_f)
   return l.weight_R * (longitudinal_eval(l.m_R, theta_of(wo_f)) * kInvTwoPi * cos_theta(wo_f));
 }
 
+/* Smallest escape factor 1 - P_T the M network is multiplied by (and its targets were divided by). */
+constexpr float kYarnMinEscape = 0.02f;
+
+NY_KERNEL_FN float yarn_escape(float P_T) { return fmaxf(1.0f - P_T, kYarnMinEscape); }
+
 NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo)
 {
   if (!l.valid) {
@@ -167,7 +174,7 @@ NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 w
   const float in[6] = {l.wi.x, l.wi.y, l.wi.z, wo.x, wo.y, wo.z};
   float out[3];
   mlp_forward(p.net_M, in, out);
-  return make_rgb(out[0], out[1], out[2]);
+  return make_rgb(out[0], out[1], out[2]) * yarn_escape(l.P_T);
 }
 
 /* Smallest cos(theta~_o) used to turn a (theta, phi) density into solid angle (as fiber_bsdf.h). */

@@ -28,9 +28,9 @@ struct NetworkOptions {
 
 /* Defaults measured in docs/benchmarks.md ("Training"). */
 struct TrainModelOptions {
-  NetworkOptions T{"3-7-7-1", 200000, 1500, 2048, 2e-2f, 0.05f, train::Loss::kMse, 1e-3f};
-  NetworkOptions R{"3-7-7-1", 200000, 1500, 2048, 2e-2f, 0.05f, train::Loss::kMse, 1e-3f};
-  NetworkOptions M{"6-21-21-3", 2000000, 6000, 4096, 1e-2f, 0.05f, train::Loss::kMse, 1e-3f};
+  NetworkOptions T{"3-7-7-1", 200000, 10000, 2048, 2e-2f, 0.05f, train::Loss::kMse, 1e-3f};
+  NetworkOptions R{"3-7-7-1", 200000, 10000, 2048, 2e-2f, 0.05f, train::Loss::kLogMse, 1e-2f};
+  NetworkOptions M{"6-21-21-3", 2000000, 20000, 4096, 1e-2f, 0.05f, train::Loss::kMse, 1e-3f};
   uint64_t seed = 1;
   int threads = 0;
   ProxyFitOptions fit;
@@ -39,10 +39,12 @@ struct TrainModelOptions {
   std::function<void(const std::string &stage, double fraction)> progress;
 };
 
-/* Trains one network of the model on its dataset; throws ParameterError if it diverges (the message says
- * so and the model is not written). */
+/* Trains one network of the model ("T", "R" or "M") on its dataset; for M, `transmission` is the trained
+ * T network whose escape factor 1 - P_T divides the targets. Throws ParameterError if it diverges (the
+ * message says so and the model is not written). */
 NetworkRecord train_one(const char *name, const rdm::RdmMaps &maps, const NetworkOptions &options, ny::MlpHead head,
-                        uint64_t seed, int threads, const std::function<void(double)> &progress);
+                        uint64_t seed, int threads, const std::function<void(double)> &progress,
+                        const train::Mlp<float> *transmission);
 
 /* The whole model from maps. */
 YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &options);

@@ -17,6 +17,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -37,6 +38,8 @@ struct FidelityReport {
   double R_energy_mae_rel = 0, M_energy_mae_rel = 0;
   double M_rel_l1 = 0;         /* sum |M_model - M_map| dw / sum M_map dw, averaged over w_i (incl. map noise) */
   double rel_var_importance = 0, rel_var_uniform = 0, rel_var_per_wi_kappa_R = 0;
+  /* Per theta_i bin of the maps (averaged over phi_i): relative albedo, M energy and R energy errors. */
+  std::vector<double> albedo_rel_by_theta, M_rel_by_theta, R_rel_by_theta;
   double seconds = 0;
   nlohmann::json to_json() const;
 };

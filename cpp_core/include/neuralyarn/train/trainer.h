@@ -28,6 +28,7 @@ struct TrainOptions {
   uint64_t seed = 1;       /* initial weights and mini-batches */
   int record_every = 100;  /* loss curve resolution, in steps */
   int threads = 0;         /* 0: all cores */
+  const Mlp<float> *initial = nullptr; /* start from these weights instead of a seeded initialisation */
   /* Called every record_every steps with the step, the number of steps and the last batch loss. */
   std::function<void(int step, int steps, float loss)> progress;
 };

@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Reproduces the shipped models: bakes every preset (gather at paper resolution -> train -> fit -> check)
+# into models/<preset>.json and writes the comparison image docs/images/model_<preset>.png.
+#
+#   bash scripts/bake_models.sh                 # all five, 4e7 paths each (~12 min on 2 cores)
+#   bash scripts/bake_models.sh silk cotton     # some
+#   NY_BAKE_PATHS=1e8 bash scripts/bake_models.sh
+#
+# Everything is seeded (paths, packing, training, fit), so a rerun reproduces the files up to the
+# "created" date and code version in their provenance.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+BUILD="${NY_BUILD_DIR:-$ROOT/build}"
+PATHS="${NY_BAKE_PATHS:-4e7}"
+CLI="$BUILD/cpp_core/neuralyarn"
+[ -x "$CLI" ] || { echo "bake_models.sh: $CLI not built; run scripts/setup.sh --no-run first" >&2; exit 1; }
+PRESETS=("$@")
+[ ${#PRESETS[@]} -gt 0 ] || PRESETS=(fleece silk polyester cotton gabardine)
+mkdir -p "$ROOT/models" "$ROOT/docs/images"
+for p in "${PRESETS[@]}"; do
+  echo "=== $p"
+  /usr/bin/time -f "bake wall %e s, peak RSS %M KB" \
+    "$CLI" bake --preset "$p" --paths "$PATHS" --out "$ROOT/models/$p.json" \
+    --image "$ROOT/docs/images/model_$p.png"
+done

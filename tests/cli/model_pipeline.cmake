@@ -1,0 +1,47 @@
+# bake -> check -> train -> fit on small data: each verb runs, writes what it says, and prints its numbers.
+# Arguments: -DCLI=<neuralyarn> -DOUT=<directory>
+file(REMOVE_RECURSE ${OUT})
+file(MAKE_DIRECTORY ${OUT})
+set(SMALL --t-steps 300 --r-steps 300 --m-steps 300 --m-samples 100000 --t-samples 20000 --r-samples 20000 --fit-samples 5000)
+
+function(run_ok)
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "failed (${rc}): ${ARGN}\n${out}\n${err}")
+  endif()
+  set(LAST_OUT "${out}" PARENT_SCOPE)
+endfunction()
+
+run_ok(${CLI} bake --preset silk --paths 3e5 --bins 6x24x12x24 --quiet ${SMALL}
+       --maps-out ${OUT}/silk.nyrdm --image ${OUT}/silk.png --out ${OUT}/silk.json)
+foreach(f silk.nyrdm silk.png silk.json)
+  if(NOT EXISTS ${OUT}/${f})
+    message(FATAL_ERROR "bake did not write ${f}")
+  endif()
+endforeach()
+if(NOT LAST_OUT MATCHES "network M 6-21-21-3.*sampling proxy +kappa_R [0-9.]+.*albedo vs map +mean abs error [0-9.]+")
+  message(FATAL_ERROR "bake output lacks the summary:\n${LAST_OUT}")
+endif()
+
+run_ok(${CLI} check ${OUT}/silk.json --maps ${OUT}/silk.nyrdm --image ${OUT}/check.png --theta-i 30 --phi-i 90)
+if(NOT LAST_OUT MATCHES "energy vs map +R: mean relative error [0-9.]+ %" OR NOT EXISTS ${OUT}/check.png)
+  message(FATAL_ERROR "check output incomplete:\n${LAST_OUT}")
+endif()
+
+run_ok(${CLI} train --maps ${OUT}/silk.nyrdm --out ${OUT}/trained.json --quiet ${SMALL} --m-widths 6-16-16-16-3)
+file(READ ${OUT}/trained.json model)
+if(NOT model MATCHES "\"format\": \"neuralyarn-model\"" OR NOT model MATCHES "6,[ \n]*16,[ \n]*16,[ \n]*16,[ \n]*3")
+  message(FATAL_ERROR "train wrote an unexpected model")
+endif()
+
+run_ok(${CLI} fit ${OUT}/trained.json --maps ${OUT}/silk.nyrdm --samples 3000 --out ${OUT}/refit.json)
+if(NOT LAST_OUT MATCHES "sampling proxy" OR NOT EXISTS ${OUT}/refit.json)
+  message(FATAL_ERROR "fit output incomplete:\n${LAST_OUT}")
+endif()
+
+# A model for silk checked against fleece maps is refused with a message, and nothing is written.
+run_ok(${CLI} gather --preset fleece --paths 2e4 --bins 6x24x12x24 --quiet --out ${OUT}/fleece.nyrdm)
+execute_process(COMMAND ${CLI} check ${OUT}/silk.json --maps ${OUT}/fleece.nyrdm RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(rc EQUAL 0 OR NOT err MATCHES "gathered for preset 'fleece'")
+  message(FATAL_ERROR "mismatched maps were accepted (${rc}): ${err}")
+endif()
