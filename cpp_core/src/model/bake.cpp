@@ -150,7 +150,7 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
   double wsum = 0.0;
   const rdm::MapResolution &b = maps.bins;
   for (int ti = 0; ti < b.theta_i; ti++) {
-    const double w = std::cos(0.5 * M_PI * ti / b.theta_i) - std::cos(0.5 * M_PI * (ti + 1) / b.theta_i);
+    const double w = maps.incident_solid_angle(ti);
     for (int pi = 0; pi < b.phi_i; pi++) {
       for (int c = 0; c < 3; c++) {
         m.albedo_M[size_t(c)] += w * EM[maps.incident_index(ti, pi) * 3 + size_t(c)];

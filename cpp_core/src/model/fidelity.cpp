@@ -44,10 +44,6 @@ ny::Rgb m_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l)
   return ny::make_rgb(float(e[0]), float(e[1]), float(e[2]));
 }
 
-double incident_weight(const rdm::MapResolution &b, int ti)
-{
-  return std::cos(0.5 * kPi * ti / b.theta_i) - std::cos(0.5 * kPi * (ti + 1) / b.theta_i);
-}
 }  // namespace
 
 json FidelityReport::to_json() const
@@ -85,7 +81,7 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, con
     if (maps.count[size_t(k)] == 0) {
       return;
     }
-    row.w = incident_weight(b, ti);
+    row.w = maps.incident_solid_angle(ti);
     const ny::Vec3 wi = vec(train::entry_direction(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i),
                                                    rdm::bin_center(pi, -kPi, kPi, b.phi_i)));
     const ny::YarnLobes l = ny::yarn_lobes(p, wi);

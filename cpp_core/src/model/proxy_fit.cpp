@@ -17,13 +17,6 @@ namespace neuralyarn::model {
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 
-/* Solid angle of incident bin ti (any phi_i). */
-double incident_solid_angle(const rdm::MapResolution &b, int ti)
-{
-  const double t0 = 0.5 * kPi * ti / b.theta_i, t1 = 0.5 * kPi * (ti + 1) / b.theta_i;
-  return (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / b.phi_i;
-}
-
 /* Uniform in solid angle within a (theta, phi) bin. */
 ny::Vec3 jitter(double t_lo, double t_hi, double p_lo, double p_hi, double u1, double u2)
 {
@@ -132,7 +125,7 @@ DirectionPairs sample_map_exits(const rdm::RdmMaps &maps, const std::vector<floa
   std::vector<double> cdf(bins);
   double total = 0.0;
   for (int ti = 0; ti < b.theta_i; ti++) {
-    const double dwi = incident_solid_angle(b, ti);
+    const double dwi = maps.incident_solid_angle(ti);
     for (int pi = 0; pi < b.phi_i; pi++) {
       for (int to = 0; to < b.theta_o; to++) {
         const double dwo = maps.outgoing_solid_angle(to);
@@ -199,7 +192,7 @@ double global_kappa_R(const rdm::RdmMaps &maps)
   const std::vector<double> ER = train::map_energy(maps, maps.r), EM = train::map_energy(maps, maps.m);
   double r = 0.0, m = 0.0;
   for (int ti = 0; ti < maps.bins.theta_i; ti++) {
-    const double w = incident_solid_angle(maps.bins, ti);
+    const double w = maps.incident_solid_angle(ti);
     for (int pi = 0; pi < maps.bins.phi_i; pi++) {
       const size_t k = maps.incident_index(ti, pi) * 3;
       r += w * (ER[k] + ER[k + 1] + ER[k + 2]);

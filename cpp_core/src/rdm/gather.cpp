@@ -373,6 +373,12 @@ double RdmMaps::outgoing_solid_angle(int to) const
   return (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / bins.phi_o;
 }
 
+double RdmMaps::incident_solid_angle(int ti) const
+{
+  const double t0 = 0.5 * kPi * ti / bins.theta_i, t1 = 0.5 * kPi * (ti + 1) / bins.theta_i;
+  return (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / bins.phi_i;
+}
+
 MapResolution parse_resolution(const std::string &text)
 {
   MapResolution b;

@@ -97,8 +97,9 @@ struct RdmMaps {
   {
     return ((incident_index(ti, pi) * size_t(bins.theta_o) + size_t(to)) * size_t(bins.phi_o) + size_t(po)) * 3;
   }
-  /* Solid angle of outgoing bin theta_o index `to` (any phi_o). */
+  /* Solid angle of outgoing bin theta_o index `to` (any phi_o), and of incident bin `ti` (any phi_i). */
   double outgoing_solid_angle(int to) const;
+  double incident_solid_angle(int ti) const;
 };
 
 /* Gathers the maps of one fiber preset (its N, rho, alpha and shading) for a ply of radius 1. Throws
