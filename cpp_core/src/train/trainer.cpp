@@ -18,8 +18,6 @@ namespace {
 /* Columns per chunk: large enough that Eigen's products run at full speed, small enough to give both
  * cores work for batches of a few thousand. Fixed, so the summation order never depends on threads. */
 constexpr long kChunk = 512;
-
-bool all_finite(const Mlp<float>::Vec &v) { return v.allFinite(); }
 }  // namespace
 
 float dataset_loss(const Mlp<float> &net, const Mlp<float>::Mat &X, const Mlp<float>::Mat &T, Loss loss, float eps,
@@ -107,7 +105,7 @@ TrainResult train_network(const MlpShape &shape, const Dataset &train, const Dat
     else {
       loss = dataset_loss(r.net, train.X, train.Y, o.loss, o.log_eps, &g);
     }
-    if (!std::isfinite(loss) || !all_finite(g)) {
+    if (!std::isfinite(loss) || !g.allFinite()) {
       r.diverged = true;
       r.message = "training diverged at step " + std::to_string(step) +
                   " (non-finite loss or gradient); kept the last finite weights — lower the learning rate";
@@ -116,7 +114,7 @@ TrainResult train_network(const MlpShape &shape, const Dataset &train, const Dat
     adam.set_learning_rate(float(double(o.learning_rate) * std::exp(decay * step)));
     Mlp<float>::Vec next = p;
     adam.step(&next, g);
-    if (!all_finite(next)) {
+    if (!next.allFinite()) {
       r.diverged = true;
       r.message = "training diverged at step " + std::to_string(step) + " (non-finite weights); kept the last "
                   "finite weights — lower the learning rate";
