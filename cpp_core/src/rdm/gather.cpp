@@ -536,10 +536,19 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
       if (opt.variance) {
         maps.p_t_se[i] = float(std::sqrt(pt_var));
       }
-      const double n_here = double(acc.count[i]);
+      /* Exit and absorbed energies are averaged over the same sources as the maps, so that exit_energy is
+       * exactly p_t + the R and M maps' energies (up to rounding). */
       for (int c = 0; c < 3; c++) {
-        maps.exit_energy[i * 3 + size_t(c)] = n_here > 0 ? double(acc.exit_energy[i * 3 + size_t(c)]) * kInvFixedScale / n_here : 0.0;
-        maps.absorbed[i * 3 + size_t(c)] = n_here > 0 ? double(acc.absorbed[i * 3 + size_t(c)]) * kInvFixedScale / n_here : 0.0;
+        double exit = 0.0, absorbed = 0.0;
+        for (int s = 0; s < n_src; s++) {
+          const double n = double(acc.count[src[s]]);
+          if (n > 0) {
+            exit += double(acc.exit_energy[src[s] * 3 + size_t(c)]) * kInvFixedScale / n / n_src;
+            absorbed += double(acc.absorbed[src[s] * 3 + size_t(c)]) * kInvFixedScale / n / n_src;
+          }
+        }
+        maps.exit_energy[i * 3 + size_t(c)] = exit;
+        maps.absorbed[i * 3 + size_t(c)] = absorbed;
       }
       for (int to = 0; to < b.theta_o; to++) {
         for (int po = 0; po < b.phi_o; po++) {

@@ -86,7 +86,7 @@ struct RdmMaps {
   std::vector<uint64_t> count;    /* [theta_i][phi_i]: paths                                    */
   std::vector<float> p_t;         /* [theta_i][phi_i]: fraction passing unscattered, P(T | w_i) */
   std::vector<float> r, m;        /* [theta_i][phi_i][theta_o][phi_o][rgb]: f |cos theta_o|     */
-  std::vector<double> exit_energy;/* [theta_i][phi_i][rgb]: mean exit throughput, T + R + M     */
+  std::vector<double> exit_energy;/* [theta_i][phi_i][rgb]: mean exit throughput, T + R + M (averaged as p_t) */
   std::vector<double> absorbed;   /* [theta_i][phi_i][rgb]: mean absorbed energy                */
   /* Standard errors of the bin estimates (only with GatherOptions::variance): */
   std::vector<float> p_t_se, r_se, m_se;
