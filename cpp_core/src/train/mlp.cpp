@@ -177,21 +177,20 @@ template<class S> S head_derivative(int head, S z, S y)
 
 template<class S> typename Mlp<S>::Mat Mlp<S>::layer(int l, const Mat &A, Mat *Z) const
 {
-  *Z = (W_[size_t(l)] * A).colwise() + b_[size_t(l)];
+  /* Whole-matrix expressions (no per-element loops): Eigen vectorises them, which made one training step
+   * 2x faster than indexing element by element (docs/benchmarks.md, "Training"). */
+  Z->noalias() = W_[size_t(l)] * A;
+  Z->colwise() += b_[size_t(l)];
   if (l < num_layers() - 1) {
-    Mat out = *Z;
     if (shape_.activation == Activation::kElu) {
-      return out.unaryExpr([](S z) { return z > 0 ? z : std::expm1(z); });
+      return Z->unaryExpr([](S z) { return z > 0 ? z : std::expm1(z); });
     }
-    const Vec &a = a_[size_t(l)];
-    for (int j = 0; j < out.cols(); j++) {
-      for (int i = 0; i < out.rows(); i++) {
-        if (out(i, j) < 0) {
-          out(i, j) *= a(i); /* channel-wise PReLU */
-        }
-      }
-    }
-    return out;
+    /* Channel-wise PReLU: max(z, 0) + a * min(z, 0). */
+    const auto zero = S(0);
+    return (Z->array().max(zero) + Z->array().min(zero).colwise() * a_[size_t(l)].array()).matrix();
+  }
+  if (shape_.head == ny::kMlpHeadExp) {
+    return Z->array().min(S(ny::kMlpMaxExpArgument)).exp().matrix();
   }
   return Z->unaryExpr([this](S z) { return head_value<S>(int(shape_.head), z); });
 }
@@ -219,23 +218,19 @@ template<class S> S Mlp<S>::loss_and_gradient(const Mat &X, const Mat &T, Loss l
   }
   const Mat &Y = As.back();
   const S n = S(Y.size());
-  S value = 0;
-  Mat dY(Y.rows(), Y.cols());
-  for (int j = 0; j < Y.cols(); j++) {
-    for (int i = 0; i < Y.rows(); i++) {
-      if (loss == Loss::kMse) {
-        const S r = Y(i, j) - T(i, j);
-        value += r * r;
-        dY(i, j) = S(2) * r / n;
-      }
-      else {
-        const S r = std::log(Y(i, j) + eps) - std::log(T(i, j) + eps);
-        value += r * r;
-        dY(i, j) = S(2) * r / ((Y(i, j) + eps) * n);
-      }
-    }
+  Mat dY;
+  S value;
+  if (loss == Loss::kMse) {
+    dY = Y - T;
+    value = dY.squaredNorm() / n;
+    dY *= S(2) / n;
   }
-  value /= n;
+  else {
+    const auto Ye = Y.array() + eps;
+    const Mat r = (Ye.log() - (T.array() + eps).log()).matrix();
+    value = r.squaredNorm() / n;
+    dY = (S(2) / n * r.array() / Ye).matrix();
+  }
   if (!gradient) {
     return value;
   }
@@ -243,41 +238,38 @@ template<class S> S Mlp<S>::loss_and_gradient(const Mat &X, const Mat &T, Loss l
   /* Backward. */
   std::vector<Mat> dW(static_cast<size_t>(L));
   std::vector<Vec> db(static_cast<size_t>(L)), da(a_.size());
-  Mat dZ(Y.rows(), Y.cols());
-  for (int j = 0; j < Y.cols(); j++) {
-    for (int i = 0; i < Y.rows(); i++) {
-      dZ(i, j) = dY(i, j) * head_derivative<S>(int(shape_.head), Zs.back()(i, j), Y(i, j));
-    }
+  Mat dZ;
+  if (shape_.head == ny::kMlpHeadExp) {
+    /* d exp(min(z, zmax)) / dz = y below the clamp, 0 above. */
+    dZ = (Zs.back().array() < S(ny::kMlpMaxExpArgument)).select(dY.array() * Y.array(), S(0)).matrix();
+  }
+  else if (shape_.head == ny::kMlpHeadSigmoid) {
+    dZ = (dY.array() * Y.array() * (S(1) - Y.array())).matrix();
+  }
+  else {
+    dZ = dY;
   }
   for (int l = L - 1; l >= 0; l--) {
-    dW[size_t(l)] = dZ * As[size_t(l)].transpose();
+    dW[size_t(l)].noalias() = dZ * As[size_t(l)].transpose();
     db[size_t(l)] = dZ.rowwise().sum();
     if (l == 0) {
       break;
     }
-    const Mat dA = W_[size_t(l)].transpose() * dZ;
+    Mat dA;
+    dA.noalias() = W_[size_t(l)].transpose() * dZ;
     const Mat &Zp = Zs[size_t(l) - 1];
     const Vec &a = a_[size_t(l) - 1];
-    Vec dslope = Vec::Zero(a.size());
-    Mat dZp(dA.rows(), dA.cols());
-    for (int j = 0; j < dA.cols(); j++) {
-      for (int i = 0; i < dA.rows(); i++) {
-        const S z = Zp(i, j);
-        if (shape_.activation == Activation::kElu) {
-          dZp(i, j) = z > 0 ? dA(i, j) : dA(i, j) * std::exp(z);
-        }
-        else if (z < 0) {
-          dZp(i, j) = dA(i, j) * a(i);
-          dslope(i) += dA(i, j) * z;
-        }
-        else {
-          dZp(i, j) = dA(i, j);
-        }
-      }
+    if (shape_.activation == Activation::kElu) {
+      dZ = (Zp.array() > S(0)).select(dA.array(), dA.array() * Zp.array().exp()).matrix();
+      da[size_t(l) - 1] = Vec::Zero(a.size());
     }
-    /* ReLU's slopes are the constant 0 and ELU has none: no gradient. */
-    da[size_t(l) - 1] = shape_.activation == Activation::kPrelu ? dslope : Vec::Zero(a.size());
-    dZ = std::move(dZp);
+    else {
+      /* dL/da_i = sum over the batch of dA * min(z, 0); ReLU's slopes are the constant 0: no gradient. */
+      da[size_t(l) - 1] = shape_.activation == Activation::kPrelu
+                              ? Vec((dA.array() * Zp.array().min(S(0))).rowwise().sum().matrix())
+                              : Vec::Zero(a.size());
+      dZ = (Zp.array() < S(0)).select(dA.array().colwise() * a.array(), dA.array()).matrix();
+    }
   }
   gradient->resize(num_params());
   int k = 0;

@@ -21,16 +21,29 @@ constexpr long kChunk = 512;
 }  // namespace
 
 float dataset_loss(const Mlp<float> &net, const Mlp<float>::Mat &X, const Mlp<float>::Mat &T, Loss loss, float eps,
-                   Mlp<float>::Vec *gradient)
+                   Mlp<float>::Vec *gradient, const std::vector<long> *columns)
 {
-  const long n = X.cols();
+  const long n = columns ? long(columns->size()) : X.cols();
   const long chunks = std::max<long>(1, (n + kChunk - 1) / kChunk);
   std::vector<double> values(size_t(chunks), 0.0);
   std::vector<Mlp<float>::Vec> grads(gradient ? size_t(chunks) : 0);
   tbb::parallel_for(long(0), chunks, [&](long c) {
     const long begin = c * kChunk, count = std::min(kChunk, n - begin);
-    const float v = net.loss_and_gradient(X.middleCols(begin, count), T.middleCols(begin, count), loss, eps,
-                                          gradient ? &grads[size_t(c)] : nullptr);
+    float v;
+    if (columns) {
+      /* Gather this chunk's columns (a few floats each) in the worker, not serially before the step. */
+      Mlp<float>::Mat Xc(X.rows(), count), Tc(T.rows(), count);
+      for (long j = 0; j < count; j++) {
+        const long k = (*columns)[size_t(begin + j)];
+        std::copy_n(X.data() + k * X.rows(), X.rows(), Xc.data() + j * X.rows());
+        std::copy_n(T.data() + k * T.rows(), T.rows(), Tc.data() + j * T.rows());
+      }
+      v = net.loss_and_gradient(Xc, Tc, loss, eps, gradient ? &grads[size_t(c)] : nullptr);
+    }
+    else {
+      v = net.loss_and_gradient(X.middleCols(begin, count), T.middleCols(begin, count), loss, eps,
+                                gradient ? &grads[size_t(c)] : nullptr);
+    }
     /* Each chunk's loss and gradient are means over its columns: weigh them by their share. */
     const double w = double(count) / double(n);
     values[size_t(c)] = double(v) * w;
@@ -79,11 +92,7 @@ TrainResult train_network(const MlpShape &shape, const Dataset &train, const Dat
   std::vector<long> order(static_cast<size_t>(n));
   std::iota(order.begin(), order.end(), 0L);
   long cursor = n; /* forces a shuffle before the first mini-batch */
-  Mlp<float>::Mat Xb, Yb;
-  if (mini) {
-    Xb.resize(train.X.rows(), o.batch);
-    Yb.resize(train.Y.rows(), o.batch);
-  }
+  std::vector<long> batch(mini ? size_t(o.batch) : 0);
   r.initial_loss = dataset_loss(r.net, train.X, train.Y, o.loss, o.log_eps, nullptr);
   const double decay = o.steps > 1 ? std::log(double(o.final_learning_rate_fraction)) / double(o.steps - 1) : 0.0;
   Mlp<float>::Vec g;
@@ -96,11 +105,9 @@ TrainResult train_network(const MlpShape &shape, const Dataset &train, const Dat
           std::shuffle(order.begin(), order.end(), rng);
           cursor = 0;
         }
-        const long c = order[size_t(cursor++)];
-        Xb.col(j) = train.X.col(c);
-        Yb.col(j) = train.Y.col(c);
+        batch[size_t(j)] = order[size_t(cursor++)];
       }
-      loss = dataset_loss(r.net, Xb, Yb, o.loss, o.log_eps, &g);
+      loss = dataset_loss(r.net, train.X, train.Y, o.loss, o.log_eps, &g, &batch);
     }
     else {
       loss = dataset_loss(r.net, train.X, train.Y, o.loss, o.log_eps, &g);
