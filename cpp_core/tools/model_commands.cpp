@@ -6,6 +6,7 @@
 
 #include "cli_common.h"
 #include "neuralyarn/model/bake.h"
+#include "neuralyarn/model/calibration.h"
 #include "neuralyarn/model/fidelity.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/rdm/map_file.h"
@@ -125,7 +126,7 @@ class Commands : public ModelCommands {
     train_->add_flag("--no-fit", no_fit_, "Skip the proxy fit (kappa_R only)");
     train_->add_flag("--quiet", quiet_, "No progress bar");
 
-    fit_ = app.add_subcommand("fit", "Re-fit the importance-sampling proxy of a model on maps");
+    fit_ = app.add_subcommand("fit", "Re-fit the importance-sampling proxy and energy calibration of a model on maps");
     fit_->add_option("model", model_, "Model file (.json)")->required();
     fit_->add_option("--maps", maps_, "Map file (.nyrdm)")->required();
     fit_->add_option("--out", out_, "Model file to write (default: replace the input)");
@@ -144,6 +145,10 @@ class Commands : public ModelCommands {
     bake_->add_option("--bins", bins_, "Map resolution")->capture_default_str();
     bake_->add_option("--maps-out", maps_out_, "Also keep the gathered maps (.nyrdm)");
     bake_->add_option("--image", image_, "Comparison image (PNG): maps next to the model");
+    bake_->add_option("--check-paths", check_paths_,
+                      "Check the model against independent maps of this many paths (seed + 1000; 0: against the "
+                      "training maps, which the energy calibration matches by construction)")
+        ->capture_default_str();
     bake_->add_option("--threads", threads_, "Worker threads (0: all cores); results do not depend on it")
         ->capture_default_str();
     add_train_options(bake_, &topt_);
@@ -214,6 +219,7 @@ class Commands : public ModelCommands {
     const std::string out = out_.empty() ? model_ : out_;
     check_writable(out);
     model::fit_model_proxy(&m, maps, topt_.fit);
+    m.calibration = model::calibrate_energy(m, maps, threads_);
     model::save_model(m, out);
     print_proxy(m);
     std::printf("wrote %s\n", out.c_str());
@@ -229,6 +235,7 @@ class Commands : public ModelCommands {
     }
     const FiberPreset preset = resolve_preset(preset_, params_);
     gopt_.paths = parse_count(paths_);
+    const uint64_t check_paths = check_paths_ == "0" ? 0 : parse_count(check_paths_);
     gopt_.bins = rdm::parse_resolution(bins_);
     gopt_.threads = threads_;
     rdm::validate(gopt_);
@@ -246,15 +253,27 @@ class Commands : public ModelCommands {
     topt_.progress = bar_callback(&bar, topt_);
     model::YarnModel m = model::train_model(maps, topt_);
     m.provenance["gather_seconds"] = maps.stats.seconds;
-    const model::FidelityReport r = model::check_model(m, maps);
+    rdm::RdmMaps check_maps;
+    if (check_paths > 0) {
+      rdm::GatherOptions c = gopt_;
+      c.paths = check_paths;
+      c.seed = gopt_.seed + 1000;
+      bar.stage("check", "paths");
+      c.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };
+      check_maps = rdm::gather(preset, c);
+    }
+    const rdm::RdmMaps &reference = check_paths > 0 ? check_maps : maps;
+    const model::FidelityReport r = model::check_model(m, reference);
     m.fidelity = r.to_json();
-    m.fidelity["maps"] = "the maps the model was trained on";
+    m.fidelity["maps"] = check_paths > 0 ? "independent maps: " + check_paths_ + " paths, seed " +
+                                               std::to_string(gopt_.seed + 1000) + ", same geometry"
+                                         : std::string("the maps the model was trained on");
     model::save_model(m, out_);
     std::printf("gathered         %llu paths in %.1f s\n", (unsigned long long)maps.paths, maps.stats.seconds);
     print_networks(m);
     print_fidelity(r);
     if (!image_.empty()) {
-      model::write_comparison_image(m, maps, theta_i_, phi_i_, image_);
+      model::write_comparison_image(m, reference, theta_i_, phi_i_, image_);
       std::printf("wrote %s\n", image_.c_str());
     }
     std::printf("wrote %s\n", out_.c_str());
@@ -299,7 +318,7 @@ class Commands : public ModelCommands {
   CLI::App *train_, *fit_, *bake_, *check_;
   TrainModelOptions topt_;
   rdm::GatherOptions gopt_;
-  std::string maps_, out_, model_, preset_ = "fleece", params_, paths_ = "4e7", bins_ = "22x90x45x90", maps_out_,
+  std::string maps_, out_, model_, preset_ = "fleece", params_, paths_ = "4e7", check_paths_ = "0", bins_ = "22x90x45x90", maps_out_,
                                    image_;
   int threads_ = 0;
   bool no_fit_ = false, quiet_ = false;

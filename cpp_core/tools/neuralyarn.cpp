@@ -167,7 +167,7 @@ int main(int argc, char **argv)
   gather->add_flag("--quiet", g_quiet, "No progress bar");
   gather->add_option("--out", g_out, "Map file to write (.nyrdm)")->required();
 
-  auto *scene = app.add_subcommand("cycles-scene", "Write the single-ply close-up with explicit fibers for the patched Cycles");
+  auto *scene = app.add_subcommand("cycles-scene", "Write the single-ply close-up (explicit fibers, or aggregated with --model) for the patched Cycles");
   std::string s_preset = "fleece", s_params, s_out;
   scenes::PlySceneOptions s_opt;
   auto *s_opt_preset = scene->add_option("--preset", s_preset, "Built-in preset name")->capture_default_str();
@@ -176,6 +176,12 @@ int main(int argc, char **argv)
   scene->add_option("--height", s_opt.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
   scene->add_option("--packing-seed", s_opt.packing_seed, "Seed of the fiber cross-section")->capture_default_str();
   scene->add_flag("--white-furnace", s_opt.white_furnace, "Uniform white background, no lights");
+  scene->add_option("--model", s_opt.model, "Aggregated version: one thick curve with this neural yarn model");
+  std::vector<int> s_region;
+  scene->add_option("--predict-region", s_region,
+                    "With --model and --white-furnace: print the furnace value the core library predicts over "
+                    "the pixel rectangle X Y W H of a WIDTH x HEIGHT render (see --width/--height)")
+      ->expected(4);
   scene->add_option("--out", s_out, "Scene file to write (.xml)")->required();
 
   auto model_commands = add_model_commands(app);
@@ -195,8 +201,16 @@ int main(int argc, char **argv)
     }
     if (scene->parsed()) {
       check_writable(s_out);
-      scenes::write_fiber_ply_scene(resolve_preset(s_preset, s_params), s_opt, s_out);
+      scenes::write_ply_scene(resolve_preset(s_preset, s_params), s_opt, s_out);
       std::printf("wrote %s\n", s_out.c_str());
+      if (!s_region.empty()) {
+        if (s_opt.model.empty() || !s_opt.white_furnace) {
+          throw std::runtime_error("--predict-region needs --model and --white-furnace");
+        }
+        const scenes::Rgb3 a = scenes::predicted_furnace(s_opt.model, s_opt.width, s_opt.height, s_region[0],
+                                                         s_region[1], s_region[2], s_region[3]);
+        std::printf("predicted furnace %.5f %.5f %.5f\n", a.r, a.g, a.b);
+      }
       return 0;
     }
     if (gather->parsed()) {

@@ -10,6 +10,7 @@
 //   * the flat array round-trips through the model file, and the loader rejects bad files by name.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <filesystem>
@@ -26,6 +27,8 @@ using namespace neuralyarn;
 namespace fs = std::filesystem;
 
 namespace {
+
+constexpr double kPi = 3.14159265358979323846;
 
 /* A model with seeded random networks whose outputs sit in a plausible range (P_T ~ 0.1-0.5, rho_R ~ 1,
  * M ~ 0.05). */
@@ -51,6 +54,17 @@ model::YarnModel synthetic_model(const char *preset, uint64_t seed, double m_bia
   m.M = make({6, 21, 21, 3}, ny::kMlpHeadExp, seed + 2, m_bias);
   m.proxy = {0.3, 0.35, 0.9, 0.7};
   m.albedo_M = {0.2, 0.3, 0.4};
+  /* A 2 x 4 calibration table near identity, so every test also runs through yarn_calibration(). */
+  m.calibration.theta_bins = 2;
+  m.calibration.phi_bins = 4;
+  std::mt19937 rng(static_cast<uint32_t>(seed));
+  std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+  for (int k = 0; k < 8; k++) {
+    m.calibration.values.push_back(0.05f * U(rng));
+    for (int j = 1; j < ny::kYarnCalStride; j++) {
+      m.calibration.values.push_back(1.0f + 0.2f * U(rng));
+    }
+  }
   return m;
 }
 
@@ -158,6 +172,66 @@ TEST(YarnBsdf, PdfIntegratesToOneAndSamplerMatchesIt)
   }
 }
 
+TEST(YarnBsdf, CalibrationTableIsBilinearAndPeriodicInPhi)
+{
+  model::YarnModel m = synthetic_model("cotton", 5);
+  const int nt = 3, np = 8;
+  m.calibration.theta_bins = nt;
+  m.calibration.phi_bins = np;
+  m.calibration.values.clear();
+  /* Entry k of bin (t, q): a value that identifies it. */
+  auto value = [](int t, int q, int k) { return 0.01f * float(k) + 0.1f * float(t) + 0.3f * float(q) / 8.0f; };
+  for (int t = 0; t < nt; t++) {
+    for (int q = 0; q < np; q++) {
+      for (int k = 0; k < ny::kYarnCalStride; k++) {
+        m.calibration.values.push_back(value(t, q, k));
+      }
+    }
+  }
+  const std::vector<float> flat = m.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  const double dt = kPi / 2 / nt, dp = 2 * kPi / np;
+  auto at = [&](double theta, double phi, float out[7]) {
+    ny::Rgb c_R, c_M;
+    ny::yarn_calibration(p, from_polar(theta, phi), &out[0], &c_R, &c_M);
+    out[1] = c_R.r, out[2] = c_R.g, out[3] = c_R.b, out[4] = c_M.r, out[5] = c_M.g, out[6] = c_M.b;
+  };
+  float c[7];
+  for (int t = 0; t < nt; t++) {
+    for (int q = 0; q < np; q++) {
+      at((t + 0.5) * dt, -kPi + (q + 0.5) * dp, c);
+      for (int k = 0; k < 7; k++) {
+        EXPECT_NEAR(c[k], value(t, q, k), 2e-6) << "bin centre " << t << " " << q << " entry " << k;
+      }
+    }
+  }
+  /* Half way between two centres in theta; clamped beyond the first and last centre. */
+  at(1.0 * dt, -kPi + 2.5 * dp, c);
+  EXPECT_NEAR(c[1], 0.5f * (value(0, 2, 1) + value(1, 2, 1)), 2e-6);
+  at(0.01, -kPi + 2.5 * dp, c);
+  EXPECT_NEAR(c[1], value(0, 2, 1), 2e-6);
+  at(kPi / 2 - 0.01, -kPi + 2.5 * dp, c);
+  EXPECT_NEAR(c[1], value(2, 2, 1), 2e-6);
+  /* phi = pi (= -pi) lies half way between the last and the first bin centre. */
+  at(1.5 * dt, kPi - 1e-6, c);
+  EXPECT_NEAR(c[6], 0.5f * (value(1, np - 1, 6) + value(1, 0, 6)), 1e-5);
+  at(1.5 * dt, -kPi + 1e-6, c);
+  EXPECT_NEAR(c[6], 0.5f * (value(1, np - 1, 6) + value(1, 0, 6)), 1e-5);
+
+  /* The table acts on the three lobes exactly as documented: P_T + dP_T, c_R rho_R F, c_M e MLP_M. */
+  model::YarnModel bare = m;
+  bare.calibration = model::EnergyCalibration{};
+  const std::vector<float> bare_flat = bare.kernel_flat();
+  const ny::YarnBsdfParams q = ny::yarn_params_from_flat(bare_flat.data());
+  const ny::Vec3 wi = from_polar(0.7, 0.4), wo = from_polar(2.0, -0.3);
+  at(0.7, 0.4, c);
+  const ny::YarnLobes lc = ny::yarn_lobes(p, wi), lb = ny::yarn_lobes(q, wi);
+  EXPECT_NEAR(lc.P_T, std::clamp(lb.P_T + c[0], 0.0f, 1.0f), 1e-6);
+  EXPECT_NEAR(lc.weight_R.g, lb.weight_R.g * c[2], 1e-6);
+  const float scale = ny::yarn_escape(lc.P_T) / ny::yarn_escape(lb.P_T);
+  EXPECT_NEAR(ny::yarn_eval_M(p, lc, wo).b, ny::yarn_eval_M(q, lb, wo).b * c[6] * scale, 1e-6);
+}
+
 TEST(YarnBsdf, DeltaLobeIsChosenWithProbabilityPT)
 {
   const model::YarnModel m = synthetic_model("silk", 9);
@@ -167,7 +241,7 @@ TEST(YarnBsdf, DeltaLobeIsChosenWithProbabilityPT)
   std::uniform_real_distribution<float> U(0.0f, 1.0f);
   for (double theta_i : {0.3, 1.0, 1.5}) {
     const ny::Vec3 wi = from_polar(theta_i, -1.1);
-    const double P_T = ny::yarn_transmission(p, wi);
+    const double P_T = ny::yarn_lobes(p, wi).P_T;
     ASSERT_GT(P_T, 0.02);
     const int n = 200000;
     int deltas = 0;
@@ -266,6 +340,18 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
   model::save_model(m, good);
   const model::YarnModel back = model::load_model(good);
   EXPECT_EQ(back.kernel_flat(), m.kernel_flat()) << "the model file does not round-trip exactly";
+  {
+    /* A version 1 file (before the calibration table) still loads, without a table. */
+    nlohmann::json v1 = model::model_to_json(m);
+    v1["version"] = 1;
+    v1.erase("calibration");
+    v1.erase("kernel_flat");
+    const std::string old = (dir / "v1.json").string();
+    std::ofstream(old) << v1.dump();
+    const model::YarnModel o = model::load_model(old);
+    EXPECT_TRUE(o.calibration.empty());
+    EXPECT_EQ(o.kernel_flat()[ny::kYarnFlatCalThetaBins], 0.0f);
+  }
 
   auto expect_error = [&](const std::string &name, const std::string &text, const std::string &needle) {
     const std::string path = (dir / name).string();
@@ -283,8 +369,25 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
   expect_error("truncated.json", j.dump().substr(0, 500), "not valid JSON");
   expect_error("other.json", R"({"format": "something-else"})", "not a neuralyarn model");
   nlohmann::json v = j;
-  v["version"] = 2;
-  expect_error("version.json", v.dump(), "version 2 is not supported");
+  v["version"] = model::kModelFormatVersion + 1;
+  expect_error("version.json", v.dump(),
+               "version " + std::to_string(model::kModelFormatVersion + 1) + " is not supported");
+  const size_t table = size_t(j["kernel_flat"][ny::kYarnFlatOffset_Cal].get<float>());
+  v = j;
+  v["kernel_flat"].erase(v["kernel_flat"].size() - 1);
+  expect_error("flat_short.json", v.dump(), "size field disagrees");
+  v = j;
+  v["kernel_flat"][table + 3] = nullptr;
+  expect_error("flat_nan.json", v.dump(), "non-number");
+  v = j;
+  v["kernel_flat"][table + ny::kYarnCalStride] = 1.5; /* a dP_T outside [-1, 1] */
+  expect_error("cal_dpt.json", v.dump(), "dP_T in [-1, 1]");
+  v = j;
+  v["kernel_flat"][ny::kYarnFlatKappa_R] = 0.25; /* consistent by itself, but not with "sampling" */
+  expect_error("flat_mismatch.json", v.dump(), "disagrees with the networks");
+  v = j;
+  v["kernel_flat"][ny::kYarnFlatOffset_M] = 3.0;
+  expect_error("flat_offsets.json", v.dump(), "offsets out of order");
   v = j;
   v["networks"]["M"]["kernel_array"][40] = nullptr; /* what a NaN becomes in JSON */
   expect_error("nan.json", v.dump(), "non-number");

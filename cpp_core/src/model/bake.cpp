@@ -5,6 +5,7 @@
 
 #include "neuralyarn/io.h"
 #include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/model/calibration.h"
 #include "neuralyarn/train/dataset.h"
 #include "neuralyarn/version.h"
 
@@ -161,6 +162,7 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
   for (double &a : m.albedo_M) {
     a /= wsum;
   }
+  m.calibration = calibrate_energy(m, maps, o.threads);
   m.provenance = {{"maps", maps_provenance(maps)},
                   {"training_seed", o.seed},
                   {"created", utc_now()},

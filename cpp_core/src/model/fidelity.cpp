@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/model/calibration.h"
 #include "neuralyarn/train/dataset.h"
 
 namespace neuralyarn::model {
@@ -23,26 +24,6 @@ constexpr double kPi = 3.14159265358979323846;
 ny::Vec3 vec(const Eigen::Vector3f &v) { return ny::make_vec3(v.x(), v.y(), v.z()); }
 
 double channel(const ny::Rgb &c, int k) { return k == 0 ? c.r : (k == 1 ? c.g : c.b); }
-
-/* Integral of the M network over the sphere: midpoint rule on a fixed 64 x 128 (theta, phi) grid with
- * exact cell solid angles, whatever the maps' resolution (M lobes are tens of degrees wide). */
-ny::Rgb m_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l)
-{
-  constexpr int nt = 64, np = 128;
-  double e[3] = {0, 0, 0};
-  for (int to = 0; to < nt; to++) {
-    const double t0 = kPi * to / nt, t1 = kPi * (to + 1) / nt;
-    const double dO = (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / np, th = 0.5 * (t0 + t1);
-    for (int po = 0; po < np; po++) {
-      const ny::Vec3 wo = vec(train::entry_direction(th, -kPi + 2.0 * kPi * (po + 0.5) / np));
-      const ny::Rgb v = ny::yarn_eval_M(p, l, wo);
-      e[0] += v.r * dO;
-      e[1] += v.g * dO;
-      e[2] += v.b * dO;
-    }
-  }
-  return ny::make_rgb(float(e[0]), float(e[1]), float(e[2]));
-}
 
 }  // namespace
 
@@ -85,7 +66,7 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, con
     const ny::Vec3 wi = vec(train::entry_direction(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i),
                                                    rdm::bin_center(pi, -kPi, kPi, b.phi_i)));
     const ny::YarnLobes l = ny::yarn_lobes(p, wi);
-    const ny::Rgb e_m = m_energy(p, l);
+    const ny::Rgb e_m = m_lobe_energy(p, l);
     const ny::Rgb e_r = l.weight_R * 0.5f;
     double l1 = 0, mass = 0;
     for (int to = 0; to < b.theta_o; to++) {
@@ -154,7 +135,7 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, con
     const ny::Vec3 wi = vec(train::entry_direction(theta, phi));
     const ny::YarnLobes l = ny::yarn_lobes(p, wi);
     ny::YarnBsdfParams q = p;
-    const double er = ny::average(l.weight_R) * 0.5, em = ny::average(m_energy(p, l));
+    const double er = ny::average(l.weight_R) * 0.5, em = ny::average(m_lobe_energy(p, l));
     q.kappa_R = float(er + em > 0 ? er / (er + em) : 0.5);
     auto stats = [&](const ny::YarnBsdfParams &pp, int mode) {
       double s = 0, s2 = 0;

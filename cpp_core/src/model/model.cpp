@@ -98,6 +98,52 @@ double finite_in(const json &j, const char *key, double lo, double hi, const std
 
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
+/* Ratios far outside this range mean a broken table, not a calibration (bake clamps to [0.01, 100]). */
+constexpr double kMaxCalibration = 1000.0;
+
+std::vector<float> float_array(const json &j, const char *key, const std::string &where)
+{
+  if (!j.contains(key) || !j[key].is_array()) {
+    throw ModelError(where + "missing array '" + key + "'");
+  }
+  std::vector<float> v;
+  v.reserve(j[key].size());
+  for (const json &x : j[key]) {
+    if (!x.is_number()) {
+      throw ModelError(where + "'" + key + "' holds a non-number (NaN is written as null)");
+    }
+    v.push_back(x.get<float>());
+  }
+  return v;
+}
+
+/* The table's shape from the "calibration" object, its values from the kernel array (already checked
+ * by ny::yarn_flat_check, which guarantees the size). */
+EnergyCalibration calibration_from(const json &j, const std::vector<float> &flat, const std::string &where)
+{
+  EnergyCalibration c;
+  if (!j.is_object()) {
+    throw ModelError(where + "must be an object");
+  }
+  c.theta_bins = int(finite_in(j, "theta_i_bins", 1, 4096, where));
+  c.phi_bins = int(finite_in(j, "phi_i_bins", 1, 4096, where));
+  c.clamped = j.value("clamped_bins", 0);
+  if (float(c.theta_bins) != flat[ny::kYarnFlatCalThetaBins] || float(c.phi_bins) != flat[ny::kYarnFlatCalPhiBins]) {
+    throw ModelError(where + "its bins disagree with the kernel array's header");
+  }
+  c.values.assign(flat.begin() + long(flat[ny::kYarnFlatOffset_Cal]), flat.end());
+  for (size_t i = 0; i < c.values.size(); i++) {
+    /* dP_T in [-1, 1], the factors in [0, kMaxCalibration]. */
+    const bool is_dP_T = i % ny::kYarnCalStride == 0;
+    const double lo = is_dP_T ? -1.0 : 0.0, hi = is_dP_T ? 1.0 : kMaxCalibration;
+    if (!(c.values[i] >= lo && c.values[i] <= hi)) {
+      throw ModelError(where + "table entry " + std::to_string(i) + " = " + std::to_string(c.values[i]) +
+                       " is out of range (dP_T in [-1, 1], factors in [0, " + std::to_string(int(kMaxCalibration)) +
+                       "])");
+    }
+  }
+  return c;
+}
 }  // namespace
 
 void check_network(const NetworkRecord &net, const char *name, int inputs, int outputs, ny::MlpHead head)
@@ -133,6 +179,10 @@ std::vector<float> YarnModel::kernel_flat() const
   f.insert(f.end(), R.flat.begin(), R.flat.end());
   f[ny::kYarnFlatOffset_M] = float(f.size());
   f.insert(f.end(), M.flat.begin(), M.flat.end());
+  f[ny::kYarnFlatOffset_Cal] = float(f.size());
+  f[ny::kYarnFlatCalThetaBins] = float(calibration.theta_bins);
+  f[ny::kYarnFlatCalPhiBins] = float(calibration.phi_bins);
+  f.insert(f.end(), calibration.values.begin(), calibration.values.end());
   f[ny::kYarnFlatSize] = float(f.size());
   return f;
 }
@@ -150,6 +200,15 @@ json model_to_json(const YarnModel &m)
                    {"gamma_M_deg", m.proxy.gamma_M / kDeg},
                    {"kappa_M", m.proxy.kappa_M}};
   j["albedo_M"] = m.albedo_M;
+  if (!m.calibration.empty()) {
+    j["calibration"] = {{"theta_i_bins", m.calibration.theta_bins},
+                        {"phi_i_bins", m.calibration.phi_bins},
+                        {"layout", "[theta_i][phi_i][dP_T, c_R.r, c_R.g, c_R.b, c_M.r, c_M.g, c_M.b]"},
+                        {"clamped_bins", m.calibration.clamped}};
+  }
+  /* What a renderer uploads, ready to use (kernel/yarn_bsdf.h): the calibration table's values are only
+   * here; the loader checks that the rest agrees with the parts above. */
+  j["kernel_flat"] = m.kernel_flat();
   j["provenance"] = m.provenance;
   j["fidelity"] = m.fidelity;
   return j;
@@ -161,9 +220,10 @@ YarnModel model_from_json(const json &j, const std::string &source)
   if (!j.is_object() || j.value("format", "") != "neuralyarn-model") {
     throw ModelError(where + "not a neuralyarn model (the key \"format\" must be \"neuralyarn-model\")");
   }
-  if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int>() != kModelFormatVersion) {
+  if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int>() < 1 ||
+      j["version"].get<int>() > kModelFormatVersion) {
     throw ModelError(where + "model format version " + (j.contains("version") ? j["version"].dump() : "(missing)") +
-                     " is not supported (this build reads version " + std::to_string(kModelFormatVersion) + ")");
+                     " is not supported (this build reads versions 1 to " + std::to_string(kModelFormatVersion) + ")");
   }
   YarnModel m;
   try {
@@ -213,6 +273,18 @@ YarnModel model_from_json(const json &j, const std::string &source)
       throw ModelError(where + "'albedo_M' values must be finite, in [0, 1.5]");
     }
     m.albedo_M[c] = v.get<double>();
+  }
+  if (j["version"].get<int>() >= 2) {
+    const std::vector<float> flat = float_array(j, "kernel_flat", where);
+    if (const char *problem = ny::yarn_flat_check(flat.data(), int(flat.size()))) {
+      throw ModelError(where + "'kernel_flat' " + problem);
+    }
+    if (j.contains("calibration")) {
+      m.calibration = calibration_from(j["calibration"], flat, where + "calibration: ");
+    }
+    if (m.kernel_flat() != flat) {
+      throw ModelError(where + "'kernel_flat' disagrees with the networks, preset and sampling parameters");
+    }
   }
   m.provenance = j.value("provenance", json::object());
   m.fidelity = j.value("fidelity", json::object());

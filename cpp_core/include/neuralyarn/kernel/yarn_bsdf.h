@@ -5,7 +5,7 @@
 //   S(w_i, w_o) = S_T + S_R + S_M
 //   S_T = P_T(w_i) delta(w_i + w_o)                                  a true delta transmission lobe
 //   S_R = rho_R(w_i) S_f^R(w~_i, w~_o)             if w_i.n > 0 and w_o.n > 0, else 0
-//   S_M = e(w_i) MLP_M(w_i, w_o),  e = max(1 - P_T(w_i), e_min)      (the product models S_M |cos theta_o|)
+//   S_M = c_M(w_i) e(w_i) MLP_M(w_i, w_o),  e = max(1 - P_T(w_i), e_min)   (models S_M |cos theta_o|)
 //
 // in the yarn frame of frames.h (x = yarn tangent, z = normal of the bounding cylinder), w~ = M w the
 // surface-fiber frame rotated by phi~ = atan(pi alpha) about n. S_f^R is the R lobe of the Khungurn
@@ -15,6 +15,14 @@
 // rho_R F(theta~_i) / 2 (docs/decisions.md D13). The M network learns S_M |cos| / (1 - P_T): the M energy
 // falls from 0.3 to 0.04 within 15 degrees of grazing because the light passes through, which the T
 // network already captures; divided by it, M is smooth there (D15).
+//
+// An energy calibration table over the maps' incident bins, bilinear in (theta_i, phi_i), corrects the
+// three energies per incident direction: dP_T is added to P_T, c_R (RGB) multiplies rho_R F, c_M (RGB) the M
+// network. It is computed once at bake time (model/calibration.h) from the maps' energies against the
+// networks' at each incident bin centre. The networks give the shape of the lobes and are smooth; their
+// energies were off the maps by 0.018 rms (P_T), 4-8 % (R) and 9-24 % (M), which a renderer shows directly
+// as a too bright or too dark cloth; the table removes that (docs/decisions.md D16). A model without a
+// table (zero bins) uses dP_T = 0, c = 1.
 //
 // Both arguments point away from the surface. The first is the direction the maps call incident (the
 // light side when the maps were gathered; a path tracer passes the direction toward the previous vertex,
@@ -59,9 +67,13 @@ enum YarnFlatField {
   kYarnFlatOffset_T = 14, /* offset of the T network                                          */
   kYarnFlatOffset_R = 15, /* offset of the R-energy network                                   */
   kYarnFlatOffset_M = 16, /* offset of the M network                                          */
-  kYarnFlatHeader = 17
+  kYarnFlatOffset_Cal = 17,   /* offset of the calibration table ([theta_i][phi_i][dP_T, c_R rgb, c_M rgb]) */
+  kYarnFlatCalThetaBins = 18, /* its bins over theta_i in [0, pi/2] (0: no table)                 */
+  kYarnFlatCalPhiBins = 19,   /* its bins over phi_i in [-pi, pi)                                 */
+  kYarnFlatHeader = 20
 };
-constexpr float kYarnFlatFormat = 1.0f;
+constexpr float kYarnFlatFormat = 2.0f;
+constexpr int kYarnCalStride = 7; /* dP_T, c_R.r, c_R.g, c_R.b, c_M.r, c_M.g, c_M.b */
 
 struct YarnBsdfParams {
   const float *net_T; /* 3 -> 1, sigmoid head: P_T(w_i)          */
@@ -72,7 +84,80 @@ struct YarnBsdfParams {
   float kappa_R;
   float beta_M, gamma_M, kappa_M;
   Rgb albedo_M;
+  const float *cal; /* energy calibration table, or null */
+  int cal_theta_bins, cal_phi_bins;
 };
+
+/* Checks one network of a flat array: the header at `offset`, its size within [offset, end), its input and
+ * output widths and head. */
+NY_KERNEL_FN bool yarn_flat_network_ok(const float *f, int offset, int end, int inputs, int outputs, int head)
+{
+  if (offset < kYarnFlatHeader || offset + 3 > end) {
+    return false;
+  }
+  const float Lf = f[offset];
+  if (!(Lf >= 1.0f && Lf <= (float)kMlpMaxLayers) || Lf != (float)(int)Lf || offset + (int)Lf + 3 > end) {
+    return false;
+  }
+  const int L = (int)Lf;
+  int widths[kMlpMaxLayers + 1];
+  for (int l = 0; l <= L; l++) {
+    const float w = f[offset + 1 + l];
+    if (!(w >= 1.0f && w <= (float)kMlpMaxWidth) || w != (float)(int)w) {
+      return false;
+    }
+    widths[l] = (int)w;
+  }
+  return widths[0] == inputs && widths[L] == outputs && f[offset + L + 2] == (float)head &&
+         offset + mlp_param_count(L, widths) <= end;
+}
+
+/* Validates a flat array of n floats before a renderer uploads it (everything yarn_params_from_flat() and
+ * the evaluation rely on). Returns null if it is valid, otherwise what is wrong. */
+NY_KERNEL_FN const char *yarn_flat_check(const float *f, int n)
+{
+  if (n < kYarnFlatHeader) {
+    return "shorter than the header";
+  }
+  for (int i = 0; i < n; i++) {
+    if (!is_finite(f[i])) {
+      return "holds a non-finite number";
+    }
+  }
+  if (f[kYarnFlatVersion] != kYarnFlatFormat) {
+    return "has another layout version than this build reads";
+  }
+  if (f[kYarnFlatSize] != (float)n) {
+    return "its size field disagrees with its length";
+  }
+  if (!(f[kYarnFlatKappa_R] >= 0.0f && f[kYarnFlatKappa_R] <= 1.0f && f[kYarnFlatKappa_M] >= 0.0f &&
+        f[kYarnFlatKappa_M] <= 1.0f && f[kYarnFlatBeta_R] > 0.0f && f[kYarnFlatBeta_M] > 0.0f &&
+        f[kYarnFlatGamma_M] > 0.0f))
+  {
+    return "has sampling parameters out of range";
+  }
+  const float oT = f[kYarnFlatOffset_T], oR = f[kYarnFlatOffset_R], oM = f[kYarnFlatOffset_M],
+              oC = f[kYarnFlatOffset_Cal];
+  if (!(oT >= 0.0f && oT <= oR && oR <= oM && oM <= oC && oC <= (float)n)) {
+    return "has network offsets out of order";
+  }
+  if (!yarn_flat_network_ok(f, (int)oT, (int)oR, 3, 1, kMlpHeadSigmoid)) {
+    return "has a malformed T network (3 -> 1, sigmoid head)";
+  }
+  if (!yarn_flat_network_ok(f, (int)oR, (int)oM, 3, 1, kMlpHeadExp)) {
+    return "has a malformed R network (3 -> 1, exp head)";
+  }
+  if (!yarn_flat_network_ok(f, (int)oM, (int)oC, 6, 3, kMlpHeadExp)) {
+    return "has a malformed M network (6 -> 3, exp head)";
+  }
+  const float nt = f[kYarnFlatCalThetaBins], np = f[kYarnFlatCalPhiBins];
+  if (!(nt >= 0.0f && np >= 0.0f && nt <= 4096.0f && np <= 4096.0f) || nt != (float)(int)nt ||
+      np != (float)(int)np || (int)oC + (int)nt * (int)np * kYarnCalStride != n)
+  {
+    return "has a calibration table of the wrong size";
+  }
+  return nullptr;
+}
 
 /* Reads the parameters from a flat array that the host has validated (model/model.h does). */
 NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(const float *f)
@@ -92,7 +177,38 @@ NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(const float *f)
   p.gamma_M = f[kYarnFlatGamma_M];
   p.kappa_M = f[kYarnFlatKappa_M];
   p.albedo_M = make_rgb(f[kYarnFlatAlbedo_M], f[kYarnFlatAlbedo_M + 1], f[kYarnFlatAlbedo_M + 2]);
+  p.cal_theta_bins = (int)f[kYarnFlatCalThetaBins];
+  p.cal_phi_bins = (int)f[kYarnFlatCalPhiBins];
+  p.cal = (p.cal_theta_bins > 0 && p.cal_phi_bins > 0) ? f + (int)f[kYarnFlatOffset_Cal] : nullptr;
   return p;
+}
+
+/* Energy calibration at w_i (yarn frame, w_i.z > 0): bilinear between bin centres, clamped in theta,
+ * periodic in phi. Writes dP_T (0 without a table), c_R and c_M (1 without a table). */
+NY_KERNEL_FN void yarn_calibration(const YarnBsdfParams &p, Vec3 wi, float *dP_T, Rgb *c_R, Rgb *c_M)
+{
+  if (!p.cal) {
+    *dP_T = 0.0f;
+    *c_R = make_rgb(1.0f);
+    *c_M = make_rgb(1.0f);
+    return;
+  }
+  const int nt = p.cal_theta_bins, np = p.cal_phi_bins;
+  const float ft = clampf(acosf(clampf(wi.z, -1.0f, 1.0f)) * (2.0f * kInvPi) * (float)nt - 0.5f, 0.0f, (float)(nt - 1));
+  float fp = (atan2f(wi.y, wi.x) + kPi) * kInvTwoPi * (float)np - 0.5f;
+  fp = fp < 0.0f ? fp + (float)np : fp;
+  const int t0 = (int)ft < nt - 1 ? (int)ft : nt - 1, t1 = t0 + 1 < nt ? t0 + 1 : nt - 1;
+  const int p0 = (int)fp < np - 1 ? (int)fp : np - 1, p1 = p0 + 1 < np ? p0 + 1 : 0;
+  const float wt = ft - (float)t0, wp = fp - (float)p0;
+  float c[kYarnCalStride];
+  for (int k = 0; k < kYarnCalStride; k++) {
+    const float a = p.cal[(t0 * np + p0) * kYarnCalStride + k], b = p.cal[(t0 * np + p1) * kYarnCalStride + k];
+    const float d = p.cal[(t1 * np + p0) * kYarnCalStride + k], e = p.cal[(t1 * np + p1) * kYarnCalStride + k];
+    c[k] = (1.0f - wt) * ((1.0f - wp) * a + wp * b) + wt * ((1.0f - wp) * d + wp * e);
+  }
+  *dP_T = c[0];
+  *c_R = make_rgb(c[1], c[2], c[3]);
+  *c_M = make_rgb(c[4], c[5], c[6]);
 }
 
 /* Everything that depends on w_i only. */
@@ -101,7 +217,8 @@ struct YarnLobes {
   Vec3 wi;        /* yarn frame            */
   Vec3 wi_f;      /* surface-fiber frame   */
   float P_T;      /* P(T | w_i)            */
-  Rgb weight_R;   /* rho_R F(theta~_i): the R lobe's energy is half of it (upper half of azimuths) */
+  Rgb weight_R;   /* c_R rho_R F(theta~_i): the R lobe's energy is half of it (upper half of azimuths) */
+  Rgb scale_M;    /* c_M e(w_i): the factor on the M network's output */
   float p_T, p_R, p_M; /* lobe selection probabilities, summing to 1 */
   LongitudinalLobe m_R;
   TruncatedNormal tn_R, tn_M;
@@ -124,6 +241,11 @@ NY_KERNEL_FN float yarn_reflection_scale(const YarnBsdfParams &p, Vec3 wi)
   return out[0];
 }
 
+/* Smallest escape factor 1 - P_T the M network is multiplied by (and its targets were divided by). */
+constexpr float kYarnMinEscape = 0.02f;
+
+NY_KERNEL_FN float yarn_escape(float P_T) { return fmaxf(1.0f - P_T, kYarnMinEscape); }
+
 /* `with_eval` = false skips the cos^2 normaliser of the R lobe, which only eval needs. */
 NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_eval = true)
 {
@@ -131,10 +253,16 @@ NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_ev
   l.wi = wi;
   l.wi_f = yarn_to_surface_fiber(p.twist, wi);
   l.valid = wi.z > 0.0f;
-  l.P_T = l.valid ? yarn_transmission(p, wi) : 0.0f;
+  float dP_T = 0.0f;
+  Rgb c_R = make_rgb(0.0f), c_M = make_rgb(0.0f);
+  if (l.valid) {
+    yarn_calibration(p, wi, &dP_T, &c_R, &c_M);
+  }
+  l.P_T = l.valid ? clampf(yarn_transmission(p, wi) + dP_T, 0.0f, 1.0f) : 0.0f;
   const float theta_i = theta_of(l.wi_f);
   const Rgb F = schlick_fresnel(p.fiber.C_R, cos_theta(l.wi_f));
-  l.weight_R = l.valid ? F * yarn_reflection_scale(p, wi) : make_rgb(0.0f);
+  l.weight_R = l.valid ? F * c_R * yarn_reflection_scale(p, wi) : make_rgb(0.0f);
+  l.scale_M = c_M * yarn_escape(l.P_T);
   l.p_T = l.P_T;
   l.p_R = (1.0f - l.P_T) * p.kappa_R;
   l.p_M = (1.0f - l.P_T) * (1.0f - p.kappa_R);
@@ -161,11 +289,6 @@ NY_KERNEL_FN Rgb yarn_eval_R_fiber(const YarnLobes &l, Vec3 wo_f)
   return l.weight_R * (longitudinal_eval(l.m_R, theta_of(wo_f)) * kInvTwoPi * cos_theta(wo_f));
 }
 
-/* Smallest escape factor 1 - P_T the M network is multiplied by (and its targets were divided by). */
-constexpr float kYarnMinEscape = 0.02f;
-
-NY_KERNEL_FN float yarn_escape(float P_T) { return fmaxf(1.0f - P_T, kYarnMinEscape); }
-
 NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo)
 {
   if (!l.valid) {
@@ -174,7 +297,7 @@ NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 w
   const float in[6] = {l.wi.x, l.wi.y, l.wi.z, wo.x, wo.y, wo.z};
   float out[3];
   mlp_forward(p.net_M, in, out);
-  return make_rgb(out[0], out[1], out[2]) * yarn_escape(l.P_T);
+  return make_rgb(out[0], out[1], out[2]) * l.scale_M;
 }
 
 /* Smallest cos(theta~_o) used to turn a (theta, phi) density into solid angle (as fiber_bsdf.h). */

@@ -17,7 +17,7 @@
 
 namespace neuralyarn::model {
 
-constexpr int kModelFormatVersion = 1;
+constexpr int kModelFormatVersion = 2; /* 2: energy calibration table; version 1 files still load (no table) */
 
 class ModelError : public std::runtime_error {
  public:
@@ -39,15 +39,27 @@ struct SamplingProxy {
   double kappa_M = 0.5; /* weight of the lobe against uniform    */
 };
 
+/* Per-incident-bin energy calibration (kernel/yarn_bsdf.h yarn_calibration, model/calibration.h): dP_T
+ * is added to P_T, c_R (RGB) scales rho_R F, c_M (RGB) the M network, all bilinear over bin centres. Empty: no
+ * table (dP_T = 0, c = 1). */
+struct EnergyCalibration {
+  int theta_bins = 0, phi_bins = 0;
+  std::vector<float> values; /* [theta_i][phi_i][dP_T, c_R.rgb, c_M.rgb] */
+  int clamped = 0;           /* bins whose ratio hit the clamp range (no energy in map or network) */
+  bool empty() const { return theta_bins == 0; }
+};
+
 struct YarnModel {
   FiberPreset preset;
   NetworkRecord T, R, M;
   SamplingProxy proxy;
+  EnergyCalibration calibration;
   std::array<double, 3> albedo_M{}; /* M albedo averaged over w_i on the hemisphere */
   nlohmann::json provenance = nlohmann::json::object(); /* maps, seeds, code version, dates */
   nlohmann::json fidelity = nlohmann::json::object();   /* the numbers of `neuralyarn check`, if run */
 
-  /* The kernel's array: header (kernel/yarn_bsdf.h YarnFlatField), then the T, R and M networks. */
+  /* The kernel's array: header (kernel/yarn_bsdf.h YarnFlatField), the T, R and M networks, then the
+   * calibration table. */
   std::vector<float> kernel_flat() const;
 };
 
