@@ -2,8 +2,10 @@
 //
 // Scenes for the patched standalone Cycles (`cycles scene.xml`, cycles_patch/): the paper's single-ply
 // close-up — a straight ply across the frame, seen from the side, lit by a sphere light in front and one
-// behind it (for transmission) — with the ply's explicit fibers as <hair> curves shaded by the
-// khungurn_fiber_bsdf closure. Units: the ply radius is 1.
+// behind it (for transmission) — in two versions from the same preset and packing seed: explicit (the
+// ply's fibers as <hair> curves shaded by the khungurn_fiber_bsdf closure) and aggregated (one thick
+// curve of the ply's radius shaded by the neural_yarn_bsdf closure with a model file). Units: the ply
+// radius is 1.
 #pragma once
 
 #include <cstdint>
@@ -20,9 +22,19 @@ struct PlySceneOptions {
   uint64_t packing_seed = 1;
   double light_strength = 2000.0; /* W, each sphere light */
   bool white_furnace = false;    /* no lights, a uniform white background of strength 1 instead */
+  std::string model;             /* aggregated version: the model file (its path is written absolute) */
 };
 
 /* Writes the scene; throws std::runtime_error naming the path when it cannot be written. */
-void write_fiber_ply_scene(const FiberPreset &preset, const PlySceneOptions &options, const std::string &path);
+void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &options, const std::string &path);
+
+/* The white furnace of the aggregated version, predicted by the core library: the mean over the pixel
+ * rectangle [x, x + w) x [y, y + h) of an image of width x height pixels of the model's albedo
+ * P_T + E_R + E_M at the direction toward the camera (one camera ray per pixel centre; light that leaves
+ * the convex ply never returns to it, so the pixel's expected value is exactly that albedo). */
+struct Rgb3 {
+  double r = 0, g = 0, b = 0;
+};
+Rgb3 predicted_furnace(const std::string &model_path, int width, int height, int x, int y, int w, int h);
 
 }  // namespace neuralyarn::scenes
