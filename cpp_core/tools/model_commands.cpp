@@ -1,10 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "model_commands.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
 #include "cli_common.h"
+#include "neuralyarn/io.h"
 #include "neuralyarn/model/bake.h"
 #include "neuralyarn/model/calibration.h"
 #include "neuralyarn/model/fidelity.h"
@@ -102,6 +104,29 @@ void print_fidelity(const model::FidelityReport &r)
               r.rel_var_importance > 0 ? r.rel_var_uniform / r.rel_var_importance : 0.0, r.rel_var_per_wi_kappa_R);
 }
 
+/* min/max P_T and the mean energies over the cells (channel means; the cells are not solid-angle
+ * weighted), and the largest albedo P_T + E_R + E_M of a cell. */
+void print_fallback(const model::FallbackTables &f)
+{
+  const size_t n = f.cells();
+  double pmin = 1.0, pmax = 0.0, er = 0.0, eu = 0.0, ed = 0.0, amax = 0.0;
+  for (size_t k = 0; k < n; k++) {
+    pmin = std::min(pmin, double(f.P_T[k]));
+    pmax = std::max(pmax, double(f.P_T[k]));
+    double a = f.P_T[k];
+    for (size_t c = 0; c < 3; c++) {
+      er += f.E_R[k * 3 + c] / (3.0 * n);
+      eu += f.E_M_up[k * 3 + c] / (3.0 * n);
+      ed += f.E_M_down[k * 3 + c] / (3.0 * n);
+      a = std::max(a, double(f.P_T[k]) + f.E_R[k * 3 + c] + f.E_M_up[k * 3 + c] + f.E_M_down[k * 3 + c]);
+    }
+    amax = std::max(amax, a);
+  }
+  std::printf("fallback tables  %d x %d views (theta, phi in (-90, 90) deg): P_T %.4f .. %.4f, mean E_R %.4f, "
+              "E_M up %.4f, down %.4f; max albedo %.4f\n",
+              f.theta_bins, f.phi_bins, pmin, pmax, er, eu, ed, amax);
+}
+
 std::function<void(const std::string &, double)> bar_callback(ProgressBar *bar, const TrainModelOptions &o)
 {
   auto current = std::make_shared<std::string>();
@@ -154,6 +179,19 @@ class Commands : public ModelCommands {
     add_train_options(bake_, &topt_);
     bake_->add_flag("--quiet", quiet_, "No progress bar");
 
+    fallback_ = app.add_subcommand(
+        "fallback", "(Re)compute the view-dependent tables of the stock-Blender fallbacks (OSL, node group) in a model");
+    fallback_->add_option("model", model_, "Model file (.json)")->required();
+    fallback_->add_option("--out", out_, "Model file to write (default: replace the input)");
+    fallback_->add_option("--theta-bins", fbopt_.theta_bins, "Cells over the view's theta in (-90, 90) degrees")
+        ->check(CLI::Range(1, 1024))
+        ->capture_default_str();
+    fallback_->add_option("--phi-bins", fbopt_.phi_bins, "Cells over the view's phi in (-90, 90) degrees")
+        ->check(CLI::Range(1, 1024))
+        ->capture_default_str();
+    fallback_->add_option("--threads", threads_, "Worker threads (0: all cores); results do not depend on it")
+        ->capture_default_str();
+
     check_ = app.add_subcommand("check", "Fidelity of a model against maps (albedo, energies, sampling variance)");
     check_->add_option("model", model_, "Model file (.json)")->required();
     check_->add_option("--maps", maps_, "Map file (.nyrdm)")->required();
@@ -181,6 +219,9 @@ class Commands : public ModelCommands {
     }
     if (check_->parsed()) {
       return run_check();
+    }
+    if (fallback_->parsed()) {
+      return run_fallback();
     }
     return -1;
   }
@@ -220,8 +261,12 @@ class Commands : public ModelCommands {
     check_writable(out);
     model::fit_model_proxy(&m, maps, topt_.fit);
     m.calibration = model::calibrate_energy(m, maps, threads_);
+    model::FallbackOptions fo;
+    fo.threads = threads_;
+    m.fallback = model::compute_fallback(m, fo);
     model::save_model(m, out);
     print_proxy(m);
+    print_fallback(*m.fallback);
     std::printf("wrote %s\n", out.c_str());
     return 0;
   }
@@ -299,12 +344,44 @@ class Commands : public ModelCommands {
     return 0;
   }
 
+  int run_fallback()
+  {
+    /* The model without its current tables: they are what this verb replaces, and stale or corrupt ones
+     * (which load_model rejects) must not stop it. */
+    const std::string source = "model file '" + model_ + "'";
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(read_file(model_));
+    }
+    catch (const nlohmann::json::exception &e) {
+      throw model::ModelError(source + ": not valid JSON (" + std::string(e.what()) + ")");
+    }
+    catch (const std::runtime_error &e) {
+      throw model::ModelError(source + ": " + e.what());
+    }
+    if (j.is_object()) {
+      j.erase("fallback");
+    }
+    model::YarnModel m = model::model_from_json(j, source);
+    const std::string out = out_.empty() ? model_ : out_;
+    check_writable(out);
+    fbopt_.threads = threads_;
+    m.fallback = model::compute_fallback(m, fbopt_);
+    model::save_model(m, out);
+    print_fallback(*m.fallback);
+    std::printf("wrote %s\n", out.c_str());
+    return 0;
+  }
+
   void print_networks(const model::YarnModel &m)
   {
     print_network("T", m.T);
     print_network("R", m.R);
     print_network("M", m.M);
     print_proxy(m);
+    if (m.fallback) {
+      print_fallback(*m.fallback);
+    }
   }
 
   static void require_same_preset(const model::YarnModel &m, const rdm::RdmMaps &maps)
@@ -315,8 +392,9 @@ class Commands : public ModelCommands {
     }
   }
 
-  CLI::App *train_, *fit_, *bake_, *check_;
+  CLI::App *train_, *fit_, *bake_, *check_, *fallback_;
   TrainModelOptions topt_;
+  model::FallbackOptions fbopt_;
   rdm::GatherOptions gopt_;
   std::string maps_, out_, model_, preset_ = "fleece", params_, paths_ = "4e7", check_paths_ = "0", bins_ = "22x90x45x90", maps_out_,
                                    image_;

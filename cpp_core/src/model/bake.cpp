@@ -179,6 +179,10 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
   else {
     m.proxy.kappa_R = global_kappa_R(maps);
   }
+  /* Last: the fallback tables describe the finished model (networks, calibration and proxy). */
+  FallbackOptions fo;
+  fo.threads = o.threads;
+  m.fallback = compute_fallback(m, fo);
   return m;
 }
 

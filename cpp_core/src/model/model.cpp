@@ -211,6 +211,9 @@ json model_to_json(const YarnModel &m)
   j["kernel_flat"] = m.kernel_flat();
   j["provenance"] = m.provenance;
   j["fidelity"] = m.fidelity;
+  if (m.fallback) {
+    j["fallback"] = fallback_to_json(*m.fallback);
+  }
   return j;
 }
 
@@ -288,6 +291,9 @@ YarnModel model_from_json(const json &j, const std::string &source)
   }
   m.provenance = j.value("provenance", json::object());
   m.fidelity = j.value("fidelity", json::object());
+  if (j.contains("fallback")) {
+    m.fallback = fallback_from_json(j["fallback"], m, where);
+  }
   return m;
 }
 

@@ -6,12 +6,14 @@
 #pragma once
 
 #include <array>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "neuralyarn/model/fallback.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/train/mlp.h"
 
@@ -57,6 +59,9 @@ struct YarnModel {
   std::array<double, 3> albedo_M{}; /* M albedo averaged over w_i on the hemisphere */
   nlohmann::json provenance = nlohmann::json::object(); /* maps, seeds, code version, dates */
   nlohmann::json fidelity = nlohmann::json::object();   /* the numbers of `neuralyarn check`, if run */
+  /* View-dependent tables for the stock-Blender fallbacks (model/fallback.h); optional. They describe
+   * the model at the time they were computed: recompute them (compute_fallback) after changing it. */
+  std::optional<FallbackTables> fallback;
 
   /* The kernel's array: header (kernel/yarn_bsdf.h YarnFlatField), the T, R and M networks, then the
    * calibration table. */

@@ -1,0 +1,84 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// View-dependent fallback tables for renderers that cannot run the neural yarn closure (stock Blender:
+// the OSL fallback of osl/ and the addon's node-group fallback). Those can only weight built-in closures
+// by functions of the view direction, because a shader never sees the light. By reciprocity the energy
+// that reaches the viewer through each lobe equals that lobe's directional albedo with the view direction
+// as the model's incident direction w_i, so the tables hold, per view direction in the yarn frame,
+//
+//   P_T       the transmission probability (calibration's dP_T included), the weight of transparent();
+//   E_R       the R lobe's energy, integral of S_R |cos| over w_o: exactly c_R rho_R F(theta~_i) / 2
+//             (kernel/yarn_bsdf.h; checked against quadrature around the specular cone in the tests);
+//   E_M_up    the M lobe's energy that leaves through the upper hemisphere (w_o.n > 0),
+//   E_M_down  and through the lower one (w_o.n < 0, the light that comes through the yarn from behind);
+//
+// all computed with the kernel functions exactly as the renderer evaluates them (yarn_lobes with the
+// calibration table, yarn_eval_M). P_T + E_R + E_M_up + E_M_down is the model's albedo for that view.
+//
+// Cells: theta (longitudinal, asin(w.x)) and phi (azimuth about the tangent, atan2(w.y, w.z), 0 on the
+// normal), both over (-90, 90) degrees, values at the cell centres
+//   theta_i = -90 + (i + 1/2) 180 / theta_bins,   phi_j = -90 + (j + 1/2) 180 / phi_bins   (degrees),
+// front-facing views only (a thick curve is only ever seen from |phi| < 90 degrees). Users interpolate
+// bilinearly between centres and clamp at the edges.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace neuralyarn::model {
+
+struct YarnModel;
+
+constexpr int kFallbackVersion = 1;
+
+struct FallbackTables {
+  int theta_bins = 18, phi_bins = 18;
+  std::vector<float> P_T;      /* [theta][phi]      */
+  std::vector<float> E_R;      /* [theta][phi][rgb] */
+  std::vector<float> E_M_up;   /* [theta][phi][rgb] */
+  std::vector<float> E_M_down; /* [theta][phi][rgb] */
+
+  /* Scalars the fallbacks need, copied from the model (radians). */
+  double beta_R_rad = 0.0;      /* longitudinal width of the surface fibers' R lobe        */
+  double twist_tilt_rad = 0.0;  /* phi~ = atan(pi alpha): surface-fiber tangent t_f = (cos, -sin, 0) */
+  double beta_M_rad = 0.0;      /* M proxy: longitudinal width                              */
+  double gamma_M_rad = 0.0;     /* M proxy: azimuthal width (von Mises concentration 1/gamma^2) */
+  double kappa_M = 0.0;         /* M proxy: weight of the (theta, phi) lobe against uniform  */
+  double kappa_M_up = 0.0;      /* the lobe's share of the proxy's mass in the upper hemisphere */
+  std::array<double, 3> C_R{};  /* the surface fibers' R colour (linear RGB)               */
+
+  /* FNV-1a 64 of the model's kernel_flat() bytes when the tables were computed: the loader uses it to
+   * reject tables left stale by a later `fit` or a hand-edited model. */
+  std::string kernel_flat_hash;
+
+  size_t cells() const { return size_t(theta_bins) * size_t(phi_bins); }
+  double theta_center(int i) const; /* radians */
+  double phi_center(int j) const;   /* radians */
+};
+
+/* Quadrature of the M energies: midpoint rule on an nt x np grid of polar angle (from the normal) and
+ * azimuth about the normal, exact cell solid angles; nt must be even so that the equator is a cell
+ * boundary. The rule converges as h^2; measured on the shipped models against 1024 x 2048: 64 x 128 (the
+ * grid of model/calibration.h m_lobe_energy) is off by up to 0.8 % of the M energy, 128 x 256 by 0.11 %,
+ * the default 256 x 512 by under 0.1 % (tests/cpp/test_fallback.cpp MQuadratureHasConverged). */
+struct FallbackOptions {
+  int theta_bins = 18, phi_bins = 18;
+  int quad_theta = 256, quad_phi = 512;
+  int threads = 0; /* 0: all cores */
+};
+
+FallbackTables compute_fallback(const YarnModel &model, const FallbackOptions &options = {});
+
+/* FNV-1a 64 of a float array's bytes, as 16 lowercase hex digits. */
+std::string fnv1a64_hex(const std::vector<float> &values);
+
+nlohmann::json fallback_to_json(const FallbackTables &f);
+/* Validates sizes, ranges and finiteness and that the scalars and hash agree with `model` (whose other
+ * parts are already loaded); throws ModelError naming the key, prefixed by `where`. */
+FallbackTables fallback_from_json(const nlohmann::json &j, const YarnModel &model, const std::string &where);
+
+}  // namespace neuralyarn::model

@@ -1,0 +1,298 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/model/fallback.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/model/model.h"
+
+namespace neuralyarn::model {
+
+using nlohmann::json;
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+/* Upper bound of a stored energy (the loader's check; physical albedos are <= 1, the networks may
+ * overshoot a little). */
+constexpr double kMaxEnergy = 1.5;
+
+/* Share of the von Mises density (mean 0 on the normal, concentration kappa) with |phi| < pi/2, i.e. in
+ * the upper hemisphere whatever theta (w.z = cos theta cos phi). Midpoint rule on 4096 cells: the density
+ * is smooth and periodic, the rule converges geometrically. */
+double von_mises_upper_share(float kappa)
+{
+  constexpr int n = 4096;
+  double up = 0.0, all = 0.0;
+  for (int k = 0; k < n; k++) {
+    const double phi = -kPi + 2.0 * kPi * (k + 0.5) / n;
+    const double v = ny::von_mises_pdf(float(phi), kappa);
+    all += v;
+    up += std::abs(phi) < 0.5 * kPi ? v : 0.0;
+  }
+  return all > 0.0 ? up / all : 0.5;
+}
+
+/* The M energies of one view direction, split at the equator of the normal. */
+void m_energy_split(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, int nt, int np, double up[3],
+                    double down[3])
+{
+  for (int c = 0; c < 3; c++) {
+    up[c] = down[c] = 0.0;
+  }
+  for (int to = 0; to < nt; to++) {
+    const double t0 = kPi * to / nt, t1 = kPi * (to + 1) / nt;
+    const double dO = (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / np, th = 0.5 * (t0 + t1);
+    double *e = 2 * to < nt ? up : down;
+    const double st = std::sin(th), ct = std::cos(th);
+    for (int po = 0; po < np; po++) {
+      const double ph = -kPi + 2.0 * kPi * (po + 0.5) / np;
+      const ny::Vec3 wo = ny::make_vec3(float(st * std::cos(ph)), float(st * std::sin(ph)), float(ct));
+      const ny::Rgb v = ny::yarn_eval_M(p, l, wo);
+      e[0] += v.r * dO;
+      e[1] += v.g * dO;
+      e[2] += v.b * dO;
+    }
+  }
+}
+
+std::string num(double v)
+{
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.9g", v);
+  return buf;
+}
+
+/* A float as the shortest double that reads back as the same float (%.9g round-trips floats), so that
+ * the file stays short and the round trip is exact. */
+double short_double(float v) { return std::strtod(num(double(v)).c_str(), nullptr); }
+
+json float_list(const std::vector<float> &v)
+{
+  json a = json::array();
+  for (float x : v) {
+    a.push_back(short_double(x));
+  }
+  return a;
+}
+
+std::vector<float> table_from(const json &j, const char *key, size_t size, double lo, double hi,
+                              const std::string &where)
+{
+  if (!j.contains(key) || !j[key].is_array()) {
+    throw ModelError(where + "missing array '" + key + "'");
+  }
+  const json &a = j[key];
+  if (a.size() != size) {
+    throw ModelError(where + "'" + key + "' has " + std::to_string(a.size()) + " values, expected " +
+                     std::to_string(size) + " for its bins");
+  }
+  std::vector<float> v;
+  v.reserve(size);
+  for (size_t i = 0; i < size; i++) {
+    if (!a[i].is_number()) {
+      throw ModelError(where + "'" + key + "' entry " + std::to_string(i) +
+                       " is not a number (NaN is written as null)");
+    }
+    const double x = a[i].get<double>();
+    if (!std::isfinite(x) || !(x >= lo && x <= hi)) {
+      throw ModelError(where + "'" + key + "' entry " + std::to_string(i) + " = " + num(x) + " is outside [" +
+                       num(lo) + ", " + num(hi) + "]");
+    }
+    v.push_back(float(x));
+  }
+  return v;
+}
+
+double number_from(const json &j, const char *key, const std::string &where)
+{
+  if (!j.contains(key) || !j[key].is_number() || !std::isfinite(j[key].get<double>())) {
+    throw ModelError(where + "missing or non-finite number '" + key + "'");
+  }
+  return j[key].get<double>();
+}
+
+void require_agrees(const char *key, double stored, double expected, const std::string &where)
+{
+  if (std::abs(stored - expected) > 1e-6 * std::max(1.0, std::abs(expected))) {
+    throw ModelError(where + "'" + key + "' = " + num(stored) + " disagrees with the model (" + num(expected) +
+                     "); re-run `neuralyarn fallback MODEL`");
+  }
+}
+
+/* The scalars as compute_fallback() derives them from the model's kernel array. */
+FallbackTables scalars_of(const std::vector<float> &flat)
+{
+  FallbackTables f;
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  f.beta_R_rad = double(p.fiber.beta_R);
+  f.twist_tilt_rad = std::atan(kPi * double(flat[ny::kYarnFlatAlpha]));
+  f.beta_M_rad = double(p.beta_M);
+  f.gamma_M_rad = double(p.gamma_M);
+  f.kappa_M = double(p.kappa_M);
+  /* The proxy is kappa_M lobe + (1 - kappa_M) uniform sphere; the uniform part has half its mass up. */
+  const double share = von_mises_upper_share(1.0f / (p.gamma_M * p.gamma_M));
+  const double lobe_up = f.kappa_M * share, uniform_up = 0.5 * (1.0 - f.kappa_M);
+  f.kappa_M_up = lobe_up + uniform_up > 0.0 ? lobe_up / (lobe_up + uniform_up) : 0.0;
+  f.C_R = {double(p.fiber.C_R.r), double(p.fiber.C_R.g), double(p.fiber.C_R.b)};
+  f.kernel_flat_hash = fnv1a64_hex(flat);
+  return f;
+}
+}  // namespace
+
+double FallbackTables::theta_center(int i) const { return -0.5 * kPi + (i + 0.5) * kPi / theta_bins; }
+double FallbackTables::phi_center(int j) const { return -0.5 * kPi + (j + 0.5) * kPi / phi_bins; }
+
+std::string fnv1a64_hex(const std::vector<float> &values)
+{
+  uint64_t h = 0xcbf29ce484222325ull; /* FNV-1a 64 offset basis and prime */
+  for (float v : values) {
+    uint32_t bits;
+    std::memcpy(&bits, &v, 4);
+    for (int k = 0; k < 4; k++) { /* little-endian byte order, whatever the host's */
+      h ^= uint64_t((bits >> (8 * k)) & 0xffu);
+      h *= 0x100000001b3ull;
+    }
+  }
+  char buf[17];
+  std::snprintf(buf, sizeof(buf), "%016llx", (unsigned long long)h);
+  return buf;
+}
+
+FallbackTables compute_fallback(const YarnModel &model, const FallbackOptions &o)
+{
+  if (o.theta_bins < 1 || o.phi_bins < 1 || o.theta_bins > 1024 || o.phi_bins > 1024) {
+    throw ModelError("fallback: bins must be in [1, 1024], got " + std::to_string(o.theta_bins) + " x " +
+                     std::to_string(o.phi_bins));
+  }
+  if (o.quad_theta < 2 || o.quad_theta % 2 != 0 || o.quad_phi < 4) {
+    throw ModelError("fallback: the M quadrature needs an even number of polar cells and at least 4 azimuths");
+  }
+  const std::vector<float> flat = model.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  FallbackTables f = scalars_of(flat);
+  f.theta_bins = o.theta_bins;
+  f.phi_bins = o.phi_bins;
+  const size_t n = f.cells();
+  f.P_T.assign(n, 0.0f);
+  f.E_R.assign(n * 3, 0.0f);
+  f.E_M_up.assign(n * 3, 0.0f);
+  f.E_M_down.assign(n * 3, 0.0f);
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                            o.threads > 0 ? size_t(o.threads) : tbb::this_task_arena::max_concurrency());
+  tbb::parallel_for(0, int(n), [&](int k) {
+    const int i = k / f.phi_bins, j = k % f.phi_bins;
+    const ny::Vec3 wi = ny::direction_from_angles(float(f.theta_center(i)), float(f.phi_center(j)));
+    const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+    double up[3], down[3];
+    m_energy_split(p, l, o.quad_theta, o.quad_phi, up, down);
+    f.P_T[size_t(k)] = l.P_T;
+    const ny::Rgb er = l.weight_R * 0.5f; /* the R lobe's exact energy (kernel/yarn_bsdf.h) */
+    const float ers[3] = {er.r, er.g, er.b};
+    for (int c = 0; c < 3; c++) {
+      f.E_R[size_t(k) * 3 + size_t(c)] = std::max(0.0f, ers[c]);
+      f.E_M_up[size_t(k) * 3 + size_t(c)] = float(std::max(0.0, up[c]));
+      f.E_M_down[size_t(k) * 3 + size_t(c)] = float(std::max(0.0, down[c]));
+    }
+  });
+  return f;
+}
+
+json fallback_to_json(const FallbackTables &f)
+{
+  return json{{"version", kFallbackVersion},
+              {"theta_bins", f.theta_bins},
+              {"phi_bins", f.phi_bins},
+              {"theta_range_deg", {-90, 90}},
+              {"phi_range_deg", {-90, 90}},
+              {"layout", "values at cell centres, row-major [theta][phi] (P_T) and [theta][phi][rgb] (energies); "
+                         "theta = asin(w.x), phi = atan2(w.y, w.z) of the view direction w in the yarn frame"},
+              {"P_T", float_list(f.P_T)},
+              {"E_R", float_list(f.E_R)},
+              {"E_M_up", float_list(f.E_M_up)},
+              {"E_M_down", float_list(f.E_M_down)},
+              {"beta_R_rad", f.beta_R_rad},
+              {"twist_tilt_rad", f.twist_tilt_rad},
+              {"beta_M_rad", f.beta_M_rad},
+              {"gamma_M_rad", f.gamma_M_rad},
+              {"kappa_M", f.kappa_M},
+              {"kappa_M_up", f.kappa_M_up},
+              {"C_R", f.C_R},
+              {"kernel_flat_fnv1a64", f.kernel_flat_hash}};
+}
+
+FallbackTables fallback_from_json(const json &j, const YarnModel &model, const std::string &where_in)
+{
+  const std::string where = where_in + "fallback: ";
+  if (!j.is_object()) {
+    throw ModelError(where + "must be an object");
+  }
+  if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int>() != kFallbackVersion) {
+    throw ModelError(where + "version " + (j.contains("version") ? j["version"].dump() : "(missing)") +
+                     " is not supported (this build reads version " + std::to_string(kFallbackVersion) +
+                     "); re-run `neuralyarn fallback MODEL`");
+  }
+  FallbackTables f;
+  for (const char *key : {"theta_bins", "phi_bins"}) {
+    if (!j.contains(key) || !j[key].is_number_integer() || j[key].get<int>() < 1 || j[key].get<int>() > 1024) {
+      throw ModelError(where + "'" + key + "' must be an integer in [1, 1024]");
+    }
+  }
+  f.theta_bins = j["theta_bins"].get<int>();
+  f.phi_bins = j["phi_bins"].get<int>();
+  for (const char *key : {"theta_range_deg", "phi_range_deg"}) {
+    if (j.contains(key) && j[key] != json{-90, 90}) {
+      throw ModelError(where + "'" + key + "' must be [-90, 90] (the only range of version 1)");
+    }
+  }
+  const size_t n = f.cells();
+  f.P_T = table_from(j, "P_T", n, 0.0, 1.0, where);
+  f.E_R = table_from(j, "E_R", n * 3, 0.0, kMaxEnergy, where);
+  f.E_M_up = table_from(j, "E_M_up", n * 3, 0.0, kMaxEnergy, where);
+  f.E_M_down = table_from(j, "E_M_down", n * 3, 0.0, kMaxEnergy, where);
+
+  /* The scalars are copies of the model's; they and the hash must agree with it. */
+  const std::vector<float> flat = model.kernel_flat();
+  const FallbackTables expect = scalars_of(flat);
+  f.beta_R_rad = number_from(j, "beta_R_rad", where);
+  f.twist_tilt_rad = number_from(j, "twist_tilt_rad", where);
+  f.beta_M_rad = number_from(j, "beta_M_rad", where);
+  f.gamma_M_rad = number_from(j, "gamma_M_rad", where);
+  f.kappa_M = number_from(j, "kappa_M", where);
+  f.kappa_M_up = number_from(j, "kappa_M_up", where);
+  require_agrees("beta_R_rad", f.beta_R_rad, expect.beta_R_rad, where);
+  require_agrees("twist_tilt_rad", f.twist_tilt_rad, expect.twist_tilt_rad, where);
+  require_agrees("beta_M_rad", f.beta_M_rad, expect.beta_M_rad, where);
+  require_agrees("gamma_M_rad", f.gamma_M_rad, expect.gamma_M_rad, where);
+  require_agrees("kappa_M", f.kappa_M, expect.kappa_M, where);
+  require_agrees("kappa_M_up", f.kappa_M_up, expect.kappa_M_up, where);
+  if (!j.contains("C_R") || !j["C_R"].is_array() || j["C_R"].size() != 3) {
+    throw ModelError(where + "'C_R' must be three numbers");
+  }
+  for (size_t c = 0; c < 3; c++) {
+    if (!j["C_R"][c].is_number()) {
+      throw ModelError(where + "'C_R' must be three numbers");
+    }
+    f.C_R[c] = j["C_R"][c].get<double>();
+    require_agrees("C_R", f.C_R[c], expect.C_R[c], where);
+  }
+  if (!j.contains("kernel_flat_fnv1a64") || !j["kernel_flat_fnv1a64"].is_string()) {
+    throw ModelError(where + "missing string 'kernel_flat_fnv1a64'");
+  }
+  f.kernel_flat_hash = j["kernel_flat_fnv1a64"].get<std::string>();
+  if (f.kernel_flat_hash != expect.kernel_flat_hash) {
+    throw ModelError(where + "the tables were computed for another model ('kernel_flat_fnv1a64' " + f.kernel_flat_hash +
+                     ", the model's is " + expect.kernel_flat_hash +
+                     "): the model changed after they were made; re-run `neuralyarn fallback MODEL`");
+  }
+  return f;
+}
+
+}  // namespace neuralyarn::model
