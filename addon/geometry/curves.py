@@ -1,0 +1,358 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Yarn centrelines: the one representation every geometry front end produces.
+
+Every importer (BCC, Leaf et al. patterns) and generator (knit, weave, plies) ends in a list of
+`YarnCurve`s: dense polylines in Blender's Z-up world frame with a radius per vertex. Keeping the spline
+evaluation here, in one place, means a `C0` curve from a BCC file and a `C0` tile from a Leaf pattern are
+evaluated identically, and the Blender side only ever has to turn polylines into curve objects.
+
+Only the standard library and numpy are used (no bpy), so that the module runs inside Blender as
+`neural_yarn.geometry.curves` and in plain pytest alike.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Iterable, Sequence
+
+import numpy as np
+
+# Upper bound on the number of evaluated points any single call may produce (~0.5 GB of float64 xyz):
+# a malformed file or a typo in a UI field must fail with a message, not exhaust the memory.
+MAX_POINTS = 20_000_000
+
+# Curve types of the BCC format (yarn_geometry.md §1.1), also used by the pattern loader.
+CURVE_TYPES = {
+    "C0": "uniform Catmull-Rom",
+    "PL": "polyline",
+    "BS": "uniform cubic B-spline",
+    "BZ": "cubic Bezier",
+}
+
+
+class GeometryError(ValueError):
+    """Any bad input to the geometry package: a malformed file, an invalid parameter, a degenerate curve.
+
+    The message names the file or parameter and the problem, so that the add-on can show it verbatim.
+    """
+
+
+@dataclass
+class YarnCurve:
+    """One yarn centreline, already evaluated to a polyline.
+
+    points: (n, 3) float64 vertices in Blender's Z-up world units.
+    radius: (n,) float64 yarn radius per vertex (> 0); a scalar is broadcast.
+    cyclic: the curve is a closed loop; the last vertex connects to the first, which is not repeated.
+    """
+
+    points: np.ndarray
+    radius: np.ndarray
+    cyclic: bool = False
+
+    def __post_init__(self) -> None:
+        pts = np.array(self.points, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise GeometryError(f"YarnCurve points must have shape (n, 3), got {pts.shape}")
+        rad = np.array(self.radius, dtype=np.float64)
+        if rad.ndim == 0:
+            rad = np.full(len(pts), float(rad))
+        if rad.shape != (len(pts),):
+            raise GeometryError(f"YarnCurve radius must be a scalar or have shape ({len(pts)},), got {rad.shape}")
+        self.points = pts
+        self.radius = rad
+        self.cyclic = bool(self.cyclic)
+
+    @property
+    def length(self) -> float:
+        """Arc length of the polyline, including the closing segment of a cyclic curve."""
+        return polyline_length(self.points, self.cyclic)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Parameter checks shared by the modules of this package (private).
+
+
+def _check_int(name: str, value: object, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise GeometryError(f"parameter '{name}' must be an integer in [{lo}, {hi}], got {value!r}")
+    if not lo <= int(value) <= hi:
+        raise GeometryError(f"parameter '{name}' must be an integer in [{lo}, {hi}], got {int(value)}")
+    return int(value)
+
+
+def _check_positive(name: str, value: object, *, allow_zero: bool = False) -> float:
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise GeometryError(f"parameter '{name}' must be a number, got {value!r}") from None
+    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise GeometryError(f"parameter '{name}' must be a finite number {bound}, got {value!r}")
+    return v
+
+
+def _as_points(name: str, array: object) -> np.ndarray:
+    try:
+        pts = np.array(array, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise GeometryError(f"{name}: control points must be numbers") from None
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise GeometryError(f"{name}: control points must have shape (n, 3), got {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        k = int(np.argwhere(~np.isfinite(pts))[0, 0])
+        raise GeometryError(f"{name}: control point {k} has a non-finite coordinate {pts[k].tolist()}")
+    return pts
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Spline evaluation.
+
+# Power-basis matrices: p(t) = [1 t t^2 t^3] M [P0 P1 P2 P3]^T.
+_CATMULL_ROM = 0.5 * np.array([[0, 2, 0, 0], [-1, 0, 1, 0], [2, -5, 4, -1], [-1, 3, -3, 1]], dtype=np.float64)
+_BSPLINE = np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], dtype=np.float64) / 6.0
+_BEZIER = np.array([[1, 0, 0, 0], [-3, 3, 0, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], dtype=np.float64)
+
+
+def control_point_problem(curve_type: str, n: int, cyclic: bool) -> str | None:
+    """Why n control points cannot form a curve of this type, or None if they can.
+
+    Open C0/BS curves need 4 points for their first segment (the end points only shape the end tangents);
+    closed ones wrap around and need 3. Open Bezier curves are runs of 4 points sharing end points (3k+1),
+    closed ones 3k. A polyline needs 2 points, or 3 to close a loop.
+    """
+    if curve_type not in CURVE_TYPES:
+        return f"unknown curve type {curve_type!r} (expected one of {', '.join(CURVE_TYPES)})"
+    kind = "a closed" if cyclic else "an open"
+    label = f"{kind} '{curve_type}' ({CURVE_TYPES[curve_type]}) curve"
+    plural = "point" if n == 1 else "points"
+    if curve_type in ("C0", "BS"):
+        need = 3 if cyclic else 4
+        if n < need:
+            verb = "is" if n == 1 else "are"
+            return f"{n} control {plural} {verb} too few: {label} needs at least {need} (fewer give no segment)"
+    elif curve_type == "BZ":
+        if cyclic and (n < 3 or n % 3 != 0):
+            return f"{n} control {plural}: {label} needs 3k control points (3, 6, 9, ...)"
+        if not cyclic and (n < 4 or n % 3 != 1):
+            return f"{n} control {plural}: {label} needs 3k+1 control points (4, 7, 10, ...)"
+    else:
+        need = 3 if cyclic else 2
+        if n < need:
+            return f"{n} control {plural} {'is' if n == 1 else 'are'} too few: {label} needs at least {need}"
+    return None
+
+
+def segment_count(curve_type: str, n: int, cyclic: bool) -> int:
+    """Number of spline segments n control points give (0 if too few)."""
+    if control_point_problem(curve_type, n, cyclic) is not None:
+        return 0
+    if curve_type in ("C0", "BS"):
+        return n if cyclic else n - 3
+    if curve_type == "BZ":
+        return n // 3
+    return n if cyclic else n - 1
+
+
+def evaluated_point_count(curve_type: str, n: int, cyclic: bool, samples_per_segment: int) -> int:
+    """Number of polyline vertices `evaluate_spline` returns for n control points."""
+    if curve_type == "PL":
+        return n
+    return segment_count(curve_type, n, cyclic) * samples_per_segment + (0 if cyclic else 1)
+
+
+def _evaluate_basis(P: np.ndarray, idx: np.ndarray, basis: np.ndarray, samples: int, cyclic: bool) -> np.ndarray:
+    t = np.arange(samples, dtype=np.float64) / samples
+    T = np.stack([np.ones_like(t), t, t * t, t * t * t], axis=1)  # (s, 4)
+    W = T @ basis  # (s, 4) weights of the 4 control points
+    seg = P[idx]  # (nseg, 4, 3)
+    out = np.einsum("tk,skd->std", W, seg).reshape(-1, 3)
+    if not cyclic:
+        w1 = np.ones(4) @ basis
+        out = np.concatenate([out, (w1 @ seg[-1])[None, :]], axis=0)
+    return out
+
+
+def catmull_rom(control_points: np.ndarray, cyclic: bool, samples_per_segment: int = 8) -> np.ndarray:
+    """Uniform Catmull-Rom (BCC 'C0'): passes through every control point it spans.
+
+    Open curves treat the first and last control points as phantoms that only set the end tangents, so n
+    points give n-3 segments from P1 to P(n-2) (yarn_geometry.md §1.3); closed curves take indices mod n.
+    """
+    P = np.asarray(control_points, dtype=np.float64)
+    n = len(P)
+    problem = control_point_problem("C0", n, cyclic)
+    if problem:
+        raise GeometryError(problem)
+    i = np.arange(n) if cyclic else np.arange(1, n - 2)
+    idx = np.stack([(i - 1) % n, i % n, (i + 1) % n, (i + 2) % n], axis=1)
+    return _evaluate_basis(P, idx, _CATMULL_ROM, samples_per_segment, cyclic)
+
+
+def bspline(control_points: np.ndarray, cyclic: bool, samples_per_segment: int = 8) -> np.ndarray:
+    """Uniform cubic B-spline (BCC 'BS'): C2, approximating; n-3 segments open, n closed (unclamped)."""
+    P = np.asarray(control_points, dtype=np.float64)
+    n = len(P)
+    problem = control_point_problem("BS", n, cyclic)
+    if problem:
+        raise GeometryError(problem)
+    i = np.arange(n) if cyclic else np.arange(1, n - 2)
+    idx = np.stack([(i - 1) % n, i % n, (i + 1) % n, (i + 2) % n], axis=1)
+    return _evaluate_basis(P, idx, _BSPLINE, samples_per_segment, cyclic)
+
+
+def bezier(control_points: np.ndarray, cyclic: bool, samples_per_segment: int = 8) -> np.ndarray:
+    """Piecewise cubic Bezier (BCC 'BZ'): segments of 4 points sharing end points (3k+1 open, 3k closed)."""
+    P = np.asarray(control_points, dtype=np.float64)
+    n = len(P)
+    problem = control_point_problem("BZ", n, cyclic)
+    if problem:
+        raise GeometryError(problem)
+    k = np.arange(n // 3) * 3
+    idx = np.stack([k, k + 1, k + 2, (k + 3) % n], axis=1)
+    return _evaluate_basis(P, idx, _BEZIER, samples_per_segment, cyclic)
+
+
+def polyline(control_points: np.ndarray, cyclic: bool) -> np.ndarray:
+    """BCC 'PL': the control points are the polyline."""
+    P = np.array(control_points, dtype=np.float64)
+    problem = control_point_problem("PL", len(P), cyclic)
+    if problem:
+        raise GeometryError(problem)
+    return P
+
+
+def evaluate_spline(
+    control_points: np.ndarray, curve_type: str, cyclic: bool, samples_per_segment: int = 8
+) -> np.ndarray:
+    """Evaluates control points of any BCC curve type to polyline vertices (samples_per_segment per segment)."""
+    samples_per_segment = _check_int("samples_per_segment", samples_per_segment, 1, 1000)
+    if curve_type == "C0":
+        return catmull_rom(control_points, cyclic, samples_per_segment)
+    if curve_type == "BS":
+        return bspline(control_points, cyclic, samples_per_segment)
+    if curve_type == "BZ":
+        return bezier(control_points, cyclic, samples_per_segment)
+    if curve_type == "PL":
+        return polyline(control_points, cyclic)
+    raise GeometryError(f"unknown curve type {curve_type!r} (expected one of {', '.join(CURVE_TYPES)})")
+
+
+def spline_curve(
+    control_points: np.ndarray, curve_type: str, cyclic: bool, radius: float, samples_per_segment: int = 8
+) -> YarnCurve:
+    """A constant-radius YarnCurve from spline control points."""
+    pts = evaluate_spline(control_points, curve_type, cyclic, samples_per_segment)
+    return YarnCurve(pts, np.full(len(pts), float(radius)), cyclic)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Polyline utilities.
+
+
+def polyline_length(points: np.ndarray, cyclic: bool) -> float:
+    """Arc length of a polyline (with the closing segment if cyclic)."""
+    P = np.asarray(points, dtype=np.float64)
+    if len(P) < 2:
+        return 0.0
+    seg = np.diff(np.concatenate([P, P[:1]]) if cyclic else P, axis=0)
+    return float(np.sum(np.linalg.norm(seg, axis=1)))
+
+
+def median_control_point_spacing(control_curves: Sequence[np.ndarray], closed: Sequence[bool] | None = None) -> float:
+    """Median distance between consecutive control points over all curves (0 if every spacing is 0).
+
+    Used as the length scale for default radii and weld tolerances when a file stores no yarn radius:
+    control points of relaxed yarn models are spaced about one yarn diameter apart (yarn_geometry.md §1.5
+    measures 0.12-0.26 units spacing on Yuksel's files).
+    """
+    gaps = []
+    for c, P in enumerate(control_curves):
+        P = np.asarray(P, dtype=np.float64)
+        if len(P) < 2:
+            continue
+        cyc = bool(closed[c]) if closed is not None else False
+        seg = np.diff(np.concatenate([P, P[:1]]) if cyc else P, axis=0)
+        gaps.append(np.linalg.norm(seg, axis=1))
+    if not gaps:
+        return 0.0
+    g = np.concatenate(gaps)
+    g = g[g > 0.0]
+    return float(np.median(g)) if len(g) else 0.0
+
+
+def resample(curve: YarnCurve, max_segment_length: float) -> YarnCurve:
+    """Subdivides every segment into equal pieces no longer than max_segment_length.
+
+    Original vertices are kept (so the shape is unchanged: this is linear subdivision, not smoothing) and
+    radii are interpolated linearly. Used before operations whose accuracy depends on sampling density, such
+    as twisting plies around a yarn.
+    """
+    h = _check_positive("max_segment_length", max_segment_length)
+    P = curve.points
+    R = curve.radius
+    n = len(P)
+    if n < 2:
+        return YarnCurve(P.copy(), R.copy(), curve.cyclic)
+    Q = np.concatenate([P, P[:1]]) if curve.cyclic else P
+    RQ = np.concatenate([R, R[:1]]) if curve.cyclic else R
+    lengths = np.linalg.norm(np.diff(Q, axis=0), axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        pieces_f = np.ceil(lengths / h)
+    if not np.all(np.isfinite(pieces_f)) or float(np.sum(np.maximum(pieces_f, 1.0))) > MAX_POINTS:
+        raise GeometryError(
+            f"parameter 'max_segment_length' = {h:g} would give more than {MAX_POINTS} points for a curve of length "
+            f"{float(np.sum(lengths)):g}"
+        )
+    pieces = np.maximum(pieces_f.astype(np.int64), 1)
+    seg = np.repeat(np.arange(len(pieces)), pieces)
+    starts = np.concatenate([[0], np.cumsum(pieces)[:-1]])
+    t = (np.arange(int(pieces.sum())) - np.repeat(starts, pieces)) / np.repeat(pieces, pieces)
+    pts = Q[seg] + t[:, None] * (Q[seg + 1] - Q[seg])
+    rad = RQ[seg] + t * (RQ[seg + 1] - RQ[seg])
+    if not curve.cyclic:
+        pts = np.concatenate([pts, P[-1:]], axis=0)
+        rad = np.concatenate([rad, R[-1:]])
+    return YarnCurve(pts, rad, curve.cyclic)
+
+
+def validate(curves: Iterable[YarnCurve], *, source: str | None = None) -> None:
+    """Raises GeometryError for a curve no renderer can use; returns nothing if all are fine.
+
+    Rejected: non-finite coordinates or radii, radius <= 0, and zero-length curves (fewer than two distinct
+    points), which would otherwise reach Cycles as invisible or NaN-producing primitives. The message names
+    the curve index (and `source`, e.g. the file name, when given).
+    """
+    prefix = f"{source}: " if source else ""
+    for i, c in enumerate(curves):
+        if not isinstance(c, YarnCurve):
+            raise GeometryError(f"{prefix}curve {i} is a {type(c).__name__}, not a YarnCurve")
+        P, R = c.points, c.radius
+        if P.ndim != 2 or P.shape[1] != 3 or R.shape != (len(P),):
+            raise GeometryError(f"{prefix}curve {i}: points {P.shape} and radius {R.shape} do not match")
+        bad = ~np.isfinite(P).all(axis=1)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise GeometryError(f"{prefix}curve {i}: vertex {k} has a non-finite coordinate {P[k].tolist()}")
+        if not np.isfinite(R).all():
+            k = int(np.argmax(~np.isfinite(R)))
+            raise GeometryError(f"{prefix}curve {i}: vertex {k} has a non-finite radius {R[k]}")
+        if (R <= 0.0).any():
+            k = int(np.argmax(R <= 0.0))
+            raise GeometryError(f"{prefix}curve {i}: vertex {k} has radius {R[k]:g} (must be > 0)")
+        if len(P) < 2 or not np.any(P != P[0]):
+            what = "1 point" if len(P) == 1 else ("no points" if len(P) == 0 else "all points equal")
+            raise GeometryError(f"{prefix}curve {i} has zero length ({what}): fewer than 2 distinct points")
+
+
+def bounding_box(curves: Sequence[YarnCurve], *, include_radius: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """(min, max) corners of all curves, grown by each vertex's radius unless include_radius is False."""
+    if len(curves) == 0:
+        raise GeometryError("bounding_box of an empty list of curves")
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for c in curves:
+        r = c.radius[:, None] if include_radius else 0.0
+        lo = np.minimum(lo, np.min(c.points - r, axis=0))
+        hi = np.maximum(hi, np.max(c.points + r, axis=0))
+    return lo, hi
