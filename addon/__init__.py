@@ -1,0 +1,40 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Neural Yarn: cloth from yarn curves with the neural yarn appearance model (Soh & Montazeri, EGSR 2024).
+
+A Blender extension (blender_manifest.toml, 4.2+) that also loads as a legacy add-on (bl_info, 3.4+).
+Modules: geometry/ (importers and generators, no bpy), model_io (model files, no bpy), resources (shipped
+files), curves_bpy (Curves objects), fallback_nodes + nodes (the Neural Yarn BSDF node), operators, ui,
+batch (command-line renders).
+"""
+
+bl_info = {
+    "name": "Neural Yarn",
+    "author": "neuralyarn developers",
+    "version": (0, 1, 0),
+    "blender": (3, 4, 0),
+    "location": "3D Viewport > Sidebar > Neural Yarn; Add > Knitted/Woven Swatch; File > Import",
+    "description": "Cloth from yarn curves with the neural yarn appearance model (Soh & Montazeri 2024)",
+    "category": "Material",
+}
+
+if "bpy" in locals():  # script reload (F8 / Reload Scripts)
+    import importlib
+
+    for _m in (model_io, resources, curves_bpy, fallback_nodes, nodes, operators, ui):  # noqa: F821
+        importlib.reload(_m)
+
+import bpy  # noqa: E402
+
+from . import curves_bpy, fallback_nodes, model_io, nodes, operators, resources, ui  # noqa: E402,F401
+
+_MODULES = (nodes, operators, ui)
+
+
+def register():
+    for m in _MODULES:
+        m.register()
+
+
+def unregister():
+    for m in reversed(_MODULES):
+        m.unregister()

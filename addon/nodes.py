@@ -1,0 +1,270 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The "Neural Yarn BSDF" shader node: a ShaderNodeCustomGroup with a preset menu, a packed model and
+the twist, whose inside is the fallback that this Blender can render (fallback_nodes.py).
+
+The model always lives in the .blend as a Text data block (the model file's JSON, verbatim): a file
+renders on another machine or a render farm without the model file. A patched Cycles (cycles_patch/)
+compiles the node (bl_idname ShaderNodeNeuralYarnBsdf) to the native closure and ignores the group's
+inside; stock Cycles renders the inside:
+
+* OSL when this Blender has OSL, the scene uses it and renders on the CPU (fallback "Auto"), or when
+  forced ("OSL");
+* stock nodes otherwise ("Nodes"; also GPU and Blender without OSL, e.g. Debian's 3.4).
+
+"Auto" is re-resolved before every render (a render_pre handler), so switching the scene's shading system
+or device needs no action. A model that cannot be used renders in Cycles' missing-resource magenta and
+the node shows the error.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import bpy
+from bpy.app.handlers import persistent
+
+from . import fallback_nodes, model_io, resources
+
+NODE_IDNAME = "ShaderNodeNeuralYarnBsdf"
+ERROR_COLOR = (1.0, 0.0, 1.0, 1.0)  # Cycles' missing-resource magenta
+PRESET_ITEMS = [(p, p.title(), f"The shipped '{p}' model (the paper's {p} fibers)") for p in resources.PRESETS]
+PRESET_ITEMS.append(("CUSTOM", "Custom", "A model file made with `neuralyarn bake` (Load Model File)"))
+FALLBACK_ITEMS = [
+    ("AUTO", "Auto", "OSL when the scene renders with Open Shading Language on the CPU, stock nodes otherwise"),
+    ("OSL", "OSL", "Always the OSL script (needs Cycles with OSL: CPU, or OptiX)"),
+    ("NODES", "Nodes", "Always the stock-node approximation (any device, any Blender)"),
+]
+
+_parsed: dict[str, model_io.YarnModel] = {}  # sha1 of a Text's content -> parsed model
+
+
+def _digest(text: str) -> str:
+    return hashlib.sha1(text.encode("utf-8")).hexdigest()
+
+
+def parse_text(text) -> model_io.YarnModel:
+    """The model packed in a Text data block (parsed once per content)."""
+    s = text.as_string()
+    d = _digest(s)
+    if d not in _parsed:
+        _parsed[d] = model_io.parse_model(s, f"text '{text.name}'")
+    return _parsed[d]
+
+
+def pack_model_text(model: model_io.YarnModel, name: str):
+    """A Text data block holding the model's JSON: an existing one with the same content, else a new one."""
+    for text in bpy.data.texts:
+        if text.name.startswith(name) and text.as_string() == model.text:
+            return text
+    text = bpy.data.texts.new(name)
+    text.from_string(model.text)
+    text.use_fake_user = False
+    return text
+
+
+def pack_preset(preset: str):
+    """The Text of a shipped preset's model (loaded from the add-on's models/ on first use)."""
+    model = model_io.load_model_file(resources.preset_model_path(preset))
+    return pack_model_text(model, f"NY model {preset}.json")
+
+
+def pack_model_file(path: str):
+    """Validates a model file and packs it; raises ModelFileError naming the file and the problem."""
+    model = model_io.load_model_file(bpy.path.abspath(path))
+    return pack_model_text(model, "NY model " + bpy.path.basename(path))
+
+
+def osl_active(scene) -> bool:
+    return bool(
+        scene is not None
+        and bpy.app.build_options.cycles_osl
+        and scene.render.engine == "CYCLES"
+        and getattr(scene, "cycles", None) is not None
+        and scene.cycles.shading_system
+        and scene.cycles.device == "CPU"
+    )
+
+
+def _update(self, context):
+    self.refresh(getattr(context, "scene", None))
+
+
+def _update_preset(self, context):
+    if self.preset != "CUSTOM":
+        try:
+            self["model"] = pack_preset(self.preset)  # item access: no nested update
+        except (OSError, ValueError) as e:
+            self.show_error(str(e))
+            return
+    self.refresh(getattr(context, "scene", None))
+
+
+class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
+    """Neural yarn appearance (Soh & Montazeri 2024) for a ply or yarn curve"""
+
+    bl_idname = NODE_IDNAME
+    bl_label = "Neural Yarn BSDF"
+    bl_width_default = 220
+
+    preset: bpy.props.EnumProperty(name="Preset", items=PRESET_ITEMS, default="fleece", update=_update_preset)
+    model: bpy.props.PointerProperty(
+        name="Model", type=bpy.types.Text, update=_update,
+        description="The model file's JSON, packed into the .blend")
+    twist_override: bpy.props.BoolProperty(
+        name="Override Twist", default=False, update=_update,
+        description="Use another fiber twist alpha than the model's (moves the surface fibers' highlight; the "
+                    "lobe energies stay the model's)")
+    twist: bpy.props.FloatProperty(
+        name="Twist alpha", default=0.24, min=0.0, max=4.0, update=_update,
+        description="Fiber twist factor alpha: the surface fibers are tilted by atan(pi alpha) from the ply axis")
+    fallback: bpy.props.EnumProperty(name="Fallback", items=FALLBACK_ITEMS, default="AUTO", update=_update)
+    built: bpy.props.StringProperty(name="Built", description="What the group holds now: OSL, NODES or ERROR")
+    error: bpy.props.StringProperty(name="Error")
+
+    # -- node life cycle --------------------------------------------------------------------------------
+
+    def init(self, context):
+        self.node_tree = bpy.data.node_groups.new(".NeuralYarnBSDF", "ShaderNodeTree")
+        fallback_nodes.ensure_interface(self.node_tree)
+        # The node's socket does not take the interface's default.
+        self.inputs[fallback_nodes.GROUP_INPUT_TINT].default_value = (1.0, 1.0, 1.0, 1.0)
+        _update_preset(self, context)
+
+    def copy(self, node):
+        if node.node_tree is not None:
+            self.node_tree = node.node_tree.copy()
+
+    def free(self):
+        tree = self.node_tree
+        if tree is not None and tree.users <= 1:
+            bpy.data.node_groups.remove(tree)
+
+    # -- state ------------------------------------------------------------------------------------------
+
+    def resolved_mode(self, scene) -> str:
+        if self.fallback != "AUTO":
+            return self.fallback
+        return "OSL" if osl_active(scene) else "NODES"
+
+    def tilt(self, model: model_io.YarnModel) -> float:
+        alpha = self.twist if self.twist_override else model.alpha
+        return math.atan(math.pi * alpha)
+
+    def refresh(self, scene=None) -> None:
+        """Rebuilds the inside for the current model, twist and fallback; an unusable model gives the error
+        colour and the message (never an exception into Blender's UI)."""
+        scene = scene if scene is not None else bpy.context.scene
+        if self.node_tree is None:
+            self.node_tree = bpy.data.node_groups.new(".NeuralYarnBSDF", "ShaderNodeTree")
+        if self.model is None:
+            self.show_error("no model: choose a preset or load a model file")
+            return
+        try:
+            model = parse_text(self.model)
+            mode = self.resolved_mode(scene)
+            fallback_nodes.build(self.node_tree, model, mode, self.tilt(model))
+        except (model_io.ModelFileError, ValueError, KeyError, RuntimeError) as e:
+            self.show_error(str(e))
+            return
+        self.built = mode
+        self.error = ""
+
+    def show_error(self, message: str) -> None:
+        tree = self.node_tree
+        fallback_nodes.ensure_interface(tree)
+        for n in list(tree.nodes):
+            tree.nodes.remove(n)
+        out = tree.nodes.new("NodeGroupOutput")
+        emit = tree.nodes.new("ShaderNodeEmission")
+        emit.inputs["Color"].default_value = ERROR_COLOR
+        emit.location = (-200.0, 0.0)
+        tree.links.new(emit.outputs[0], out.inputs[fallback_nodes.GROUP_OUTPUT])
+        self.built = "ERROR"
+        self.error = message
+        print(f"Neural Yarn BSDF '{self.name}': {message}")
+
+    # -- UI ---------------------------------------------------------------------------------------------
+
+    def draw_buttons(self, context, layout):
+        layout.prop(self, "preset", text="")
+        if self.preset == "CUSTOM":
+            row = layout.row(align=True)
+            row.prop(self, "model", text="")
+            row.operator("neural_yarn.load_model", text="", icon="FILEBROWSER")
+        row = layout.row(align=True)
+        row.prop(self, "twist_override", text="")
+        sub = row.row()
+        sub.active = self.twist_override
+        sub.prop(self, "twist")
+        layout.prop(self, "fallback")
+        if self.error:
+            layout.label(text=self.error, icon="ERROR")
+
+    def draw_label(self):
+        return "Neural Yarn BSDF"
+
+
+def iter_nodes():
+    """Every Neural Yarn BSDF node in materials, worlds' and lights' trees and node groups."""
+    trees = [m.node_tree for m in bpy.data.materials if m.node_tree is not None]
+    trees += list(bpy.data.node_groups)
+    for tree in trees:
+        for node in tree.nodes:
+            if node.bl_idname == NODE_IDNAME:
+                yield node
+
+
+def sync(scene) -> int:
+    """Rebuilds the nodes whose inside does not match what the scene can render; returns how many."""
+    count = 0
+    for node in list(iter_nodes()):
+        if node.built != "ERROR" and node.built != node.resolved_mode(scene):
+            node.refresh(scene)
+            count += 1
+    return count
+
+
+@persistent
+def _render_pre(scene, *_args):
+    sync(scene)
+
+
+def make_material(name: str, *, preset: str | None = None, model_text=None):
+    """A material whose surface is one Neural Yarn BSDF node."""
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    tree = mat.node_tree
+    for n in list(tree.nodes):
+        tree.nodes.remove(n)
+    node = tree.nodes.new(NODE_IDNAME)
+    if model_text is not None:
+        node.preset = "CUSTOM"
+        node.model = model_text
+    elif preset is not None and preset != node.preset:
+        node.preset = preset
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (300.0, 0.0)
+    tree.links.new(node.outputs[fallback_nodes.GROUP_OUTPUT], out.inputs["Surface"])
+    return mat, node
+
+
+def _menu(self, context):
+    if getattr(context.space_data, "tree_type", "") == "ShaderNodeTree":
+        op = self.layout.operator("node.add_node", text="Neural Yarn BSDF", icon="OUTLINER_OB_CURVES")
+        op.type = NODE_IDNAME
+        op.use_transform = True
+
+
+def register():
+    bpy.utils.register_class(NeuralYarnBsdfNode)
+    bpy.types.NODE_MT_add.append(_menu)
+    if _render_pre not in bpy.app.handlers.render_pre:
+        bpy.app.handlers.render_pre.append(_render_pre)
+
+
+def unregister():
+    if _render_pre in bpy.app.handlers.render_pre:
+        bpy.app.handlers.render_pre.remove(_render_pre)
+    bpy.types.NODE_MT_add.remove(_menu)
+    bpy.utils.unregister_class(NeuralYarnBsdfNode)

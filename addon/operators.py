@@ -1,0 +1,324 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Operators: thin wrappers that read their properties, call the pure-Python geometry package, and make
+Blender data only once everything has been computed and checked. Any bad input ends as an error report
+naming the problem, CANCELLED, and an unchanged file (no half-made objects)."""
+
+from __future__ import annotations
+
+import bpy
+from bpy_extras.io_utils import ImportHelper
+
+from . import curves_bpy, geometry, model_io, nodes, resources
+
+PRESET_OR_NONE = [("NONE", "None", "Do not assign a material")] + [
+    (p, p.title(), f"Assign the '{p}' neural yarn material") for p in resources.PRESETS]
+WEAVES = [("plain", "Plain", "1 up 1 down"), ("twill", "Twill", "u up d down, shifted by one per row"),
+          ("satin", "Satin", "K-harness satin with move m"), ("basket", "Basket", "n x n plain")]
+UP_AXES = [("auto", "From File", "The BCC header's up axis"), ("Y", "Y Up", "File is Y-up (converted to Z-up)"),
+           ("Z", "Z Up", "File is Z-up")]
+
+# Scene-unit defaults: Crane's knit units (a stitch is 2 pi wide, yarn radius 1/2) times 0.002 give a
+# chunky knit with 1 mm yarn radius and 12.6 mm stitches.
+KNIT_SCALE = 0.002
+
+
+def preset_material(preset: str):
+    """The material "Neural Yarn <preset>" (reused if it exists and still holds our node)."""
+    name = f"Neural Yarn {preset}"
+    mat = bpy.data.materials.get(name)
+    if mat is not None and mat.node_tree is not None and any(
+            n.bl_idname == nodes.NODE_IDNAME for n in mat.node_tree.nodes):
+        return mat
+    mat, _node = nodes.make_material(name, preset=preset)
+    return mat
+
+
+class _Progress:
+    """window_manager.progress_* around a long operation (a no-op without a window manager)."""
+
+    def __init__(self, context, steps: int):
+        self.wm = getattr(context, "window_manager", None)
+        self.steps = steps
+
+    def __enter__(self):
+        if self.wm is not None:
+            self.wm.progress_begin(0, self.steps)
+        return self
+
+    def update(self, k: int) -> None:
+        if self.wm is not None:
+            self.wm.progress_update(k)
+
+    def __exit__(self, *exc):
+        if self.wm is not None:
+            self.wm.progress_end()
+        return False
+
+
+class _MakesYarn:
+    """Mix-in: create the object from computed curves, with the optional preset; errors -> report."""
+
+    preset: bpy.props.EnumProperty(name="Material", items=PRESET_OR_NONE, default="fleece")
+
+    def compute(self, context) -> tuple[str, list]:
+        raise NotImplementedError
+
+    def execute(self, context):
+        try:
+            name, curves = self.compute(context)
+            material = None if self.preset == "NONE" else preset_material(self.preset)
+            obj = curves_bpy.create_curves_object(context, name, curves, material=material)
+        except (geometry.GeometryError, model_io.ModelFileError, OSError, ValueError, MemoryError) as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        n = sum(len(c.points) for c in curves)
+        self.report({"INFO"}, f"{obj.name}: {len(curves)} yarn curves, {n} points")
+        return {"FINISHED"}
+
+
+class NEURALYARN_OT_import_bcc(_MakesYarn, bpy.types.Operator, ImportHelper):
+    """Import yarn curves from a BCC file (Cem Yuksel's yarn-level cloth models)"""
+
+    bl_idname = "neural_yarn.import_bcc"
+    bl_label = "Import BCC Yarns"
+    bl_options = {"REGISTER", "UNDO", "PRESET"}
+
+    filename_ext = ".bcc"
+    filter_glob: bpy.props.StringProperty(default="*.bcc;*.bccx", options={"HIDDEN"})
+    scale: bpy.props.FloatProperty(name="Scale", default=0.001, min=1e-9, max=1e6, soft_max=10.0,
+                                   description="File units to scene units (BCC stores no unit)")
+    yarn_radius: bpy.props.FloatProperty(
+        name="Yarn Radius", default=0.0, min=0.0, description="In file units; 0: the BCCX radius, else half the "
+        "median control-point spacing")
+    up_axis: bpy.props.EnumProperty(name="Up Axis", items=UP_AXES, default="auto")
+    samples_per_segment: bpy.props.IntProperty(name="Samples per Segment", default=8, min=1, max=64)
+
+    def compute(self, context):
+        curves = geometry.read_bcc(self.filepath, scale=self.scale, yarn_radius=self.yarn_radius or None,
+                                   samples_per_segment=self.samples_per_segment, up_axis=self.up_axis)
+        return bpy.path.display_name_from_filepath(self.filepath) or "yarns", curves
+
+
+class NEURALYARN_OT_import_leaf(_MakesYarn, bpy.types.Operator, ImportHelper):
+    """Import a periodic yarn pattern of Leaf et al. (text "Num Yarns" layout or BCC tile), tiled n x m"""
+
+    bl_idname = "neural_yarn.import_leaf"
+    bl_label = "Import Periodic Pattern"
+    bl_options = {"REGISTER", "UNDO", "PRESET"}
+
+    filter_glob: bpy.props.StringProperty(default="*.txt;*.bcc;*.bccx", options={"HIDDEN"})
+    tiles_x: bpy.props.IntProperty(name="Tiles X", default=4, min=1, max=1000)
+    tiles_y: bpy.props.IntProperty(name="Tiles Y", default=4, min=1, max=1000)
+    period_x: bpy.props.FloatProperty(name="Period X", default=0.0, min=0.0,
+                                      description="Tile period in pattern units; 0: from the sidecar, else estimated")
+    period_y: bpy.props.FloatProperty(name="Period Y", default=0.0, min=0.0)
+    yarn_radius: bpy.props.FloatProperty(name="Yarn Radius", default=0.0, min=0.0,
+                                         description="In pattern units; 0: sidecar, BCCX, else estimated")
+    scale: bpy.props.FloatProperty(name="Scale", default=0.001, min=1e-9, max=1e6, soft_max=10.0)
+    up_axis: bpy.props.EnumProperty(name="Up Axis", items=UP_AXES, default="auto")
+
+    def compute(self, context):
+        period = None
+        if self.period_x > 0.0 or self.period_y > 0.0:
+            if not (self.period_x > 0.0 and self.period_y > 0.0):
+                raise geometry.GeometryError("give both tile periods, or neither (0 = estimate)")
+            period = (self.period_x, self.period_y)
+        curves = geometry.read_leaf(self.filepath, nx=self.tiles_x, ny=self.tiles_y, period=period,
+                                    yarn_radius=self.yarn_radius or None, scale=self.scale, up_axis=self.up_axis)
+        return bpy.path.display_name_from_filepath(self.filepath) or "pattern", curves
+
+
+class NEURALYARN_OT_add_knit(_MakesYarn, bpy.types.Operator):
+    """Add a plain-knit swatch (Crane's closed-form stitch curve), one yarn per row"""
+
+    bl_idname = "neural_yarn.add_knit"
+    bl_label = "Knitted Swatch"
+    bl_options = {"REGISTER", "UNDO"}
+
+    rows: bpy.props.IntProperty(name="Rows", default=8, min=1, max=2000)
+    stitches: bpy.props.IntProperty(name="Stitches", default=8, min=1, max=2000)
+    yarn_radius: bpy.props.FloatProperty(name="Yarn Radius", default=0.5, min=0.01, max=2.0,
+                                         description="In Crane's units (a stitch is 2 pi wide)")
+    scale: bpy.props.FloatProperty(name="Scale", default=KNIT_SCALE, min=1e-6, max=100.0, precision=4)
+    purl: bpy.props.BoolProperty(name="Purl Side", default=False)
+    samples_per_loop: bpy.props.IntProperty(name="Samples per Loop", default=64, min=8, max=512)
+
+    def compute(self, context):
+        return "knit", geometry.plain_knit(self.rows, self.stitches, yarn_radius=self.yarn_radius, scale=self.scale,
+                                           purl=self.purl, samples_per_loop=self.samples_per_loop)
+
+
+class NEURALYARN_OT_add_weave(_MakesYarn, bpy.types.Operator):
+    """Add a woven swatch: warp and weft yarns from a weave pattern, crimped at the crossings"""
+
+    bl_idname = "neural_yarn.add_weave"
+    bl_label = "Woven Swatch"
+    bl_options = {"REGISTER", "UNDO"}
+
+    weave: bpy.props.EnumProperty(name="Weave", items=WEAVES, default="plain")
+    warps: bpy.props.IntProperty(name="Warps", default=16, min=1, max=5000)
+    wefts: bpy.props.IntProperty(name="Wefts", default=16, min=1, max=5000)
+    spacing: bpy.props.FloatProperty(name="Spacing", default=2.5, min=0.01, description="Yarn pitch (pattern units)")
+    yarn_radius: bpy.props.FloatProperty(name="Yarn Radius", default=0.5, min=0.001)
+    scale: bpy.props.FloatProperty(name="Scale", default=KNIT_SCALE, min=1e-6, max=100.0, precision=4)
+    twill_up: bpy.props.IntProperty(name="Twill Up", default=2, min=1, max=64)
+    twill_down: bpy.props.IntProperty(name="Twill Down", default=2, min=1, max=64)
+    satin_harness: bpy.props.IntProperty(name="Satin K", default=5, min=5, max=128)
+    satin_move: bpy.props.IntProperty(name="Satin Move", default=2, min=2, max=126)
+    basket_n: bpy.props.IntProperty(name="Basket n", default=2, min=1, max=64)
+
+    def compute(self, context):
+        params = {"plain": {}, "twill": {"u": self.twill_up, "d": self.twill_down},
+                  "satin": {"K": self.satin_harness, "m": self.satin_move}, "basket": {"n": self.basket_n}}
+        pattern = geometry.weave_pattern(self.weave, **params[self.weave])
+        curves = geometry.woven_fabric(pattern, self.warps, self.wefts, spacing=self.spacing,
+                                       yarn_radius=self.yarn_radius)
+        for c in curves:
+            c.points *= self.scale
+            c.radius *= self.scale
+        return f"weave {self.weave}", curves
+
+
+class NEURALYARN_OT_make_plies(bpy.types.Operator):
+    """Replace each yarn of the active Curves object by K plies S-twisted around it (a new object; the
+    original is hidden, not deleted)"""
+
+    bl_idname = "neural_yarn.make_plies"
+    bl_label = "Twist Plies"
+    bl_options = {"REGISTER", "UNDO"}
+
+    plies: bpy.props.IntProperty(name="Plies", default=3, min=1, max=16)
+    ply_twist: bpy.props.FloatProperty(name="Ply Twist alpha", default=0.5, min=0.0, max=8.0,
+                                       description="2 R_yarn x plies turns per unit length")
+    samples_per_turn: bpy.props.IntProperty(name="Samples per Turn", default=24, min=4, max=256)
+    preset: bpy.props.EnumProperty(name="Material", items=PRESET_OR_NONE, default="NONE",
+                                   description="None: keep the yarn's material")
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        return obj is not None and obj.type == "CURVES"
+
+    def execute(self, context):
+        src = context.active_object
+        try:
+            yarns = curves_bpy.read_curves_object(src)
+            plies = []
+            with _Progress(context, len(yarns)) as progress:
+                for k, yarn in enumerate(yarns):
+                    plies += geometry.twist_plies(yarn, self.plies, alpha_yarn=self.ply_twist,
+                                                  samples_per_turn=self.samples_per_turn)
+                    progress.update(k + 1)
+            if self.preset != "NONE":
+                material = preset_material(self.preset)
+            else:
+                material = src.active_material
+            obj = curves_bpy.create_curves_object(context, f"{src.name} plies", plies, material=material)
+        except (geometry.GeometryError, model_io.ModelFileError, OSError, ValueError, MemoryError) as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        src.hide_set(True)
+        src.hide_render = True
+        self.report({"INFO"}, f"{obj.name}: {len(plies)} plies from {len(yarns)} yarns")
+        return {"FINISHED"}
+
+
+class NEURALYARN_OT_assign_preset(bpy.types.Operator):
+    """Give the selected Curves objects the neural yarn material of a preset"""
+
+    bl_idname = "neural_yarn.assign_preset"
+    bl_label = "Assign Yarn Material"
+    bl_options = {"REGISTER", "UNDO"}
+
+    preset: bpy.props.EnumProperty(name="Preset", items=[i for i in PRESET_OR_NONE if i[0] != "NONE"])
+
+    def execute(self, context):
+        targets = [o for o in context.selected_objects if o.type == "CURVES"]
+        if not targets:
+            self.report({"ERROR"}, "select one or more Curves objects (yarn curves)")
+            return {"CANCELLED"}
+        try:
+            mat = preset_material(self.preset)
+        except (model_io.ModelFileError, OSError, ValueError) as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        for obj in targets:
+            obj.data.materials.clear()
+            obj.data.materials.append(mat)
+        self.report({"INFO"}, f"'{mat.name}' on {len(targets)} object(s)")
+        return {"FINISHED"}
+
+
+class NEURALYARN_OT_load_model(bpy.types.Operator, ImportHelper):
+    """Load a model file made with `neuralyarn bake` into a Neural Yarn BSDF node (packed into the .blend)"""
+
+    bl_idname = "neural_yarn.load_model"
+    bl_label = "Load Model File"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filename_ext = ".json"
+    filter_glob: bpy.props.StringProperty(default="*.json", options={"HIDDEN"})
+
+    @staticmethod
+    def _target(context):
+        node = getattr(context, "node", None)
+        if node is None:
+            space = getattr(context, "space_data", None)
+            tree = getattr(space, "edit_tree", None)
+            node = tree.nodes.active if tree is not None else None
+        return node if node is not None and node.bl_idname == nodes.NODE_IDNAME else None
+
+    def execute(self, context):
+        node = self._target(context)
+        if node is None:
+            self.report({"ERROR"}, "no active Neural Yarn BSDF node")
+            return {"CANCELLED"}
+        try:
+            text = nodes.pack_model_file(self.filepath)
+        except model_io.ModelFileError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        node["preset"] = len(resources.PRESETS)  # CUSTOM, without reloading a shipped model
+        node.model = text
+        if node.error:
+            self.report({"ERROR"}, node.error)
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"model '{text.name}' packed into the file")
+        return {"FINISHED"}
+
+
+CLASSES = (
+    NEURALYARN_OT_import_bcc,
+    NEURALYARN_OT_import_leaf,
+    NEURALYARN_OT_add_knit,
+    NEURALYARN_OT_add_weave,
+    NEURALYARN_OT_make_plies,
+    NEURALYARN_OT_assign_preset,
+    NEURALYARN_OT_load_model,
+)
+
+
+def _import_menu(self, context):
+    self.layout.operator(NEURALYARN_OT_import_bcc.bl_idname, text="BCC Yarns (.bcc)")
+    self.layout.operator(NEURALYARN_OT_import_leaf.bl_idname, text="Periodic Yarn Pattern (Leaf et al.)")
+
+
+def _add_menu(self, context):
+    self.layout.separator()
+    self.layout.operator(NEURALYARN_OT_add_knit.bl_idname, icon="OUTLINER_OB_CURVES")
+    self.layout.operator(NEURALYARN_OT_add_weave.bl_idname, icon="OUTLINER_OB_CURVES")
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+    bpy.types.TOPBAR_MT_file_import.append(_import_menu)
+    bpy.types.VIEW3D_MT_add.append(_add_menu)
+
+
+def unregister():
+    bpy.types.VIEW3D_MT_add.remove(_add_menu)
+    bpy.types.TOPBAR_MT_file_import.remove(_import_menu)
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)
+

@@ -1,0 +1,50 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The "Neural Yarn" panel in the 3D viewport's sidebar: make or import yarns, twist plies, assign a
+preset. Drawing only; the work is in operators.py."""
+
+from __future__ import annotations
+
+import bpy
+
+from . import nodes
+
+
+class VIEW3D_PT_neural_yarn(bpy.types.Panel):
+    bl_label = "Neural Yarn"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Neural Yarn"
+
+    def draw(self, context):
+        layout = self.layout
+        col = layout.column(align=True)
+        col.label(text="Yarn Curves")
+        col.operator("neural_yarn.add_knit", icon="OUTLINER_OB_CURVES")
+        col.operator("neural_yarn.add_weave", icon="OUTLINER_OB_CURVES")
+        col.operator("neural_yarn.import_bcc", icon="IMPORT")
+        col.operator("neural_yarn.import_leaf", icon="IMPORT")
+        col = layout.column(align=True)
+        col.label(text="Plies and Material")
+        col.operator("neural_yarn.make_plies", icon="MOD_SCREW")
+        col.operator_menu_enum("neural_yarn.assign_preset", "preset", icon="MATERIAL")
+        obj = context.active_object
+        mat = obj.active_material if obj is not None else None
+        if mat is not None and mat.node_tree is not None:
+            for node in mat.node_tree.nodes:
+                if node.bl_idname == nodes.NODE_IDNAME:
+                    box = layout.box()
+                    box.label(text=f"{mat.name}: {node.built.lower() or 'not built'}")
+                    box.context_pointer_set("node", node)
+                    node.draw_buttons(context, box)
+                    break
+        scene = context.scene
+        if scene.render.engine == "CYCLES" and bpy.app.build_options.cycles_osl and not scene.cycles.shading_system:
+            layout.label(text="Tip: Open Shading Language (CPU) gives the OSL fallback", icon="INFO")
+
+
+def register():
+    bpy.utils.register_class(VIEW3D_PT_neural_yarn)
+
+
+def unregister():
+    bpy.utils.unregister_class(VIEW3D_PT_neural_yarn)

@@ -1,0 +1,470 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The add-on inside Blender (the bpy wheel, 4.5, Cycles with OSL): operators, materials, renders, files.
+
+Every test starts from an empty factory scene. Test data are written by the tests themselves (BCC through
+the add-on's own writer, whose byte layout test_geometry.py checks against hand-made bytes; Leaf text by
+hand). Bad input must end as an operator error (bpy.ops raises RuntimeError carrying the report) and leave
+the file exactly as it was: same objects, curves data, materials, node groups, texts and images.
+
+Renders are 64 x 64 at 4 samples on the CPU: enough to tell a finite, lit picture from NaN, black or the
+error magenta (the fallbacks' numbers are test_osl_fallback.py's business). "Non-black" means the yarn
+pixels (alpha > 0.5) have a mean luminance above 1e-3 under the demo lights, far above what an unlit or
+failed shader gives (exactly 0) and far below what any preset gives (0.02-0.2, printed).
+"""
+from __future__ import annotations
+
+import math
+import os
+import struct
+
+import pytest
+
+np = pytest.importorskip("numpy")
+
+PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
+RES = 64
+
+
+# ---------------------------------------------------------------------------------------------------------
+# helpers
+
+
+@pytest.fixture
+def empty(bpy, addon):
+    """An empty factory scene with the add-on registered."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return bpy.context.scene
+
+
+def snapshot(bpy) -> dict:
+    """Everything an operator could leave behind."""
+    return {
+        "objects": sorted(o.name for o in bpy.data.objects),
+        "curves": sorted(c.name for c in bpy.data.hair_curves),
+        "materials": sorted(m.name for m in bpy.data.materials),
+        "node_groups": sorted(g.name for g in bpy.data.node_groups),
+        "texts": sorted(t.name for t in bpy.data.texts),
+        "images": sorted(i.name for i in bpy.data.images),
+    }
+
+
+def curve_data(obj):
+    """(number of curves, positions (n, 3), radii (n,)) of a Curves object."""
+    d = obj.data
+    n = len(d.points)
+    pos = np.empty(n * 3, dtype=np.float32)
+    d.position_data.foreach_get("vector", pos)
+    rad = np.empty(n, dtype=np.float32)
+    d.attributes["radius"].data.foreach_get("value", rad)
+    return len(d.curves), pos.reshape(n, 3), rad
+
+
+def write_bcc(addon, path, curves, **kw):
+    addon.geometry.write_bcc(str(path), [np.asarray(c, dtype=float) for c in curves], **kw)
+
+
+def helix(n=40, turns=2.0, r=3.0, pitch=4.0, phase=0.0):
+    t = np.linspace(0.0, turns * 2 * math.pi, n)
+    return np.stack([r * np.cos(t + phase), r * np.sin(t + phase), pitch * t / (2 * math.pi)], axis=1)
+
+
+def render(bpy, scene, path, *, osl: bool):
+    """Renders the scene to an EXR and returns its RGBA pixels (RES x RES x 4, float)."""
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.shading_system = osl
+    scene.cycles.samples = 4
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = False
+    scene.render.resolution_x = scene.render.resolution_y = RES
+    scene.render.resolution_percentage = 100
+    scene.render.film_transparent = True
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(path))
+    px = np.empty(RES * RES * 4, dtype=np.float32)
+    img.pixels.foreach_get(px)
+    bpy.data.images.remove(img)
+    return px.reshape(RES, RES, 4)
+
+
+def yarn_luminance(px) -> float:
+    mask = px[..., 3] > 0.5
+    assert mask.sum() > 20, f"the yarns cover only {mask.sum()} of {RES * RES} pixels"
+    rgb = px[mask][:, :3]
+    return float((rgb @ np.array([0.2126, 0.7152, 0.0722])).mean())
+
+
+def magenta_fraction(px) -> float:
+    mask = px[..., 3] > 0.5
+    rgb = px[mask][:, :3]
+    magenta = (rgb[:, 0] > 0.5) & (rgb[:, 2] > 0.5) & (rgb[:, 1] < 0.1)
+    return float(magenta.mean())
+
+
+# ---------------------------------------------------------------------------------------------------------
+# registration
+
+
+def test_registers_node_and_operators(bpy, addon):
+    assert bpy.types.Node.bl_rna_get_subclass_py("ShaderNodeNeuralYarnBsdf") is not None
+    for op in ("import_bcc", "import_leaf", "add_knit", "add_weave", "make_plies", "assign_preset", "load_model"):
+        assert hasattr(bpy.ops.neural_yarn, op), op
+    assert hasattr(bpy.types, "VIEW3D_PT_neural_yarn")
+
+
+# ---------------------------------------------------------------------------------------------------------
+# BCC import
+
+
+def test_import_bcc_catmull_rom_file(bpy, addon, empty, tmp_path):
+    path = tmp_path / "two.bcc"
+    write_bcc(addon, path, [helix(), helix(phase=math.pi)], curve_type="C0")
+    r = bpy.ops.neural_yarn.import_bcc(filepath=str(path), scale=0.01, yarn_radius=0.25, up_axis="Z",
+                                       samples_per_segment=4, preset="NONE")
+    assert r == {"FINISHED"}
+    obj = bpy.context.active_object
+    assert obj.type == "CURVES" and obj.name == "two"
+    n_curves, pos, rad = curve_data(obj)
+    assert n_curves == 2
+    # Catmull-Rom C0 files carry phantom end points: 40 control points = 37 segments x 4 samples + 1.
+    assert len(pos) == 2 * (37 * 4 + 1)
+    assert np.allclose(rad, 0.25 * 0.01)
+    # Interpolating spline: the first evaluated point is the second control point, scaled.
+    assert np.allclose(pos[0], helix()[1] * 0.01, atol=1e-6)
+    assert obj.active_material is None
+
+
+def test_import_bcc_y_up_and_closed_loops(bpy, addon, empty, tmp_path):
+    ring = np.array([[math.cos(a), 0.0, math.sin(a)] for a in np.linspace(0, 2 * math.pi, 12, endpoint=False)])
+    path = tmp_path / "ring.bcc"
+    write_bcc(addon, path, [ring * 5.0], closed=[True], curve_type="PL", up=1)
+    r = bpy.ops.neural_yarn.import_bcc(filepath=str(path), scale=1.0, yarn_radius=0.5, up_axis="Y",
+                                       preset="fleece")
+    assert r == {"FINISHED"}
+    obj = bpy.context.active_object
+    _, pos, _ = curve_data(obj)
+    # Closed: Cycles has no cyclic curves, so the first point is repeated at the end.
+    assert len(pos) == 13 and np.allclose(pos[0], pos[-1])
+    # Y-up file: the ring lies in the file's x-z plane, which becomes Blender's x-y plane... (z -> -y)
+    assert np.allclose(pos[:, 2], 0.0, atol=1e-5)
+    assert obj.active_material.name == "Neural Yarn fleece"
+
+
+def _bcc_variants(addon, tmp_path):
+    good = addon.geometry.bcc_bytes([helix()], curve_type="C0")
+    return {
+        "truncated": (good[: len(good) - 17], r"truncated|ends|short|bytes"),
+        "bad magic": (b"XYZ" + good[3:], r"not a BCC file|magic|BCC"),
+        "bad curve type": (good[:4] + b"Q9" + good[6:], r"curve type|'Q9'"),
+        "empty": (b"", r"empty|truncated|short|bytes"),
+        # A NaN written over the coordinate 7.5 (the writer itself refuses non-finite points).
+        "NaN point": (addon.geometry.bcc_bytes([np.array([[0, 0, 0], [1, 0, 0], [7.5, 1, 0], [2, 0, 0]], float)],
+                                               curve_type="PL").replace(struct.pack("<f", 7.5),
+                                                                        struct.pack("<f", float("nan"))),
+                      r"non-finite|not finite|NaN|nan"),
+    }
+
+
+@pytest.mark.parametrize("case", ["truncated", "bad magic", "bad curve type", "empty", "NaN point"])
+def test_import_malformed_bcc_reports_and_leaves_the_file_unchanged(bpy, addon, empty, tmp_path, case):
+    bpy.ops.neural_yarn.add_weave(warps=2, wefts=2, preset="silk")  # something the user already has
+    data, pattern = _bcc_variants(addon, tmp_path)[case]
+    path = tmp_path / "bad.bcc"
+    path.write_bytes(data)
+    before = snapshot(bpy)
+    with pytest.raises(RuntimeError, match=pattern) as e:
+        bpy.ops.neural_yarn.import_bcc(filepath=str(path), preset="fleece")
+    assert "bad.bcc" in str(e.value)
+    assert snapshot(bpy) == before
+
+
+def test_import_missing_file(bpy, addon, empty, tmp_path):
+    before = snapshot(bpy)
+    with pytest.raises(RuntimeError, match="nothing.bcc"):
+        bpy.ops.neural_yarn.import_bcc(filepath=str(tmp_path / "nothing.bcc"))
+    assert snapshot(bpy) == before
+
+
+@pytest.mark.parametrize("scale, message", [(1e30, r"overflow|too large|scale"), (1e-12, r"scale|small|degenerate")])
+def test_import_absurd_scale(bpy, addon, empty, tmp_path, scale, message):
+    """Scales outside the operator's range are clamped by Blender; the reader refuses what still overflows."""
+    path = tmp_path / "big.bcc"
+    write_bcc(addon, path, [helix() * 1e10], curve_type="PL")
+    before = snapshot(bpy)
+    try:
+        r = bpy.ops.neural_yarn.import_bcc(filepath=str(path), scale=scale, yarn_radius=1.0)
+    except RuntimeError as e:
+        assert "big.bcc" in str(e) or "big" in str(e)
+        assert snapshot(bpy) == before
+        return
+    # Accepted: then every coordinate and radius must be finite and positive.
+    assert r == {"FINISHED"}
+    _, pos, rad = curve_data(bpy.context.active_object)
+    assert np.isfinite(pos).all() and (rad > 0).all() and np.isfinite(rad).all()
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Leaf patterns
+
+
+def leaf_text(yarns) -> str:
+    """The "Num Yarns" text layout: the yarn count, then per yarn its point count and one point per line."""
+    lines = [f"Num Yarns: {len(yarns)}", ""]
+    for y in yarns:
+        lines.append(str(len(y)))
+        lines += [" ".join(f"{v:.6f}" for v in p) for p in y]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def test_import_leaf_tiles_and_welds(bpy, addon, empty, tmp_path):
+    # One tile of a plain weave: a warp along y and a weft along x, each crossing one period (4 units), ending
+    # where the next tile's copy begins, so tiling welds them into long yarns.
+    x = np.linspace(0.0, 4.0, 9)
+    weft = np.stack([x, np.zeros_like(x), 0.3 * np.sin(x * math.pi / 2)], axis=1)
+    warp = np.stack([np.zeros_like(x) + 2.0, x, -0.3 * np.sin(x * math.pi / 2)], axis=1)
+    path = tmp_path / "plain.txt"
+    path.write_text(leaf_text([weft, warp]))
+    r = bpy.ops.neural_yarn.import_leaf(filepath=str(path), tiles_x=3, tiles_y=2, period_x=4.0, period_y=4.0,
+                                        yarn_radius=0.4, scale=0.01, preset="cotton")
+    assert r == {"FINISHED"}
+    obj = bpy.context.active_object
+    n_curves, pos, rad = curve_data(obj)
+    # 3 x 2 tiles: wefts welded along x into 2 rows, warps welded along y into 3 columns.
+    assert n_curves == 2 + 3
+    assert np.allclose(rad, 0.004)
+    # Text tiles are Catmull-Rom ('C0') with phantom end points: the welded weft runs from the second to the
+    # second-to-last of its 3 x 8 + 1 control points, x = 0.5 .. 11.5 (spacing 0.5), times the scale.
+    assert pos[:, 0].min() == pytest.approx(0.005, abs=1e-6)
+    assert pos[:, 0].max() == pytest.approx(0.115, abs=1e-6)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("Num Yarns: 2\n\n2\n0 0 0\n1 0 0\n", r"yarn 1|2 yarns|end of file|expected"),
+    ("Num Yarns: 1\n\n3\n0 0 0\n1 zero 0\n2 0 0\n", r"line 5|zero|number"),
+    ("Num Yarns: -1\n", r"Num Yarns|-1"),
+    ("hello\n", r"Num Yarns"),
+])
+def test_import_malformed_leaf(bpy, addon, empty, tmp_path, text, message):
+    path = tmp_path / "broken.txt"
+    path.write_text(text)
+    before = snapshot(bpy)
+    with pytest.raises(RuntimeError, match=message):
+        bpy.ops.neural_yarn.import_leaf(filepath=str(path))
+    assert snapshot(bpy) == before
+
+
+# ---------------------------------------------------------------------------------------------------------
+# generators and plies
+
+
+def test_knit_weave_and_plies(bpy, addon, empty):
+    assert bpy.ops.neural_yarn.add_knit(rows=3, stitches=4, preset="NONE") == {"FINISHED"}
+    knit = bpy.context.active_object
+    n_knit, pos, rad = curve_data(knit)
+    assert n_knit == 3
+    width = pos[:, 0].max() - pos[:, 0].min()
+    # Four stitches of Crane's 2 pi at scale 0.002, plus the loops' bulge and the radius.
+    assert 4 * 2 * math.pi * 0.002 * 0.8 < width < 4 * 2 * math.pi * 0.002 * 1.6
+    assert np.allclose(rad, 0.5 * 0.002)
+
+    assert bpy.ops.neural_yarn.make_plies(plies=3, ply_twist=0.5, preset="gabardine") == {"FINISHED"}
+    plies = bpy.context.active_object
+    n_plies, ppos, prad = curve_data(plies)
+    assert n_plies == 3 * n_knit
+    assert plies.active_material.name == "Neural Yarn gabardine"
+    # Plies fit inside the yarn: radius below the yarn's, centres within the yarn radius of its axis.
+    assert (prad < 0.5 * 0.002).all() and (prad > 0.2 * 0.002).all()
+    assert knit.hide_render and not plies.hide_render
+
+    for weave in ("plain", "twill", "satin", "basket"):
+        assert bpy.ops.neural_yarn.add_weave(weave=weave, warps=6, wefts=5, preset="NONE") == {"FINISHED"}
+        assert curve_data(bpy.context.active_object)[0] == 11, weave
+
+
+def test_make_plies_needs_a_curves_object(bpy, addon, empty):
+    with pytest.raises(RuntimeError):
+        bpy.ops.neural_yarn.make_plies()
+
+
+def test_operators_are_undoable_in_one_step(bpy, addon, empty):
+    """Each operator is one undo step (bl_options UNDO) and leaves nothing behind when undone."""
+    for cls in addon.operators.CLASSES:
+        assert "UNDO" in cls.bl_options and "REGISTER" in cls.bl_options, cls.__name__
+
+
+# ---------------------------------------------------------------------------------------------------------
+# materials
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_assign_each_preset(bpy, addon, empty, preset):
+    bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="NONE")
+    r = bpy.ops.neural_yarn.assign_preset(preset=preset)
+    assert r == {"FINISHED"}
+    mat = bpy.context.active_object.active_material
+    node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeNeuralYarnBsdf")
+    assert node.error == "" and node.built == "NODES"  # EEVEE/Cycles SVM default: stock nodes
+    assert node.preset == preset
+    # The model is packed as a Text data block holding the shipped file's JSON verbatim.
+    with open(os.path.join(addon.resources.resource_dir("models"), preset + ".json"), encoding="utf-8") as f:
+        assert node.model.as_string() == f.read()
+    # Assigning again reuses the material and the text.
+    bpy.ops.neural_yarn.assign_preset(preset=preset)
+    assert len([m for m in bpy.data.materials if m.name.startswith(f"Neural Yarn {preset}")]) == 1
+    assert len([t for t in bpy.data.texts if t.name.startswith(f"NY model {preset}")]) == 1
+
+
+def test_assign_preset_without_selection_reports(bpy, addon, empty):
+    with pytest.raises(RuntimeError, match="select one or more Curves objects"):
+        bpy.ops.neural_yarn.assign_preset(preset="silk")
+
+
+def test_corrupt_packed_model_renders_error_colour(bpy, addon, empty, tmp_path):
+    mat, node = addon.nodes.make_material("custom", preset="silk")
+    text = bpy.data.texts.new("broken.json")
+    text.from_string('{"format": "neuralyarn-model", "version": 2, "T": ')
+    node.preset = "CUSTOM"
+    node.model = text
+    assert node.built == "ERROR" and "broken.json" in node.error
+    bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="NONE")
+    obj = bpy.context.active_object
+    obj.data.materials.append(mat)
+    addon_batch_frame(bpy, obj)
+    px = render(bpy, bpy.context.scene, tmp_path / "error.exr", osl=False)
+    assert magenta_fraction(px) > 0.9
+
+
+def test_load_model_operator(bpy, addon, empty, tmp_path):
+    mat, node = addon.nodes.make_material("custom", preset="fleece")
+    mat.node_tree.nodes.active = node
+    ctx = {"node": node}
+    # A corrupt file: error report naming it, node unchanged.
+    bad = tmp_path / "corrupt.json"
+    bad.write_text("{ not json")
+    with bpy.context.temp_override(**ctx):
+        with pytest.raises(RuntimeError, match="corrupt.json"):
+            bpy.ops.neural_yarn.load_model(filepath=str(bad))
+    assert node.preset == "fleece" and node.built == "NODES"
+    with bpy.context.temp_override(**ctx):
+        with pytest.raises(RuntimeError, match="missing.json"):
+            bpy.ops.neural_yarn.load_model(filepath=str(tmp_path / "missing.json"))
+    # A good bake (here: a shipped file under another name) becomes a packed CUSTOM model.
+    good = tmp_path / "my_bake.json"
+    good.write_text(open(os.path.join(addon.resources.resource_dir("models"), "cotton.json")).read())
+    with bpy.context.temp_override(**ctx):
+        assert bpy.ops.neural_yarn.load_model(filepath=str(good)) == {"FINISHED"}
+    assert node.preset == "CUSTOM" and node.model.name.startswith("NY model my_bake.json")
+    assert node.error == ""
+
+
+def test_fallback_follows_the_shading_system(bpy, addon, empty, needs_osl):
+    """Auto: OSL inside when the scene renders with OSL on the CPU, stock nodes otherwise (render_pre)."""
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    mat, node = addon.nodes.make_material("m", preset="polyester")
+    assert node.built == "NODES"
+    assert not any(n.bl_idname == "ShaderNodeScript" for n in node.node_tree.nodes)
+    scene.cycles.shading_system = True
+    scene.cycles.device = "CPU"
+    assert addon.nodes.sync(scene) == 1
+    assert node.built == "OSL"
+    assert any(n.bl_idname == "ShaderNodeScript" for n in node.node_tree.nodes)
+    assert addon.nodes.sync(scene) == 0  # nothing to do the second time
+    scene.cycles.shading_system = False
+    assert addon.nodes.sync(scene) == 1 and node.built == "NODES"
+    node.fallback = "OSL"
+    assert node.built == "OSL"
+
+
+# ---------------------------------------------------------------------------------------------------------
+# renders
+
+
+def addon_batch_frame(bpy, obj):
+    """The batch script's demo camera and lights around `obj`."""
+    import importlib
+    batch = importlib.import_module("neural_yarn.batch")
+    batch._frame(bpy.context.scene, [obj])
+
+
+@pytest.mark.parametrize("osl", [False, True], ids=["svm", "osl"])
+@pytest.mark.parametrize("preset", PRESETS)
+def test_render_each_preset(bpy, addon, empty, tmp_path, preset, osl, request):
+    if osl:
+        request.getfixturevalue("needs_osl")
+    bpy.ops.neural_yarn.add_knit(rows=3, stitches=3, preset=preset)
+    obj = bpy.context.active_object
+    addon_batch_frame(bpy, obj)
+    px = render(bpy, bpy.context.scene, tmp_path / f"{preset}.exr", osl=osl)
+    node = next(n for n in obj.active_material.node_tree.nodes if n.bl_idname == "ShaderNodeNeuralYarnBsdf")
+    assert node.built == ("OSL" if osl else "NODES")
+    assert np.isfinite(px).all()
+    lum = yarn_luminance(px)
+    print(f"{preset} ({'OSL' if osl else 'nodes'}): mean yarn luminance {lum:.4f}")
+    assert lum > 1e-3
+    assert magenta_fraction(px) < 0.01
+
+
+def test_packed_file_renders_without_model_files(bpy, addon, empty, tmp_path, monkeypatch, has_osl):
+    """Save, reload and render with the shipped models/ unreachable: everything comes from the .blend."""
+    bpy.ops.neural_yarn.add_knit(rows=2, stitches=3, preset="silk")
+    obj = bpy.context.active_object
+    addon_batch_frame(bpy, obj)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.shading_system = has_osl  # saved with OSL on: the OSL body (script text) must be packed too
+    scene.cycles.device = "CPU"
+    blend = tmp_path / "swatch.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    reference = render(bpy, scene, tmp_path / "before.exr", osl=has_osl)
+
+    monkeypatch.setattr(addon.resources, "_candidates", lambda sub: [str(tmp_path / "no" / sub)])
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    scene = bpy.context.scene
+    node = next(n for m in bpy.data.materials if m.node_tree for n in m.node_tree.nodes
+                if n.bl_idname == "ShaderNodeNeuralYarnBsdf")
+    assert node.model is not None and node.error == ""
+    after = render(bpy, scene, tmp_path / "after.exr", osl=has_osl)
+    assert np.isfinite(after).all()
+    assert np.allclose(after, reference, atol=1e-4), "the reloaded file renders differently"
+    # Switching to stock nodes rebuilds the inside from the packed model, still without model files.
+    after_nodes = render(bpy, scene, tmp_path / "nodes.exr", osl=False)
+    assert node.built == "NODES" and yarn_luminance(after_nodes) > 1e-3
+
+
+# ---------------------------------------------------------------------------------------------------------
+# batch entry point (in-process; tests/addon/blender34_smoke.py runs it through a real `blender -b`)
+
+
+def test_batch_run_writes_an_image(bpy, addon, empty, tmp_path):
+    import importlib
+    batch = importlib.import_module("neural_yarn.batch")
+    out = tmp_path / "weave.png"
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    batch.run(["--preset", "cotton", "--scene", "weave", "--out", str(out), "--resolution", "48", "32",
+               "--samples", "2", "--osl"])
+    img = bpy.data.images.load(str(out))
+    assert tuple(img.size) == (48, 32)
+    px = np.empty(48 * 32 * 4, dtype=np.float32)
+    img.pixels.foreach_get(px)
+    assert px.reshape(-1, 4)[:, :3].max() > 0.02
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--preset", "wool", "--out", "x.png"], "unknown preset 'wool'"),
+    (["--out", "/nonexistent/dir/x.png"], "does not exist"),
+    (["--out", "x.bmp2"], "unknown image extension"),
+    (["--model", "/nonexistent/m.json", "--out", "x.png"], "m.json"),
+    (["--scene", "bcc:/nonexistent/y.bcc", "--out", "x.png"], "could not be made"),
+])
+def test_batch_errors(bpy, addon, empty, tmp_path, argv, message):
+    import importlib
+    batch = importlib.import_module("neural_yarn.batch")
+    argv = [a if a != "x.png" and a != "x.bmp2" else str(tmp_path / a) for a in argv]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    with pytest.raises(batch.BatchError, match=message):
+        batch.run(argv)
