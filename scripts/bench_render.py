@@ -6,8 +6,8 @@ Prints: SSIM(A, ref)  SSIM(B, ref)  mean relative difference of B's mean colour 
 
 The EXRs are linear; SSIM is computed (scikit-image, Gaussian window sigma 1.5, as Wang et al. 2004) on the
 display images an artist would look at: each image scaled by the same exposure (the reference's 99.5th
-percentile maps to 1), clamped to [0, 1] and encoded as sRGB, per channel, data range 1. oiiotool converts
-the EXRs to PFM (float32, read here with numpy) so that no Python image library is needed.
+percentile maps to 1), clamped to [0, 1] and encoded as sRGB, per channel, data range 1. EXRs are read with
+the OpenEXR Python bindings (PyPI `OpenEXR` >= 3.3; Debian 12's oiiotool cannot write PFM).
 """
 import argparse
 import os
@@ -16,21 +16,19 @@ import sys
 import tempfile
 
 import numpy as np
+import OpenEXR
 from skimage.metrics import structural_similarity
 
 
 def read_exr(path):
-    with tempfile.TemporaryDirectory() as tmp:
-        pfm = os.path.join(tmp, "x.pfm")
-        subprocess.run(["oiiotool", path, "--ch", "R,G,B", "-d", "float", "-o", pfm], check=True)
-        with open(pfm, "rb") as f:
-            kind = f.readline().strip()
-            width, height = map(int, f.readline().split())
-            scale = float(f.readline())
-            data = np.frombuffer(f.read(), dtype="<f4" if scale < 0 else ">f4")
-    channels = 3 if kind == b"PF" else 1
-    img = data.reshape(height, width, channels).astype(np.float64)
-    return img[::-1]  # PFM rows run bottom to top
+    """The RGB channels of an EXR as float64 (H, W, 3), top row first (the OpenEXR bindings)."""
+    with OpenEXR.File(path) as f:
+        channels = f.channels()
+        if "RGBA" in channels or "RGB" in channels:
+            img = channels["RGBA" if "RGBA" in channels else "RGB"].pixels[..., :3]
+        else:
+            img = np.stack([channels[c].pixels for c in "RGB"], axis=-1)
+    return np.asarray(img, dtype=np.float64)
 
 
 def display(img, exposure):

@@ -22,10 +22,9 @@ for tool in "$CLI" "$CYCLES"; do
 done
 command -v oiiotool > /dev/null || { echo "bench_render.sh: oiiotool missing (apt-get install openimageio-tools)" >&2; exit 1; }
 VENV="$BUILD/bench-venv"
-if [ ! -x "$VENV/bin/python" ]; then
-  python3 -m venv "$VENV"
-  "$VENV/bin/pip" install --quiet numpy scikit-image
-fi
+[ -x "$VENV/bin/python" ] || python3 -m venv "$VENV"
+"$VENV/bin/python" -c "import skimage, OpenEXR" 2>/dev/null || \
+  "$VENV/bin/pip" install --quiet numpy scikit-image "OpenEXR>=3.3"
 PRESETS=("$@")
 [ ${#PRESETS[@]} -gt 0 ] || PRESETS=(fleece silk polyester cotton gabardine)
 mkdir -p "$OUT"

@@ -1,0 +1,193 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Renders a standalone-Cycles reference scene (`neuralyarn cycles-scene` / examples/make_examples.py XML)
+in Blender (the bpy wheel) with the add-on's fallback instead of the native closure, for
+scripts/bench_fallback.sh:
+
+    .venv/bin/python scripts/fallback_render.py SCENE.xml OUT.exr --preset P --body osl|nodes|diffuse
+                     [--samples N] [--seed S]
+
+The scene is rebuilt element by element: <camera width height>, the perspective camera's translation and
+fov (vertical, as the standalone's auto viewplane for width >= height), point lights (tfm translation,
+strength = Blender's energy, size = radius: what Blender's own light sync passes to Cycles), the
+background's strength and colour, the integrator's bounce limits, and the <hair> curves with their radii.
+--body diffuse gives the curves a grey Diffuse BSDF instead (the scene-equivalence check; the XML is then
+expected to hold the same diffuse shader). The standalone camera is left-handed (x right, y up, looking
+along +z) and Blender's right-handed, so Blender's image is the standalone's mirrored: it is flipped back
+before writing. Exits 1 with a message on a scene it cannot read.
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import importlib.util
+import math
+import os
+import sys
+import xml.etree.ElementTree as ET
+
+import numpy as np
+
+import bpy
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
+
+
+def floats(text: str) -> np.ndarray:
+    return np.array([float(v) for v in text.split()], dtype=np.float64)
+
+
+def load_addon():
+    for path in glob.glob(os.path.join(bpy.utils.system_resource("PYTHON"), "lib", "python3*", "site-packages")):
+        if path not in sys.path:
+            sys.path.append(path)  # oslquery, for the OSL script node
+    addon = os.path.join(ROOT, "addon")
+    spec = importlib.util.spec_from_file_location("neural_yarn", os.path.join(addon, "__init__.py"),
+                                                  submodule_search_locations=[addon])
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["neural_yarn"] = module
+    spec.loader.exec_module(module)
+    module.register()
+    return module
+
+
+def build(xml_path: str, preset: str, body: str, samples: int, seed: int):
+    root = ET.parse(xml_path).getroot()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    ny = load_addon()
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.shading_system = body == "osl"
+    scene.cycles.samples = samples
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = False
+    scene.cycles.seed = seed
+    scene.cycles.sample_clamp_direct = scene.cycles.sample_clamp_indirect = 0.0
+    scene.render.film_transparent = False
+    scene.view_settings.view_transform = "Standard"
+    scene.render.filter_size = 1.5  # Cycles' default filter width, as in the standalone
+    scene.cycles_curves.shape = "THICK"
+
+    cam_el = root.find("camera")
+    scene.render.resolution_x = int(cam_el.get("width"))
+    scene.render.resolution_y = int(cam_el.get("height"))
+    scene.render.resolution_percentage = 100
+    tr = root.find("transform")
+    persp = tr.find("camera") if tr is not None else None
+    if persp is None or persp.get("type", "perspective") != "perspective":
+        raise SystemExit(f"{xml_path}: expected <transform translate=...><camera type=\"perspective\" fov=.../>")
+    cam = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    cam.data.sensor_fit = "VERTICAL" if scene.render.resolution_x >= scene.render.resolution_y else "HORIZONTAL"
+    cam.data.angle = float(persp.get("fov"))
+    cam.data.clip_start, cam.data.clip_end = 0.01, 1e4
+    cam.location = tuple(floats(tr.get("translate")))
+    cam.rotation_euler = (0.0, math.pi, 0.0)  # look along +z, +y up, right = -x: the image is mirrored in x
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+
+    integ = root.find("integrator")
+    if integ is not None:
+        scene.cycles.max_bounces = int(integ.get("max_bounce", 64))
+        scene.cycles.glossy_bounces = int(integ.get("max_glossy_bounce", 64))
+        scene.cycles.transmission_bounces = int(integ.get("max_transmission_bounce", 64))
+        scene.cycles.diffuse_bounces = int(integ.get("max_bounce", 64))
+        scene.cycles.transparent_max_bounces = 64
+        scene.cycles.min_light_bounces = int(integ.get("min_bounce", 0))
+
+    world = bpy.data.worlds.new("world")
+    scene.world = world
+    world.use_nodes = True
+    bg_el = root.find("background/background")
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (*floats(bg_el.get("color", "1 1 1")), 1.0)
+    bg.inputs["Strength"].default_value = float(bg_el.get("strength", 1.0))
+
+    for k, light_el in enumerate(root.iter("light")):
+        if light_el.get("light_type") != "point":
+            raise SystemExit(f"{xml_path}: only point lights are supported")
+        tfm = floats(light_el.get("tfm")).reshape(3, 4)
+        strength = floats(light_el.get("strength"))
+        light = bpy.data.lights.new(f"light{k}", "POINT")
+        light.energy = float(strength.max())
+        light.color = tuple(strength / strength.max())
+        light.shadow_soft_size = float(light_el.get("size", 0.0))
+        if hasattr(light, "use_soft_falloff"):
+            light.use_soft_falloff = False  # Blender 4.0+'s default; the standalone light has none
+        obj = bpy.data.objects.new(f"light{k}", light)
+        obj.location = tuple(tfm[:, 3])
+        scene.collection.objects.link(obj)
+
+    if body == "diffuse":
+        mat = bpy.data.materials.new("diffuse")
+        mat.use_nodes = True
+        nt = mat.node_tree
+        for n in list(nt.nodes):
+            nt.nodes.remove(n)
+        d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+        d.inputs["Color"].default_value = (0.5, 0.5, 0.5, 1.0)
+        out = nt.nodes.new("ShaderNodeOutputMaterial")
+        nt.links.new(d.outputs[0], out.inputs["Surface"])
+    else:
+        mat, node = ny.nodes.make_material(f"yarn {preset}", preset=preset)
+        node.fallback = body.upper()
+        if node.error:
+            raise SystemExit(f"{preset}: {node.error}")
+
+    hairs = list(root.iter("hair"))
+    if not hairs:
+        raise SystemExit(f"{xml_path}: no <hair> element")
+    sizes, P, R = [], [], []
+    for h in hairs:
+        nkeys = [int(v) for v in h.get("nkeys").split()]
+        p = floats(h.get("P")).reshape(-1, 3)
+        r = floats(h.get("radius"))
+        r = np.full(len(p), r[0]) if len(r) == 1 else r
+        sizes += nkeys
+        P.append(p)
+        R.append(r)
+    data = ny.curves_bpy._new_curves_data("yarn", sizes, np.concatenate(P).astype(np.float32),
+                                          np.concatenate(R).astype(np.float32))
+    data.materials.append(mat)
+    obj = bpy.data.objects.new("yarn", data)
+    scene.collection.objects.link(obj)
+    return scene
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("scene")
+    ap.add_argument("out")
+    ap.add_argument("--preset", required=True)
+    ap.add_argument("--body", choices=("osl", "nodes", "diffuse"), required=True)
+    ap.add_argument("--samples", type=int, default=64)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    scene = build(args.scene, args.preset, args.body, args.samples, args.seed)
+    tmp = args.out + ".mirrored.exr"
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.filepath = tmp
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(tmp)
+    w, h = img.size
+    px = np.empty(w * h * 4, dtype=np.float32)
+    img.pixels.foreach_get(px)
+    px = px.reshape(h, w, 4)[:, ::-1].copy()  # mirror back to the standalone's handedness
+    img.pixels.foreach_set(px.ravel())
+    img.filepath_raw = args.out
+    img.file_format = "OPEN_EXR"
+    img.save()
+    os.remove(tmp)
+    print(f"fallback_render: wrote {args.out} ({args.body}, {args.samples} spp)")
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    except SystemExit as e:
+        if e.code not in (None, 0):
+            print(f"fallback_render: {e.code}", file=sys.stderr)
+            sys.stdout.flush()
+            os._exit(1)
+    sys.stdout.flush()
+    os._exit(0)  # the bpy 4.5 wheel can hang at exit after a render (see tests/addon/install_smoke.py)
