@@ -177,6 +177,8 @@ int main(int argc, char **argv)
   scene->add_option("--packing-seed", s_opt.packing_seed, "Seed of the fiber cross-section")->capture_default_str();
   scene->add_flag("--white-furnace", s_opt.white_furnace, "Uniform white background, no lights");
   scene->add_option("--model", s_opt.model, "Aggregated version: one thick curve with this neural yarn model");
+  scene->add_flag("--embed-model", s_opt.embed_model,
+                  "With --model: write the model's JSON into the scene (a self-contained file; cycles_patch 0003)");
   std::vector<int> s_region;
   scene->add_option("--predict-region", s_region,
                     "With --model and --white-furnace: print the furnace value the core library predicts over "

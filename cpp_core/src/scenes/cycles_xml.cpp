@@ -20,6 +20,35 @@ namespace {
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 /* The camera: 12 radii in front of the ply (-z), looking along +z; field of view of the shorter side. */
 constexpr double kCameraDistance = 12.0, kCameraFov = 0.9;
+
+/* Text for an XML attribute value in double quotes. */
+std::string xml_escape(const std::string &in)
+{
+  std::string out;
+  out.reserve(in.size() + in.size() / 8);
+  for (const char c : in) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      case '\n': out += "&#10;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+std::string read_text_file(const std::string &path)
+{
+  std::ifstream f(path, std::ios::binary);
+  if (!f) {
+    throw std::runtime_error("model '" + path + "': cannot open the file");
+  }
+  std::ostringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
 }
 
 void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const std::string &path)
@@ -82,7 +111,8 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
   }
   if (aggregated) {
     /* One thick curve along the ply axis, radius 1: the bounding cylinder the maps were gathered on. */
-    x << "<shader name=\"yarn\">\n  <neural_yarn_bsdf name=\"y\" model=\"" << model_path << "\" />\n"
+    x << "<shader name=\"yarn\">\n  <neural_yarn_bsdf name=\"y\" model=\"" << xml_escape(model_path) << "\""
+      << (o.embed_model ? " model_json=\"" + xml_escape(read_text_file(o.model)) + "\"" : std::string()) << " />\n"
       << "  <connect from=\"y bsdf\" to=\"output surface\" />\n</shader>\n";
     const int keys = 17;
     x << "<state shader=\"yarn\">\n<hair nkeys=\"" << keys << "\" radius=\"1\"\n  P=\"";

@@ -22,7 +22,8 @@ struct PlySceneOptions {
   uint64_t packing_seed = 1;
   double light_strength = 2000.0; /* W, each sphere light */
   bool white_furnace = false;    /* no lights, a uniform white background of strength 1 instead */
-  std::string model;             /* aggregated version: the model file (its path is written absolute) */
+  std::string model;             /* aggregated version: the model file (written relative to the scene) */
+  bool embed_model = false;      /* write the model's JSON into the scene (model_json), not its path */
 };
 
 /* Writes the scene; throws std::runtime_error naming the path when it cannot be written. */
