@@ -94,7 +94,8 @@ def patch_scene(path: str, title: str, curves: list, model: str, width: int, hei
         f'<transform translate="0 0 {-dist:.6g}">',
         f'  <camera type="perspective" fov="{fov}" />',
         "</transform>",
-        '<integrator max_bounce="64" max_glossy_bounce="64" max_transmission_bounce="64" min_bounce="0" />',
+        '<integrator max_bounce="64" max_glossy_bounce="64" max_transmission_bounce="64" min_bounce="0" '
+        'sample_clamp_direct="0" sample_clamp_indirect="0" />',  # no clamping: see cycles_xml.cpp
         "<background>",
         '  <background name="bg" strength="0.05" color="1 1 1" />',
         '  <connect from="bg background" to="output surface" />',
