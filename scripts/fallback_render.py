@@ -155,14 +155,27 @@ def build(xml_path: str, preset: str, body: str, samples: int, seed: int):
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("scene")
+    ap.add_argument("scene", help="the XML scene, or with --open-blend a .blend saved by --save-blend")
     ap.add_argument("out")
     ap.add_argument("--preset", required=True)
     ap.add_argument("--body", choices=("osl", "nodes", "diffuse"), required=True)
     ap.add_argument("--samples", type=int, default=64)
     ap.add_argument("--seed", type=int, default=0)
-    args = ap.parse_args()
-    scene = build(args.scene, args.preset, args.body, args.samples, args.seed)
+    ap.add_argument("--save-blend", help="also save the scene as this .blend (models and images packed)")
+    ap.add_argument("--open-blend", action="store_true",
+                    help="SCENE is a .blend: open it (the add-on registered) and render it as saved")
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]  # (blender -P ... -- args)
+    args = ap.parse_args(argv)
+    if args.open_blend:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        load_addon()
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(args.scene))
+        scene = bpy.context.scene
+    else:
+        scene = build(args.scene, args.preset, args.body, args.samples, args.seed)
+        if args.save_blend:
+            bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.save_blend))
+    print(f"fallback_render: Blender {bpy.app.version_string}, Cycles OSL {bpy.app.build_options.cycles_osl}")
     tmp = args.out + ".mirrored.exr"
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"
@@ -178,7 +191,7 @@ def main() -> None:
     img.file_format = "OPEN_EXR"
     img.save()
     os.remove(tmp)
-    print(f"fallback_render: wrote {args.out} ({args.body}, {args.samples} spp)")
+    print(f"fallback_render: wrote {args.out} ({scene.cycles.samples} spp)")
 
 
 if __name__ == "__main__":
