@@ -24,50 +24,16 @@
 #include "neuralyarn/model/fallback.h"
 #include "neuralyarn/model/model.h"
 #include "quadrature.h"
+#include "synthetic_model.h"
 
 using namespace neuralyarn;
+using neuralyarn::testing::synthetic_model;
 namespace fs = std::filesystem;
 
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-/* The synthetic model of test_yarn_bsdf.cpp: seeded random networks in a plausible range and a 2 x 4
- * calibration table near identity, so that every check also runs through yarn_calibration(). */
-model::YarnModel synthetic_model(const char *preset, uint64_t seed, double m_bias = -3.0)
-{
-  model::YarnModel m;
-  m.preset = find_preset(preset);
-  auto make = [&](std::vector<int> widths, ny::MlpHead head, uint64_t s, double bias) {
-    train::Mlp<float> net(train::MlpShape{widths, head}, s);
-    train::Mlp<float>::Vec p = net.params() * 0.6f;
-    const int out = widths.back();
-    for (int c = 0; c < out; c++) {
-      p(p.size() - out + c) += float(bias);
-    }
-    net.set_params(p);
-    model::NetworkRecord r;
-    r.shape = net.shape();
-    r.flat = net.to_flat();
-    return r;
-  };
-  m.T = make({3, 7, 7, 1}, ny::kMlpHeadSigmoid, seed, -1.0);
-  m.R = make({3, 7, 7, 1}, ny::kMlpHeadExp, seed + 1, 0.0);
-  m.M = make({6, 21, 21, 3}, ny::kMlpHeadExp, seed + 2, m_bias);
-  m.proxy = {0.3, 0.35, 0.9, 0.7};
-  m.albedo_M = {0.2, 0.3, 0.4};
-  m.calibration.theta_bins = 2;
-  m.calibration.phi_bins = 4;
-  std::mt19937 rng(static_cast<uint32_t>(seed));
-  std::uniform_real_distribution<float> U(-1.0f, 1.0f);
-  for (int k = 0; k < 8; k++) {
-    m.calibration.values.push_back(0.05f * U(rng));
-    for (int j = 1; j < ny::kYarnCalStride; j++) {
-      m.calibration.values.push_back(1.0f + 0.2f * U(rng));
-    }
-  }
-  return m;
-}
 
 ny::Vec3 view(const model::FallbackTables &f, int i, int j)
 {

@@ -1,0 +1,55 @@
+// SPDX-License-Identifier: Apache-2.0
+// A synthetic neural yarn model for the tests: seeded random networks in a plausible output range and a
+// small calibration table near identity (used by test_yarn_bsdf.cpp and test_fallback.cpp).
+#pragma once
+
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/model/model.h"
+#include "neuralyarn/presets.h"
+#include "neuralyarn/train/mlp.h"
+
+namespace neuralyarn::testing {
+
+/* A model with seeded random networks whose outputs sit in a plausible range (P_T ~ 0.1-0.5, rho_R ~ 1,
+ * M ~ 0.05). */
+inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, double m_bias = -3.0)
+{
+  model::YarnModel m;
+  m.preset = find_preset(preset);
+  auto make = [&](std::vector<int> widths, ny::MlpHead head, uint64_t s, double bias) {
+    train::Mlp<float> net(train::MlpShape{widths, head}, s);
+    train::Mlp<float>::Vec p = net.params() * 0.6f;
+    const int out = widths.back();
+    for (int c = 0; c < out; c++) {
+      p(p.size() - out + c) += float(bias);
+    }
+    net.set_params(p);
+    model::NetworkRecord r;
+    r.shape = net.shape();
+    r.flat = net.to_flat();
+    return r;
+  };
+  m.T = make({3, 7, 7, 1}, ny::kMlpHeadSigmoid, seed, -1.0);
+  m.R = make({3, 7, 7, 1}, ny::kMlpHeadExp, seed + 1, 0.0);
+  m.M = make({6, 21, 21, 3}, ny::kMlpHeadExp, seed + 2, m_bias);
+  m.proxy = {0.3, 0.35, 0.9, 0.7};
+  m.albedo_M = {0.2, 0.3, 0.4};
+  /* A 2 x 4 calibration table near identity, so every test also runs through yarn_calibration(). */
+  m.calibration.theta_bins = 2;
+  m.calibration.phi_bins = 4;
+  std::mt19937 rng(static_cast<uint32_t>(seed));
+  std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+  for (int k = 0; k < 8; k++) {
+    m.calibration.values.push_back(0.05f * U(rng));
+    for (int j = 1; j < ny::kYarnCalStride; j++) {
+      m.calibration.values.push_back(1.0f + 0.2f * U(rng));
+    }
+  }
+  return m;
+}
+
+}  // namespace neuralyarn::testing
