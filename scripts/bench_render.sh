@@ -57,13 +57,14 @@ done
 
 # The neural closure against Cycles' Principled Hair (Chiang) on the same curve, same samples: render time.
 echo
-echo "# neural yarn closure vs Principled Hair (Chiang, direct colouring) on the aggregated curve, ${W}x${H}, $SPP spp"
+HAIR_SPP="${NY_HAIR_SPP:-1024}"  # enough samples that start-up (~0.3 s) does not dominate
+echo "# neural yarn closure vs Principled Hair (Chiang, direct colouring) on the aggregated curve, ${W}x${H}, $HAIR_SPP spp"
 echo "# preset | neural s | Chiang s | ratio"
 for p in "${PRESETS[@]}"; do
   sed 's|<neural_yarn_bsdf name="y" model="[^"]*" />|<principled_hair_bsdf name="y" model="Chiang" parametrization="Direct coloring" color="0.6 0.3 0.2" />|' \
     "$OUT/${p}_yarn.xml" > "$OUT/${p}_chiang.xml"
   grep -q principled_hair_bsdf "$OUT/${p}_chiang.xml" || { echo "bench_render.sh: could not make the Chiang scene" >&2; exit 1; }
-  read -r t_y _ < <(render "$OUT/${p}_yarn.xml" "$SPP" "$OUT/${p}_yarn2.exr")
-  read -r t_c _ < <(render "$OUT/${p}_chiang.xml" "$SPP" "$OUT/${p}_chiang.exr")
+  read -r t_y _ < <(render "$OUT/${p}_yarn.xml" "$HAIR_SPP" "$OUT/${p}_yarn2.exr")
+  read -r t_c _ < <(render "$OUT/${p}_chiang.xml" "$HAIR_SPP" "$OUT/${p}_chiang.exr")
   awk -v p="$p" -v ty="$t_y" -v tc="$t_c" 'BEGIN { printf "| %s | %.2f | %.2f | %.2f |\n", p, ty, tc, ty / tc }'
 done
