@@ -289,8 +289,9 @@ def test_make_plies_needs_a_curves_object(bpy, addon, empty):
         bpy.ops.neural_yarn.make_plies()
 
 
-def test_operators_are_undoable_in_one_step(bpy, addon, empty):
-    """Each operator is one undo step (bl_options UNDO) and leaves nothing behind when undone."""
+def test_operators_register_as_undo_steps(bpy, addon, empty):
+    """Each operator is registered as one undo step (bl_options REGISTER + UNDO; background mode has no undo
+    stack to exercise, so this checks the declaration)."""
     for cls in addon.operators.CLASSES:
         assert "UNDO" in cls.bl_options and "REGISTER" in cls.bl_options, cls.__name__
 
