@@ -71,7 +71,8 @@ def _floats(values) -> str:
     return " ".join(f"{v:.6g}" for v in np.asarray(values, dtype=float).ravel())
 
 
-def patch_scene(path: str, title: str, curves: list, model: str, width: int, height: int) -> None:
+def patch_scene(path: str, title: str, curves: list, model: str, width: int, height: int,
+                fibers=None) -> None:
     """A patch of aggregated plies: the curves centred at the origin in the xy plane, tilted 35 degrees
     about x toward the camera (which looks along +z from z < 0, as in `cycles-scene`), a key light in front,
     a rim light behind, a dim white world."""
@@ -111,24 +112,78 @@ def patch_scene(path: str, title: str, curves: list, model: str, width: int, hei
         f'strength="{0.5 * light:.6g} {0.5 * light:.6g} {0.5 * light:.6g}" size="{0.1 * size:.6g}" />',
         "</state>",
         '<shader name="yarn">',
-        f'  <neural_yarn_bsdf name="y" model="{model}" />',
-        '  <connect from="y bsdf" to="output surface" />',
+        f'  <neural_yarn_bsdf name="y" model="{model}" />' if fibers is None else f"  {fibers[4]}",
+        f'  <connect from="{"y" if fibers is None else "f"} bsdf" to="output surface" />',
         "</shader>",
         '<state shader="yarn">',
     ]
-    nkeys, P, R = [], [], []
-    for c in curves:
-        p, r = c.points, c.radius
-        if c.cyclic:
-            p, r = np.concatenate([p, p[:1]]), np.concatenate([r, r[:1]])
-        nkeys.append(len(p))
-        P.append((p - center) @ rot.T)
-        R.append(r)
-    lines.append(f'<hair nkeys="{" ".join(map(str, nkeys))}" radius="{_floats(np.concatenate(R))}"')
-    lines.append(f'  P="{_floats(np.concatenate(P))}" />')
+    if fibers is None:
+        nkeys, P, R = [], [], []
+        for c in curves:
+            p, r = c.points, c.radius
+            if c.cyclic:
+                p, r = np.concatenate([p, p[:1]]), np.concatenate([r, r[:1]])
+            nkeys.append(len(p))
+            P.append((p - center) @ rot.T)
+            R.append(r)
+        lines.append(f'<hair nkeys="{" ".join(map(str, nkeys))}" radius="{_floats(np.concatenate(R))}"')
+        lines.append(f'  P="{_floats(np.concatenate(P))}" />')
+    else:
+        nkeys, keys, fiber_radius = sweep_fibers(curves, fibers)
+        R = fiber_radius * float(np.mean(curves[0].radius))
+        lines.append(f'<hair nkeys="{" ".join(map(str, nkeys))}" radius="{R:.6g}"')
+        lines.append(f'  P="{_floats((keys - center) @ rot.T)}" />')
     lines += ["</state>", "</cycles>", ""]
     with open(path, "w", encoding="utf-8") as f:
         f.write("\n".join(lines))
+
+
+def fiber_layout(fibers_xml: str) -> tuple[np.ndarray, np.ndarray, float, float, str]:
+    """The explicit ply of `neuralyarn cycles-scene` (unit ply radius, axis along x) as helices: per fiber its
+    radius r_i and phase phi_i at x = 0, the common twist rate w = dphi/dx, the fiber radius, and the fiber
+    shader's XML element (the preset's Khungurn parameters)."""
+    with open(fibers_xml, encoding="utf-8") as f:
+        text = f.read()
+    hair = re.search(r'<hair\s+nkeys="([^"]+)"\s+radius="([^"]+)"\s+P="([^"]+)"', text)
+    shader = re.search(r"(<khungurn_fiber_bsdf [^>]*/>)", text)
+    if hair is None or shader is None:
+        raise SystemExit(f"make_examples: {fibers_xml} is not an explicit-fiber scene")
+    nkeys = np.array([int(v) for v in hair.group(1).split()])
+    fiber_radius = float(hair.group(2).split()[0])
+    P = np.array(hair.group(3).split(), dtype=float).reshape(-1, 3)
+    starts = np.concatenate([[0], np.cumsum(nkeys)[:-1]])
+    r, phase, rates = [], [], []
+    for a, n in zip(starts, nkeys):
+        q = P[a:a + n]
+        ang = np.unwrap(np.arctan2(q[:, 2], q[:, 1]))
+        rate = np.polyfit(q[:, 0], ang, 1)
+        r.append(float(np.mean(np.hypot(q[:, 1], q[:, 2]))))
+        phase.append(float(np.polyval(rate, 0.0)))
+        rates.append(float(rate[0]))
+    return np.array(r), np.array(phase), float(np.median(rates)), fiber_radius, shader.group(1)
+
+
+def sweep_fibers(plies: list, layout, segments_per_turn: int = 12) -> tuple[list[int], np.ndarray, float]:
+    """Explicit fibers along curved plies: each ply's fibers are the straight ply's helices (in units of the
+    ply radius) carried along the ply centreline in its rotation-minimising frame. Returns (keys per fiber,
+    all keys, fiber radius in scene units of the first ply)."""
+    r, phase, w, fiber_radius, _ = layout
+    nkeys, keys = [], []
+    for ply in plies:
+        R = float(np.mean(ply.radius))
+        pts = np.concatenate([ply.points, ply.points[:1]]) if ply.cyclic else ply.points
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        s = np.concatenate([[0.0], np.cumsum(seg)])
+        turns = abs(w) * s[-1] / R / (2 * np.pi)
+        n = max(int(np.ceil(turns * segments_per_turn)) + 1, len(pts))
+        su = np.linspace(0.0, s[-1], n)
+        C = np.stack([np.interp(su, s, pts[:, k]) for k in range(3)], axis=1)
+        _, N, B, _ = geometry.parallel_transport_frames(C, False)
+        for ri, pi in zip(r, phase):
+            ang = pi + w * su / R
+            keys.append(C + R * ri * (np.cos(ang)[:, None] * N + np.sin(ang)[:, None] * B))
+            nkeys.append(n)
+    return nkeys, np.concatenate(keys), fiber_radius
 
 
 def three_ply(yarns: list) -> list:
@@ -148,6 +203,9 @@ def main() -> int:
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--height", type=int, default=160)
     ap.add_argument("--threads", type=int, default=0)
+    ap.add_argument("--explicit-patches", action="store_true",
+                    help="also write knit/weave patches with explicit fibers (the close-up's ply swept along every "
+                         "ply curve; millions of curve keys)")
     ap.add_argument("--check", action="store_true",
                     help="with --render: fail unless every image is finite (no NaN/Inf) and not black")
     args = ap.parse_args()
@@ -176,6 +234,13 @@ def main() -> int:
                     args.width, args.width)
         patch_scene(os.path.join(args.out, f"weave_{p}.xml"), f"6 x 6 twill of 3-ply {p} yarns", weave, rel,
                     args.width, args.width)
+        if args.explicit_patches:
+            layout = fiber_layout(fibers)
+            for kind, plies in (("knit", knit), ("weave", weave)):
+                name = os.path.join(args.out, f"{kind}_{p}_fibers.xml")
+                patch_scene(name, f"{kind} of 3-ply {p} yarns, explicit fibers", plies, rel, args.width, args.width,
+                            fibers=layout)
+                scenes.append((name, args.width, args.width))
         scenes += [(fibers, args.width, args.height), (yarn, args.width, args.height),
                    (os.path.join(args.out, f"knit_{p}.xml"), args.width, args.width),
                    (os.path.join(args.out, f"weave_{p}.xml"), args.width, args.width)]
