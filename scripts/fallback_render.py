@@ -18,7 +18,6 @@ before writing. Exits 1 with a message on a scene it cannot read.
 from __future__ import annotations
 
 import argparse
-import glob
 import importlib.util
 import math
 import os
@@ -37,17 +36,11 @@ def floats(text: str) -> np.ndarray:
 
 
 def load_addon():
-    for path in glob.glob(os.path.join(bpy.utils.system_resource("PYTHON"), "lib", "python3*", "site-packages")):
-        if path not in sys.path:
-            sys.path.append(path)  # oslquery, for the OSL script node
-    addon = os.path.join(ROOT, "addon")
-    spec = importlib.util.spec_from_file_location("neural_yarn", os.path.join(addon, "__init__.py"),
-                                                  submodule_search_locations=[addon])
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["neural_yarn"] = module
-    spec.loader.exec_module(module)
-    module.register()
-    return module
+    """The add-on of this checkout (addon/), registered, through addon/batch.py's own loader."""
+    spec = importlib.util.spec_from_file_location("_neural_yarn_batch", os.path.join(ROOT, "addon", "batch.py"))
+    batch = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(batch)
+    return batch.addon_module()
 
 
 def build(xml_path: str, preset: str, body: str, samples: int, seed: int):
