@@ -10,9 +10,10 @@ Two interchangeable bodies, both driven by the model file's view-dependent "fall
   bilinearly between cell centres (Linear + Extend, exactly the OSL shader's lookup), and the same
   built-in closures with the same weights and roughnesses:
 
-      P_T transparent + Tint (E_R hair_reflection_R + E_M_up (k hair_reflection_M + (1 - k) diffuse)
-                              + E_M_down translucent),  transparent on back faces.
+      P_T transparent + Tint sum_k W_k lobe_k,  transparent on back faces,
 
+with the lobes GGX reflections about the surface fibers' tangent (Glossy BSDF, GGX, anisotropic),
+diffuse and translucent, and their RGB weights W_k fitted per view to the model (model/fallback.h).
 Both return, under uniform light, the model's albedo for every view (tests/addon/). The native closure of
 a patched Cycles replaces the whole group (cycles_patch/).
 """
@@ -203,16 +204,12 @@ def build_nodes(tree, model: model_io.YarnModel, tilt: float) -> None:
     g_in, g_out = _clear(tree)
     fb = model.fallback
     gen = resources.osl_generator()
-    sc = fb.scalars
-    r1_R, r2_R = gen.hair_roughness(float(sc["beta_R_rad"]), None)
-    r1_M, r2_M = gen.hair_roughness(float(sc["beta_M_rad"]), float(sc["gamma_M_rad"]))
-    kappa_up = float(sc["kappa_M_up"])
     key = _key(model)
-    images = {
-        name: table_image(f"{key} {name}", values, fb.theta_bins, fb.phi_bins, channels)
-        for name, values, channels in (("P_T", fb.P_T, 1), ("E_R", fb.E_R, 3), ("E_M_up", fb.E_M_up, 3),
-                                       ("E_M_down", fb.E_M_down, 3))
-    }
+    K = len(fb.lobes)
+    cells = fb.theta_bins * fb.phi_bins
+    p_t = table_image(f"{key} P_T", fb.P_T, fb.theta_bins, fb.phi_bins, 1)
+    weights = [table_image(f"{key} W{k}", [fb.W[(c * K + k) * 3 + ch] for c in range(cells) for ch in range(3)],
+                           fb.theta_bins, fb.phi_bins, 3) for k in range(K)]
 
     g = _Graph(tree)
     geo = g.node("ShaderNodeNewGeometry", x=-200.0)
@@ -237,52 +234,44 @@ def build_nodes(tree, model: model_io.YarnModel, tilt: float) -> None:
     g.feed(uv.inputs[0], g.math("ADD", g.math("MULTIPLY", phi, 1.0 / math.pi), 0.5))
     g.feed(uv.inputs[1], g.math("ADD", g.math("MULTIPLY", theta, 1.0 / math.pi), 0.5))
     g.column = 5
-    tex = {}
-    for k, (name, img) in enumerate(images.items()):
+    tex = []
+    for k, img in enumerate([p_t] + weights):
         node = g.node("ShaderNodeTexImage", y=-300.0 * k, image=img, interpolation="Linear", extension="EXTEND")
         g.feed(node.inputs["Vector"], uv.outputs[0])
-        tex[name] = node.outputs["Color"]
+        tex.append(node.outputs["Color"])
 
-    # Surface-fiber frame: t_f = cos(tilt) t - sin(tilt) y; the view's azimuth about t_f from n.
+    # The surface fibers' tangent t_f = cos(tilt) t - sin(tilt) y: the GGX lobes' alpha_x runs along it.
     ct, st = math.cos(tilt), math.sin(tilt)
     g.column = 6
     t_f = g.vmath("NORMALIZE", g.vmath("SUBTRACT", g.vmath("SCALE", t, scale=ct), g.vmath("SCALE", y, scale=st)),
-                  y=-900.0)
-    phi_f = g.math("ARCTAN2", g.math("ADD", g.math("MULTIPLY", wx, st), g.math("MULTIPLY", wy, ct)), wz, y=-1100.0)
-    # ny_azimuthal_roughness: max(min(r2, (pi/2 - |phi_f|) / pi), 0.001)
-    room = g.math("DIVIDE", g.math("SUBTRACT", math.pi / 2, g.math("ABSOLUTE", phi_f)), math.pi, y=-1100.0)
-    g.column = 7
-    r2R = g.math("MAXIMUM", g.math("MINIMUM", room, r2_R), 0.001, y=-900.0)
-    r2M = g.math("MAXIMUM", g.math("MINIMUM", room, r2_M), 0.001, y=-1100.0)
-
+                  y=-300.0 * (K + 1))
     tint = g_in.outputs[GROUP_INPUT_TINT]
-    g.column = 8
-    c_R = g.vmath("MULTIPLY", tint, tex["E_R"], y=0.0)
-    c_up = g.vmath("MULTIPLY", tint, tex["E_M_up"], y=-300.0)
-    c_down = g.vmath("MULTIPLY", tint, tex["E_M_down"], y=-600.0)
-    g.column = 9
-    c_Mlobe = g.vmath("SCALE", c_up, scale=kappa_up, y=-300.0)
-    c_diff = g.vmath("SCALE", c_up, scale=1.0 - kappa_up, y=-450.0)
+    body = None
+    for k, lobe in enumerate(fb.lobes):
+        g.column = 7
+        color = g.vmath("MULTIPLY", tint, tex[k + 1], y=-300.0 * k)
+        g.column = 8
+        if lobe["closure"] == "ggx":
+            roughness, anisotropy = gen.glossy_node_inputs(lobe["alpha_x"], lobe["alpha_y"])
+            node = g.bsdf("ShaderNodeBsdfAnisotropic", color, y=-300.0 * k, Roughness=roughness,
+                          Anisotropy=anisotropy, Rotation=0.0, Tangent=t_f)
+            node.distribution = "GGX"
+        else:
+            node = g.bsdf("ShaderNodeBsdfDiffuse" if lobe["closure"] == "diffuse" else "ShaderNodeBsdfTranslucent",
+                          color, y=-300.0 * k)
+        g.column = 9
+        body = node.outputs[0] if body is None else g.add(body, node.outputs[0], y=-300.0 * k)
     g.column = 10
-    R = g.bsdf("ShaderNodeBsdfHair", c_R, y=0.0, Offset=0.0, RoughnessU=r1_R, RoughnessV=r2R, Tangent=t_f)
-    R.component = "Reflection"
-    M = g.bsdf("ShaderNodeBsdfHair", c_Mlobe, y=-300.0, Offset=0.0, RoughnessU=r1_M, RoughnessV=r2M, Tangent=t_f)
-    M.component = "Reflection"
-    diff = g.bsdf("ShaderNodeBsdfDiffuse", c_diff, y=-600.0)
-    trans = g.bsdf("ShaderNodeBsdfTranslucent", c_down, y=-800.0)
-    clear = g.bsdf("ShaderNodeBsdfTransparent", tex["P_T"], y=-1000.0)
-    g.column = 11
-    body = g.add(g.add(R.outputs[0], M.outputs[0]), g.add(diff.outputs[0], trans.outputs[0], y=-400.0))
-    g.column = 12
+    clear = g.bsdf("ShaderNodeBsdfTransparent", tex[0], y=-300.0 * K)
     front = g.add(body, clear.outputs[0])
     # The thick curve's inside is transparent, as in the native closure.
     back = g.node("ShaderNodeBsdfTransparent", y=-400.0)
-    g.column = 13
+    g.column = 11
     mix = g.node("ShaderNodeMixShader")
     g.feed(mix.inputs["Fac"], geo.outputs["Backfacing"])
     tree.links.new(front, mix.inputs[1])
     tree.links.new(back.outputs[0], mix.inputs[2])
-    g_out.location = (200.0 * 14, 0.0)
+    g_out.location = (200.0 * 12, 0.0)
     tree.links.new(mix.outputs[0], g_out.inputs[GROUP_OUTPUT])
 
 

@@ -15,9 +15,12 @@ import math
 import os
 from dataclasses import dataclass
 
+from . import resources
+
 FORMAT = "neuralyarn-model"
 SUPPORTED_VERSIONS = (2,)
-FALLBACK_VERSION = 1
+FALLBACK_VERSION = 2
+FALLBACK_MAX_WEIGHT = 100.0
 PRESETS = ("fleece", "silk", "polyester", "cotton", "gabardine")
 #: Model files are a few hundred KB; anything beyond this is not a model and is refused before parsing.
 MAX_MODEL_BYTES = 64 * 1024 * 1024
@@ -42,6 +45,8 @@ class FallbackTables:
     E_R: list  # theta_bins * phi_bins * 3
     E_M_up: list
     E_M_down: list
+    lobes: list  # [{"closure": "ggx", "alpha_x", "alpha_y"} | {"closure": "diffuse" | "translucent"}]
+    W: list  # theta_bins * phi_bins * len(lobes) * 3: the lobes' fitted RGB weights
     scalars: dict  # beta_R_rad, twist_tilt_rad, beta_M_rad, gamma_M_rad, kappa_M, ...
 
 
@@ -91,6 +96,10 @@ def _fallback_tables(data: dict, where: str) -> FallbackTables:
     if not (isinstance(tb, int) and isinstance(pb, int) and 2 <= tb <= 1024 and 2 <= pb <= 1024):
         raise _fail(where, f"fallback bins must be integers in [2, 1024] (got {tb!r} x {pb!r})")
     cells = tb * pb
+    try:
+        lobes = resources.osl_generator().parse_lobes(fb)  # one validation, shared with the OSL generator
+    except ValueError as e:
+        raise _fail(where, str(e)) from None
     scalars = {k: v for k, v in fb.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
     for k, v in scalars.items():
         if not math.isfinite(v):
@@ -102,6 +111,8 @@ def _fallback_tables(data: dict, where: str) -> FallbackTables:
         E_R=_finite_list(fb.get("E_R"), 3 * cells, "E_R", where, 0.0, 1.5),
         E_M_up=_finite_list(fb.get("E_M_up"), 3 * cells, "E_M_up", where, 0.0, 1.5),
         E_M_down=_finite_list(fb.get("E_M_down"), 3 * cells, "E_M_down", where, 0.0, 1.5),
+        lobes=lobes,
+        W=_finite_list(fb.get("W"), 3 * len(lobes) * cells, "W", where, 0.0, FALLBACK_MAX_WEIGHT),
         scalars=scalars,
     )
 
@@ -172,4 +183,5 @@ def fallback_lookup(tables: FallbackTables, theta: float, phi: float) -> dict:
         "E_R": [lerp(tables.E_R, 3, c) for c in range(3)],
         "E_M_up": [lerp(tables.E_M_up, 3, c) for c in range(3)],
         "E_M_down": [lerp(tables.E_M_down, 3, c) for c in range(3)],
+        "W": [[lerp(tables.W, 3 * len(tables.lobes), 3 * k + c) for c in range(3)] for k in range(len(tables.lobes))],
     }

@@ -8,8 +8,8 @@ receives them as constant arrays. Standard library only; importable (generate_os
 
     python3 osl/generate_osl.py models/fleece.json -o fleece_fallback.osl
 
-The mapping of the model's lobe widths to Cycles' hair_reflection roughnesses is documented in
-osl/README.md and in the template's header; hair_roughness() below is its single implementation.
+What the shader computes (P_T transparent() plus the fitted weights of built-in GGX, diffuse and
+translucent lobes) is documented in osl/README.md and in the template's header.
 """
 
 from __future__ import annotations
@@ -23,36 +23,57 @@ import struct
 import sys
 
 TEMPLATE_NAME = "neural_yarn_fallback.osl.in"
-FALLBACK_VERSION = 1
+FALLBACK_VERSION = 2
 MAX_ENERGY = 1.5
+MAX_WEIGHT = 100.0
 MAX_BINS = 1024
-
-# Cycles clamps hair_reflection's roughnesses to [0.001, 1]; above an azimuthal roughness of 0.5 its eval
-# cuts |dphi| > 90 degrees and its sampler does not, so the fallback stays at or below 0.5.
-ROUGHNESS_MIN = 0.001
-AZIMUTHAL_ROUGHNESS_MAX = 0.5
-# Half width at half maximum of a Gaussian of width beta: beta sqrt(2 ln 2). hair_reflection's
-# longitudinal lobe is a Cauchy of width r1 in the half angle, 2 r1 in theta_o: r1 = beta sqrt(2 ln 2) / 2.
-LONGITUDINAL_FACTOR = math.sqrt(2.0 * math.log(2.0)) / 2.0
-# Standard deviation of hair_reflection's azimuth cos(dphi / (2 r2)) / (4 r2) on |dphi| < pi r2:
-# 2 r2 sqrt(pi^2 / 4 - 2) = 1.3673 r2; a von Mises of width gamma has standard deviation ~gamma.
-AZIMUTHAL_STD_PER_R2 = 2.0 * math.sqrt(math.pi ** 2 / 4.0 - 2.0)
+MAX_LOBES = 8
+# Cycles clamps GGX roughness to [0, 1]; the fit (model/fallback.h) keeps alpha in [0.001, 1].
+ALPHA_MIN, ALPHA_MAX = 0.001, 1.0
+CLOSURES = ("ggx", "diffuse", "translucent")
 
 
 def _template_path() -> str:
     return os.path.join(os.path.dirname(os.path.abspath(__file__)), TEMPLATE_NAME)
 
 
-def hair_roughness(beta_rad: float, gamma_rad: float | None) -> tuple[float, float]:
-    """(roughness1, roughness2) of Cycles' hair_reflection for a lobe of longitudinal width beta and
-    azimuthal width gamma (radians); gamma None: as wide as Cycles allows (the R lobe, whose azimuth is
-    uniform over the upper half)."""
-    r1 = min(max(beta_rad * LONGITUDINAL_FACTOR, ROUGHNESS_MIN), 1.0)
-    if gamma_rad is None:
-        r2 = AZIMUTHAL_ROUGHNESS_MAX
-    else:
-        r2 = min(max(gamma_rad / AZIMUTHAL_STD_PER_R2, ROUGHNESS_MIN), AZIMUTHAL_ROUGHNESS_MAX)
-    return r1, r2
+def parse_lobes(fb: dict) -> list[dict]:
+    """The fallback's built-in lobes ("lobes": {"closure": "ggx", "alpha_x", "alpha_y"} | {"closure":
+    "diffuse"} | {"closure": "translucent"}), validated."""
+    lobes = fb.get("lobes")
+    if not isinstance(lobes, list) or not 1 <= len(lobes) <= MAX_LOBES:
+        raise ValueError(f"fallback: 'lobes' must be a list of 1 to {MAX_LOBES} lobes")
+    out = []
+    for i, lobe in enumerate(lobes):
+        if not isinstance(lobe, dict) or lobe.get("closure") not in CLOSURES:
+            raise ValueError(f"fallback: lobe {i} must be an object whose 'closure' is one of {', '.join(CLOSURES)}")
+        item = {"closure": lobe["closure"]}
+        if lobe["closure"] == "ggx":
+            for key in ("alpha_x", "alpha_y"):
+                x = lobe.get(key)
+                if not _is_number(x) or not math.isfinite(x) or not ALPHA_MIN <= x <= ALPHA_MAX:
+                    raise ValueError(f"fallback: lobe {i} '{key}' must be a number in [{ALPHA_MIN:g}, {ALPHA_MAX:g}], "
+                                     f"got {x!r}")
+                item[key] = float(x)
+        out.append(item)
+    return out
+
+
+def glossy_node_inputs(alpha_x: float, alpha_y: float) -> tuple[float, float]:
+    """(Roughness, Anisotropy) of Blender's Glossy/Anisotropic BSDF node (GGX, tangent linked) that gives
+    Cycles' alpha_x along the tangent and alpha_y across, alpha_x <= alpha_y: Cycles squares the roughness
+    (r = Roughness^2) and sets alpha_x = r (1 - a), alpha_y = r / (1 - a) for anisotropy a >= 0."""
+    if alpha_x > alpha_y:
+        raise ValueError("glossy_node_inputs: alpha_x must not exceed alpha_y")
+    r = math.sqrt(alpha_x * alpha_y)
+    return math.sqrt(r), 1.0 - math.sqrt(alpha_x / alpha_y)
+
+
+def osl_closure(lobe: dict) -> str:
+    """The OSL closure call of a lobe, in the shader's frame (n, t_f)."""
+    if lobe["closure"] == "ggx":
+        return f'microfacet("ggx", n, t_f, {_osl_float(lobe["alpha_x"])}, {_osl_float(lobe["alpha_y"])}, 1.0, 0)'
+    return f'{lobe["closure"]}(n)'
 
 
 def _fnv1a64_hex(values) -> str:
@@ -136,14 +157,11 @@ def generate_osl(model: dict, *, shader_name: str | None = None) -> str:
     nt, np_ = bins
     n = nt * np_
     p_t = _table(fb, "P_T", n, 0.0, 1.0)
-    e_r = _table(fb, "E_R", 3 * n, 0.0, MAX_ENERGY)
-    e_up = _table(fb, "E_M_up", 3 * n, 0.0, MAX_ENERGY)
-    e_down = _table(fb, "E_M_down", 3 * n, 0.0, MAX_ENERGY)
-    beta_R = _scalar(fb, "beta_R_rad", 1e-6, math.pi)
-    beta_M = _scalar(fb, "beta_M_rad", 1e-6, 10.0 * math.pi)
-    gamma_M = _scalar(fb, "gamma_M_rad", 1e-6, 1e3)
+    for key in ("E_R", "E_M_up", "E_M_down"):  # the energies: checked, used by the tests and the docs
+        _table(fb, key, 3 * n, 0.0, MAX_ENERGY)
+    lobes = parse_lobes(fb)
+    w = _table(fb, "W", 3 * len(lobes) * n, 0.0, MAX_WEIGHT)
     tilt = _scalar(fb, "twist_tilt_rad", -0.5 * math.pi, 0.5 * math.pi)
-    kappa_M_up = _scalar(fb, "kappa_M_up", 0.0, 1.0)
 
     # Tables left stale by a later change of the model (the C++ loader refuses them too).
     digest = fb.get("kernel_flat_fnv1a64")
@@ -164,8 +182,9 @@ def generate_osl(model: dict, *, shader_name: str | None = None) -> str:
     preset = model.get("preset") if isinstance(model.get("preset"), dict) else {}
     preset_name = str(preset.get("name", "model"))
     name = _identifier(shader_name if shader_name is not None else "neural_yarn_fallback_" + preset_name)
-    r1_R, r2_R = hair_roughness(beta_R, None)
-    r1_M, r2_M = hair_roughness(beta_M, gamma_M)
+    lobe_sum = "\n                                       + ".join(
+        f"ny_weight(W, {k}, k00, k01, k10, k11, w00, w01, w10, w11) * {osl_closure(lobe)}"
+        for k, lobe in enumerate(lobes))
 
     with open(_template_path(), encoding="utf-8") as f:
         text = f.read()
@@ -179,15 +198,11 @@ def generate_osl(model: dict, *, shader_name: str | None = None) -> str:
         "CELLS": str(n),
         "CELLS_RGB": str(3 * n),
         "P_T": _format_list(p_t, 6),
-        "E_R": _format_list(e_r, 6),
-        "E_M_UP": _format_list(e_up, 6),
-        "E_M_DOWN": _format_list(e_down, 6),
+        "LOBES": str(len(lobes)),
+        "CELLS_LOBES_RGB": str(len(w)),
+        "W": _format_list(w, 6),
         "TWIST_TILT_RAD": _osl_float(tilt),
-        "KAPPA_M_UP": _osl_float(kappa_M_up),
-        "R1_R": _osl_float(r1_R),
-        "R2_R": _osl_float(r2_R),
-        "R1_M": _osl_float(r1_M),
-        "R2_M": _osl_float(r2_M),
+        "LOBE_SUM": lobe_sum,
     }
 
     def fill(m: re.Match) -> str:

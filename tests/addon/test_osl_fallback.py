@@ -71,18 +71,24 @@ def test_generator_refuses_a_model_without_fallback(silk):
 
 
 @pytest.mark.parametrize("edit, message", [
-    (lambda fb: fb.__setitem__("version", 2), r"fallback: version 2 is not supported"),
+    (lambda fb: fb.__setitem__("version", 1), r"fallback: version 1 is not supported"),
     (lambda fb: fb["P_T"].pop(), r"'P_T' has 323 values, expected 324"),
     (lambda fb: fb.__setitem__("theta_bins", 17), r"'P_T' has 324 values, expected 306"),
     (lambda fb: fb["E_R"].__setitem__(5, float("nan")), r"'E_R' entry 5 = nan is outside"),
     (lambda fb: fb["E_M_up"].__setitem__(7, None), r"'E_M_up' entry 7 is not a number"),
     (lambda fb: fb["P_T"].__setitem__(0, 1.2), r"'P_T' entry 0 = 1.2 is outside \[0, 1\]"),
     (lambda fb: fb["E_M_down"].__setitem__(1, -0.01), r"'E_M_down' entry 1 = -0.01 is outside \[0, 1.5\]"),
-    (lambda fb: fb.__setitem__("kappa_M_up", float("inf")), r"'kappa_M_up' must be a finite number"),
-    (lambda fb: fb.pop("beta_R_rad"), r"'beta_R_rad' must be a finite number"),
+    (lambda fb: fb.__setitem__("twist_tilt_rad", float("inf")), r"'twist_tilt_rad' must be a finite number"),
+    (lambda fb: fb.pop("twist_tilt_rad"), r"'twist_tilt_rad' must be a finite number"),
+    (lambda fb: fb["W"].pop(), r"'W' has 5831 values, expected 5832"),
+    (lambda fb: fb["W"].__setitem__(9, -1.0), r"'W' entry 9 = -1.0 is outside \[0, 100\]"),
+    (lambda fb: fb["lobes"][0].__setitem__("alpha_x", 0.0), r"lobe 0 'alpha_x' must be a number in \[0.001, 1\]"),
+    (lambda fb: fb["lobes"][4].__setitem__("closure", "hair"), r"lobe 4 must be an object whose 'closure' is one of"),
+    (lambda fb: fb.__setitem__("lobes", []), r"'lobes' must be a list of 1 to 8 lobes"),
     (lambda fb: fb.__setitem__("phi_bins", "18"), r"'phi_bins' must be an integer"),
     (lambda fb: fb.__setitem__("kernel_flat_fnv1a64", "0123456789abcdef"), r"computed for another model"),
-], ids=["version", "short", "bins", "nan", "null", "pt_above_one", "negative", "inf_scalar", "missing_scalar",
+], ids=["version", "short", "bins", "nan", "null", "pt_above_one", "negative", "inf_scalar", "missing_scalar", "short_W",
+            "negative_W", "alpha", "closure", "no_lobes",
         "string_bins", "stale"])
 def test_generator_refuses_corrupt_tables(silk, edit, message):
     m = copy.deepcopy(silk)
@@ -111,9 +117,26 @@ def test_generator_fills_the_template(silk):
     body = src[src.index("float P_T[324] = {") + len("float P_T[324] = {"):]
     values = [float(x) for x in body[:body.index("}")].replace("\n", " ").split(",")]
     assert values == [float("%.9g" % v) for v in fb["P_T"]]
-    r1, r2 = generate_osl.hair_roughness(fb["beta_R_rad"], None)
-    assert math.isclose(r1, fb["beta_R_rad"] * math.sqrt(2 * math.log(2)) / 2) and r2 == 0.5
-    assert generate_osl.hair_roughness(1e-9, 1e-9) == (0.001, 0.001)  # Cycles' clamp
+    body = src[src.index("float W[5832] = {") + len("float W[5832] = {"):]
+    values = [float(x) for x in body[:body.index("}")].replace("\n", " ").split(",")]
+    assert values == [float("%.9g" % v) for v in fb["W"]]
+    # One weighted closure per lobe, in the tables' order, with the lobes' roughnesses.
+    calls = re.findall(r"ny_weight\(W, (\d+), [^)]*\) \* (\w+)\(([^)]*)\)", src)
+    assert [int(k) for k, _, _ in calls] == list(range(len(fb["lobes"])))
+    for (_, closure, args), lobe in zip(calls, fb["lobes"]):
+        if lobe["closure"] == "ggx":
+            assert closure == "microfacet"
+            ax, ay = (float(a) for a in args.split(", ")[3:5])
+            assert math.isclose(ax, lobe["alpha_x"], rel_tol=1e-8) and math.isclose(ay, lobe["alpha_y"], rel_tol=1e-8)
+        else:
+            assert closure == lobe["closure"] and args == "n"
+    assert [lobe["closure"] for lobe in fb["lobes"]] == ["ggx"] * 4 + ["diffuse", "translucent"]
+    # The Glossy node's (Roughness, Anisotropy) give Cycles' alphas back (roughness squared, then split).
+    for ax, ay in ((0.016, 1.0), (0.3, 0.3), (0.001, 1.0)):
+        rough, aniso = generate_osl.glossy_node_inputs(ax, ay)
+        r = rough * rough
+        assert math.isclose(r * (1 - aniso), ax, rel_tol=1e-9) and math.isclose(r / (1 - aniso), ay, rel_tol=1e-9)
+        assert 0.0 <= aniso <= 0.99
 
 
 def test_generator_command_line(tmp_path):
@@ -302,6 +325,11 @@ def test_fallback_renders_the_tables(bpy, addon, body, preset, tmp_path, request
     print(f"{preset}: mean luminance on the curve {lum(furnace):.4f} (grey world), {lum(lit):.4f} (+ point light)")
     assert lum(lit) > 1.2 * lum(furnace), "the point light does not light the curve"
 
+    # Colour: the tables' energies. Blender 3.x's Cycles evaluates GGX with the separable Smith masking
+    # G1(i) G1(o) (4.0 changed it to the height-correlated form the weights were fitted with,
+    # model/cycles_lobes.h), which reflects a few per cent less: there the stock-node body is darker by
+    # a measured up to 7.3 % (of value + 0.02), a 3.x limit documented in osl/README.md.
+    colour_tol = 0.04 if bpy.app.version >= (4, 0, 0) else 0.10
     rows = [r for r in range(RES) if abs(scene.row_height(r)) < 0.9 * RADIUS]
     assert len(rows) >= 20
     worst_alpha = worst_rel = 0.0
@@ -320,7 +348,7 @@ def test_fallback_renders_the_tables(bpy, addon, body, preset, tmp_path, request
             expect = WORLD * sum(lookup(fb, k, theta, phi, c) for k in ("E_R", "E_M_up", "E_M_down"))
             worst_rel = max(worst_rel, abs(got[c] - expect) / (expect + 0.02))
             # Measured: within 2.3 % of (value + 0.02) (gabardine; cotton 0.13 %), 768 samples per row.
-            assert got[c] == pytest.approx(expect, rel=0.04, abs=0.002), f"row {r} (phi {math.degrees(phi):.0f}) channel {c}"
+            assert got[c] == pytest.approx(expect, rel=colour_tol, abs=0.002), f"row {r} (phi {math.degrees(phi):.0f}) channel {c}"
 
     # Close-up of the upper silhouette: rows from phi = -50 to -90 degrees.
     scene.frame(0.0885, 0.03)

@@ -21,6 +21,7 @@
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/calibration.h"
+#include "neuralyarn/model/cycles_lobes.h"
 #include "neuralyarn/model/fallback.h"
 #include "neuralyarn/model/model.h"
 #include "quadrature.h"
@@ -265,7 +266,9 @@ TEST(Fallback, RoundTripsThroughTheModelFileAndBadTablesAreRejected)
 
   const nlohmann::json j = model::model_to_json(m);
   ASSERT_TRUE(j.contains("fallback"));
-  EXPECT_EQ(j["fallback"]["version"], 1);
+  EXPECT_EQ(j["fallback"]["version"], 2);
+  EXPECT_EQ(a.W, b.W);
+  ASSERT_EQ(b.lobes.size(), 6u);
   EXPECT_EQ(j["fallback"]["theta_range_deg"], nlohmann::json({-90, 90}));
   auto expect_error = [&](const std::string &name, const nlohmann::json &v, const std::string &needle) {
     const std::string path = (dir / name).string();
@@ -300,8 +303,14 @@ TEST(Fallback, RoundTripsThroughTheModelFileAndBadTablesAreRejected)
   v["fallback"]["E_R"][2] = 1e39;
   expect_error("huge.json", v, "'E_R' entry 2");
   v = j;
-  v["fallback"]["version"] = 2;
-  expect_error("version.json", v, "version 2 is not supported");
+  v["fallback"]["version"] = 1;
+  expect_error("version.json", v, "version 1 is not supported");
+  v = j;
+  v["fallback"]["W"][11] = -0.5;
+  expect_error("weight.json", v, "'W' entry 11 = -0.5 is outside [0, 100]");
+  v = j;
+  v["fallback"]["lobes"][0]["alpha_x"] = 0.5;
+  expect_error("lobes.json", v, "'lobes' must be");
   v = j;
   v["fallback"].erase("E_M_down");
   expect_error("missing.json", v, "missing array 'E_M_down'");
@@ -336,10 +345,115 @@ TEST(Fallback, ShippedModelsCarryCurrentTables)
     for (size_t k = 0; k < f.P_T.size(); k++) {
       EXPECT_NEAR(m.fallback->P_T[k], f.P_T[k], 1e-6) << preset;
     }
+    ASSERT_EQ(m.fallback->W.size(), f.W.size());
+    for (size_t k = 0; k < f.W.size(); k++) {
+      EXPECT_NEAR(m.fallback->W[k], f.W[k], 1e-5 * std::max(1.0f, f.W[k])) << preset;
+    }
     for (size_t k = 0; k < f.E_R.size(); k++) {
       EXPECT_NEAR(m.fallback->E_R[k], f.E_R[k], 1e-6) << preset;
       EXPECT_NEAR(m.fallback->E_M_up[k], f.E_M_up[k], 1e-6) << preset;
       EXPECT_NEAR(m.fallback->E_M_down[k], f.E_M_down[k], 1e-6) << preset;
     }
+  }
+}
+
+/* The host copy of Cycles' GGX (model/cycles_lobes.h): its importance-sampled albedo equals a brute
+ * midpoint quadrature of its eval over the hemisphere, for a narrow anisotropic lobe (silk's R), a
+ * medium one and an isotropic rough one, at normal, oblique and grazing views; the diffuse and
+ * translucent lobes integrate to 1 over their hemispheres. */
+TEST(Fallback, CyclesLobesAreNormalisedAsCyclesEvaluatesThem)
+{
+  namespace cl = model::cycles_lobes;
+  const int nt = 2048, np = 1024;
+  auto quad = [&](auto f) {
+    double s = 0.0;
+    for (int a = 0; a < nt; a++) {
+      const double th = 0.5 * kPi * (a + 0.5) / nt; /* polar angle from N */
+      const double dw = std::sin(th) * (0.5 * kPi / nt) * (2.0 * kPi / np);
+      for (int b = 0; b < np; b++) {
+        const double ph = 2.0 * kPi * (b + 0.5) / np;
+        s += f(cl::Dir{std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th)}) * dw;
+      }
+    }
+    return s;
+  };
+  for (const auto &[ax, ay] : {std::pair{0.05, 1.0}, std::pair{0.2, 0.6}, std::pair{0.8, 0.8}}) {
+    for (const cl::Dir &v : {cl::Dir{0.0, 0.0, 1.0}, cl::Dir{0.5, 0.3, std::sqrt(0.66)},
+                             cl::Dir{0.2, -0.95, std::sqrt(1.0 - 0.04 - 0.9025)}}) {
+      const double ref = quad([&](const cl::Dir &o) { return cl::ggx_eval(ax, ay, v, o); });
+      const double is = cl::ggx_albedo(ax, ay, v);
+      /* Both converge well below this (the quadrature resolves alpha_x = 0.05 with ~40 cells). */
+      EXPECT_NEAR(is, ref, 0.003) << "alpha " << ax << " x " << ay << ", view z " << v.z;
+      EXPECT_GT(is, 0.2);
+      EXPECT_LE(is, 1.0);
+    }
+  }
+  EXPECT_NEAR(quad([](const cl::Dir &o) { return cl::diffuse_eval(o); }), 1.0, 1e-5);
+  EXPECT_NEAR(quad([](const cl::Dir &o) { return cl::translucent_eval(cl::Dir{o.x, o.y, -o.z}); }), 1.0, 1e-5);
+}
+
+/* The fitted weights (version 2): under uniform light the fallback returns the view's R + M albedo
+ * (sum_k W_k albedo_k = E_R + E_M_up + E_M_down), and the fit follows the model's shape: over the light
+ * directions its relative error is far below that of the same energy spread by the model's own sampling
+ * lobes' Cycles counterparts of version 1 would give; measured on silk at the cells of kCells. */
+TEST(Fallback, FittedWeightsKeepTheEnergyAndFollowTheModel)
+{
+  namespace cl = model::cycles_lobes;
+  const model::YarnModel m = model::load_model(model::builtin_model_path("silk"));
+  ASSERT_TRUE(m.fallback.has_value());
+  const model::FallbackTables &f = *m.fallback;
+  const std::vector<float> flat = m.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  const size_t K = f.lobes.size();
+  for (const auto &[i, j] : kCells) {
+    const size_t k = size_t(i) * size_t(f.phi_bins) + size_t(j);
+    const ny::Vec3 wv = view(f, i, j);
+    const ny::Vec3 vf = ny::yarn_to_surface_fiber(p.twist, wv);
+    const cl::Dir v{vf.x, vf.y, vf.z};
+    auto lobe_eval = [&](size_t q, const cl::Dir &o) {
+      const model::FallbackLobe &L = f.lobes[q];
+      return L.closure == "ggx" ? cl::ggx_eval(L.alpha_x, L.alpha_y, v, o)
+             : L.closure == "diffuse" ? cl::diffuse_eval(o) : cl::translucent_eval(o);
+    };
+    for (int c = 0; c < 3; c++) {
+      const double E = double(f.E_R[k * 3 + size_t(c)]) + f.E_M_up[k * 3 + size_t(c)] + f.E_M_down[k * 3 + size_t(c)];
+      double sum = 0.0;
+      for (size_t q = 0; q < K; q++) {
+        const double a = f.lobes[q].closure == "ggx" ? cl::ggx_albedo(f.lobes[q].alpha_x, f.lobes[q].alpha_y, v) : 1.0;
+        sum += double(f.W[(k * K + q) * 3 + size_t(c)]) * a;
+      }
+      /* The constraint row weighs 10^4 times the fit: it holds to float rounding of the weights. */
+      EXPECT_NEAR(sum, E, 1e-3 * E + 1e-6) << "cell " << i << "," << j << " channel " << c;
+    }
+    /* Shape, red channel: mean |fallback - S| / (S + eps) over the sphere, against the same energy in the
+     * diffuse + translucent lobes only (the up / down split of the model). */
+    const ny::YarnLobes l = ny::yarn_lobes(p, wv);
+    const double E = double(f.E_R[k * 3]) + f.E_M_up[k * 3] + f.E_M_down[k * 3];
+    const double up = double(f.E_R[k * 3]) + f.E_M_up[k * 3], down = f.E_M_down[k * 3];
+    const double eps = 0.1 * E / (4.0 * kPi);
+    double err_fit = 0.0, err_flat = 0.0, total = 0.0;
+    const int nt = 256, np = 128;
+    for (int a = 0; a < nt; a++) {
+      const double th = -0.5 * kPi + kPi * (a + 0.5) / nt;
+      for (int b = 0; b < np; b++) {
+        const double ph = -kPi + 2.0 * kPi * (b + 0.5) / np;
+        const double dw = std::cos(th) * (kPi / nt) * (2.0 * kPi / np);
+        const cl::Dir o{std::sin(th), std::cos(th) * std::sin(ph), std::cos(th) * std::cos(ph)};
+        const ny::Vec3 wo = ny::surface_fiber_to_yarn(p.twist, ny::make_vec3(float(o.x), float(o.y), float(o.z)));
+        const double S = ny::yarn_eval_lobes(p, l, wo).r;
+        double fit = 0.0;
+        for (size_t q = 0; q < K; q++) {
+          fit += double(f.W[(k * K + q) * 3]) * lobe_eval(q, o);
+        }
+        const double flat_lobes = up * cl::diffuse_eval(o) + down * cl::translucent_eval(o);
+        err_fit += std::abs(fit - S) / (S + eps) * dw;
+        err_flat += std::abs(flat_lobes - S) / (S + eps) * dw;
+        total += dw;
+      }
+    }
+    err_fit /= total;
+    err_flat /= total;
+    EXPECT_LT(err_fit, 0.5 * err_flat) << "cell " << i << "," << j << ": relative error " << err_fit << " vs "
+                                       << err_flat;
   }
 }

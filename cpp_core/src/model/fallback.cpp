@@ -7,10 +7,12 @@
 #include <cstdlib>
 #include <cstring>
 
+#include <Eigen/Dense>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/model/cycles_lobes.h"
 #include "neuralyarn/model/model.h"
 
 namespace neuralyarn::model {
@@ -61,6 +63,123 @@ void m_energy_split(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, int nt,
       e[2] += v.b * dO;
     }
   }
+}
+
+/* Upper bound of a stored lobe weight (the loader's check): a weight is at most the view's energy over a
+ * lobe's albedo, and the lobes' albedos are above ~0.3. */
+constexpr double kMaxWeight = 100.0;
+
+/* Non-negative least squares  min w^T G w - 2 b^T w, w >= 0, for the few lobes of the fallback: every
+ * subset of free variables solved exactly (2^K - 1 small systems), the best feasible one kept. Exact, and
+ * deterministic; K <= 8. */
+Eigen::VectorXd nnls_small(const Eigen::MatrixXd &G, const Eigen::VectorXd &b)
+{
+  const int K = int(b.size());
+  Eigen::VectorXd best = Eigen::VectorXd::Zero(K);
+  double best_obj = 0.0; /* w = 0 */
+  for (int mask = 1; mask < (1 << K); mask++) {
+    std::vector<int> idx;
+    for (int k = 0; k < K; k++) {
+      if (mask >> k & 1) {
+        idx.push_back(k);
+      }
+    }
+    const int n = int(idx.size());
+    Eigen::MatrixXd Gs(n, n);
+    Eigen::VectorXd bs(n);
+    for (int x = 0; x < n; x++) {
+      bs[x] = b[idx[size_t(x)]];
+      for (int y = 0; y < n; y++) {
+        Gs(x, y) = G(idx[size_t(x)], idx[size_t(y)]);
+      }
+    }
+    const Eigen::VectorXd ws = Gs.ldlt().solve(bs);
+    if (!ws.allFinite() || (ws.array() < 0.0).any()) {
+      continue;
+    }
+    Eigen::VectorXd w = Eigen::VectorXd::Zero(K);
+    for (int x = 0; x < n; x++) {
+      w[idx[size_t(x)]] = ws[x];
+    }
+    const double obj = w.dot(G * w) - 2.0 * w.dot(b);
+    if (obj < best_obj) {
+      best_obj = obj;
+      best = w;
+    }
+  }
+  return best;
+}
+
+/* The fitted weights of one view (FallbackTables::W's [lobe][rgb] block), wv in the yarn frame, E the
+ * view's R + M energies (E_R + E_M_up + E_M_down). */
+std::vector<float> fit_view_weights(const ny::YarnBsdfParams &p, const std::vector<FallbackLobe> &lobes,
+                                    ny::Vec3 wv, const double E[3], const FallbackOptions &o)
+{
+  namespace cl = cycles_lobes;
+  const int K = int(lobes.size());
+  const ny::YarnLobes l = ny::yarn_lobes(p, wv);
+  const ny::Vec3 vf = ny::yarn_to_surface_fiber(p.twist, wv); /* (w.t_f, w.(n x t_f), w.n) */
+  const cl::Dir v{vf.x, vf.y, vf.z};
+  std::vector<double> albedo(static_cast<size_t>(K));
+  for (int k = 0; k < K; k++) {
+    const FallbackLobe &L = lobes[size_t(k)];
+    albedo[size_t(k)] = L.closure == "ggx" ? cl::ggx_albedo(L.alpha_x, L.alpha_y, v) : 1.0;
+  }
+  std::vector<Eigen::MatrixXd> G(3, Eigen::MatrixXd::Zero(K, K));
+  std::vector<Eigen::VectorXd> b(3, Eigen::VectorXd::Zero(K));
+  double eps[3];
+  for (int c = 0; c < 3; c++) {
+    eps[c] = std::max(o.fit_rel_eps * E[c] / (4.0 * kPi), 1e-12);
+  }
+  std::vector<double> B(static_cast<size_t>(K));
+  const double dth = kPi / o.fit_theta, dph = 2.0 * kPi / o.fit_phi;
+  for (int a = 0; a < o.fit_theta; a++) {
+    const double th = -0.5 * kPi + (a + 0.5) * dth;
+    const double ct = std::cos(th), st = std::sin(th), dw = ct * dth * dph;
+    for (int q = 0; q < o.fit_phi; q++) {
+      const double ph = -kPi + (q + 0.5) * dph;
+      const cl::Dir w{st, ct * std::sin(ph), ct * std::cos(ph)}; /* the light, surface-fiber frame */
+      const ny::Vec3 wo =
+          ny::surface_fiber_to_yarn(p.twist, ny::make_vec3(float(w.x), float(w.y), float(w.z)));
+      const ny::Rgb S = ny::yarn_eval_lobes(p, l, wo);
+      for (int k = 0; k < K; k++) {
+        const FallbackLobe &L = lobes[size_t(k)];
+        B[size_t(k)] = L.closure == "ggx"       ? cl::ggx_eval(L.alpha_x, L.alpha_y, v, w)
+                       : L.closure == "diffuse" ? cl::diffuse_eval(w)
+                                                : cl::translucent_eval(w);
+      }
+      const double s[3] = {S.r, S.g, S.b};
+      for (int c = 0; c < 3; c++) {
+        const double wt = dw / ((s[c] + eps[c]) * (s[c] + eps[c]));
+        for (int k = 0; k < K; k++) {
+          const double wb = wt * B[size_t(k)];
+          b[size_t(c)][k] += wb * s[c];
+          for (int r = 0; r <= k; r++) {
+            G[size_t(c)](k, r) += wb * B[size_t(r)];
+          }
+        }
+      }
+    }
+  }
+  std::vector<float> out(size_t(K) * 3, 0.0f);
+  Eigen::VectorXd A(K);
+  for (int k = 0; k < K; k++) {
+    A[k] = albedo[size_t(k)];
+  }
+  for (int c = 0; c < 3; c++) {
+    if (!(E[c] > 0.0)) {
+      continue;
+    }
+    Eigen::MatrixXd Gc = G[size_t(c)].selfadjointView<Eigen::Lower>();
+    /* The energy constraint as a row weighing 10^4 times the whole fit. */
+    const double lambda = 1e4 * Gc.trace() / std::max(A.squaredNorm(), 1e-300);
+    Gc += lambda * A * A.transpose();
+    const Eigen::VectorXd w = nnls_small(Gc, b[size_t(c)] + lambda * E[c] * A);
+    for (int k = 0; k < K; k++) {
+      out[size_t(k) * 3 + size_t(c)] = float(std::min(w[k], kMaxWeight));
+    }
+  }
+  return out;
 }
 
 std::string num(double v)
@@ -147,6 +266,20 @@ FallbackTables scalars_of(const std::vector<float> &flat)
 }
 }  // namespace
 
+std::vector<FallbackLobe> fallback_lobes(const FallbackTables &f)
+{
+  /* GGX slope half width at half maximum alpha sqrt(sqrt 2 - 1); theta_o moves twice the half vector. */
+  const double per_beta = std::sqrt(2.0 * std::log(2.0)) / (2.0 * std::sqrt(std::sqrt(2.0) - 1.0));
+  auto alpha = [](double a) { return std::min(std::max(a, 0.001), 1.0); };
+  const double aR = alpha(per_beta * f.beta_R_rad), aM = per_beta * f.beta_M_rad;
+  return {{"ggx", aR, 1.0},
+          {"ggx", alpha(0.5 * aM), 1.0},
+          {"ggx", alpha(aM), 1.0},
+          {"ggx", alpha(2.5 * aM), 1.0},
+          {"diffuse", 0.0, 0.0},
+          {"translucent", 0.0, 0.0}};
+}
+
 double FallbackTables::theta_center(int i) const { return -0.5 * kPi + (i + 0.5) * kPi / theta_bins; }
 double FallbackTables::phi_center(int j) const { return -0.5 * kPi + (j + 0.5) * kPi / phi_bins; }
 
@@ -172,6 +305,9 @@ FallbackTables compute_fallback(const YarnModel &model, const FallbackOptions &o
     throw ModelError("fallback: bins must be in [1, 1024], got " + std::to_string(o.theta_bins) + " x " +
                      std::to_string(o.phi_bins));
   }
+  if (o.fit_theta < 2 || o.fit_phi < 4 || !(o.fit_rel_eps > 0.0)) {
+    throw ModelError("fallback: the weight fit needs at least 2 x 4 light directions and eps > 0");
+  }
   if (o.quad_theta < 2 || o.quad_theta % 2 != 0 || o.quad_phi < 4) {
     throw ModelError("fallback: the M quadrature needs an even number of polar cells and at least 4 azimuths");
   }
@@ -185,6 +321,9 @@ FallbackTables compute_fallback(const YarnModel &model, const FallbackOptions &o
   f.E_R.assign(n * 3, 0.0f);
   f.E_M_up.assign(n * 3, 0.0f);
   f.E_M_down.assign(n * 3, 0.0f);
+  f.lobes = fallback_lobes(f);
+  const size_t K = f.lobes.size();
+  f.W.assign(n * K * 3, 0.0f);
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                             o.threads > 0 ? size_t(o.threads) : tbb::this_task_arena::max_concurrency());
   tbb::parallel_for(0, int(n), [&](int k) {
@@ -201,9 +340,32 @@ FallbackTables compute_fallback(const YarnModel &model, const FallbackOptions &o
       f.E_M_up[size_t(k) * 3 + size_t(c)] = float(std::max(0.0, up[c]));
       f.E_M_down[size_t(k) * 3 + size_t(c)] = float(std::max(0.0, down[c]));
     }
+    double E[3];
+    for (int c = 0; c < 3; c++) {
+      E[c] = double(f.E_R[size_t(k) * 3 + size_t(c)]) + f.E_M_up[size_t(k) * 3 + size_t(c)] +
+             f.E_M_down[size_t(k) * 3 + size_t(c)];
+    }
+    const std::vector<float> w = fit_view_weights(p, f.lobes, wi, E, o);
+    std::copy(w.begin(), w.end(), f.W.begin() + std::ptrdiff_t(size_t(k) * K * 3));
   });
   return f;
 }
+
+namespace {
+json lobes_json(const std::vector<FallbackLobe> &lobes)
+{
+  json a = json::array();
+  for (const FallbackLobe &L : lobes) {
+    json o{{"closure", L.closure}};
+    if (L.closure == "ggx") {
+      o["alpha_x"] = L.alpha_x;
+      o["alpha_y"] = L.alpha_y;
+    }
+    a.push_back(o);
+  }
+  return a;
+}
+}  // namespace
 
 json fallback_to_json(const FallbackTables &f)
 {
@@ -213,11 +375,14 @@ json fallback_to_json(const FallbackTables &f)
               {"theta_range_deg", {-90, 90}},
               {"phi_range_deg", {-90, 90}},
               {"layout", "values at cell centres, row-major [theta][phi] (P_T) and [theta][phi][rgb] (energies); "
-                         "theta = asin(w.x), phi = atan2(w.y, w.z) of the view direction w in the yarn frame"},
+                         "theta = asin(w.x), phi = atan2(w.y, w.z) of the view direction w in the yarn frame; "
+                         "W: [theta][phi][lobe][rgb]"},
               {"P_T", float_list(f.P_T)},
               {"E_R", float_list(f.E_R)},
               {"E_M_up", float_list(f.E_M_up)},
               {"E_M_down", float_list(f.E_M_down)},
+              {"lobes", lobes_json(f.lobes)},
+              {"W", float_list(f.W)},
               {"beta_R_rad", f.beta_R_rad},
               {"twist_tilt_rad", f.twist_tilt_rad},
               {"beta_M_rad", f.beta_M_rad},
@@ -286,6 +451,13 @@ FallbackTables fallback_from_json(const json &j, const YarnModel &model, const s
   if (!j.contains("kernel_flat_fnv1a64") || !j["kernel_flat_fnv1a64"].is_string()) {
     throw ModelError(where + "missing string 'kernel_flat_fnv1a64'");
   }
+  /* The lobes follow from the scalars; the weights refer to them. */
+  f.lobes = fallback_lobes(f);
+  if (!j.contains("lobes") || j["lobes"] != lobes_json(f.lobes)) {
+    throw ModelError(where + "'lobes' must be " + lobes_json(f.lobes).dump() + " (from the model's widths); re-run " +
+                     "`neuralyarn fallback MODEL`");
+  }
+  f.W = table_from(j, "W", n * f.lobes.size() * 3, 0.0, kMaxWeight, where);
   f.kernel_flat_hash = j["kernel_flat_fnv1a64"].get<std::string>();
   if (f.kernel_flat_hash != expect.kernel_flat_hash) {
     throw ModelError(where + "the tables were computed for another model ('kernel_flat_fnv1a64' " + f.kernel_flat_hash +

@@ -15,6 +15,19 @@
 // all computed with the kernel functions exactly as the renderer evaluates them (yarn_lobes with the
 // calibration table, yarn_eval_M). P_T + E_R + E_M_up + E_M_down is the model's albedo for that view.
 //
+// What the fallbacks render (version 2): P_T transparent() plus a weighted sum of built-in closures,
+//
+//   sum_k W_k(view) lobe_k,   lobes (fallback_lobes()): GGX about the surface fibers' tangent t_f with
+//   alpha_x from beta_R, beta_M / 2, beta_M, 2.5 beta_M and alpha_y = 1 (uniform in the half-vector's
+//   azimuth, like the model's R lobe), diffuse(n), translucent(n);
+//
+// with the RGB weights W_k fitted per view cell to the model's R + M lobes (yarn_eval_lobes) over all light
+// directions: non-negative least squares of the *relative* error, |sum_k W_k lobe_k - S| / (S + eps) with
+// eps = 0.1 E / 4 pi (E the view's R + M albedo), under the constraint sum_k W_k albedo_k = E (a heavily
+// weighted row), so that under uniform light the fallback still returns the model's albedo for every
+// view. Relative, not absolute, error: an absolute fit spends everything on the highlight's peak and
+// leaves tails several times too bright, which covers most of a rendered yarn (docs/decisions.md D17).
+//
 // Cells: theta (longitudinal, asin(w.x)) and phi (azimuth about the tangent, atan2(w.y, w.z), 0 on the
 // normal), both over (-90, 90) degrees, values at the cell centres
 //   theta_i = -90 + (i + 1/2) 180 / theta_bins,   phi_j = -90 + (j + 1/2) 180 / phi_bins   (degrees),
@@ -33,7 +46,13 @@ namespace neuralyarn::model {
 
 struct YarnModel;
 
-constexpr int kFallbackVersion = 1;
+constexpr int kFallbackVersion = 2;
+
+/* A built-in Cycles closure of the fallbacks (model/cycles_lobes.h). */
+struct FallbackLobe {
+  std::string closure; /* "ggx", "diffuse" or "translucent" */
+  double alpha_x = 0.0, alpha_y = 0.0; /* ggx: roughness along t_f and across (Cycles' alpha) */
+};
 
 struct FallbackTables {
   int theta_bins = 18, phi_bins = 18;
@@ -41,6 +60,8 @@ struct FallbackTables {
   std::vector<float> E_R;      /* [theta][phi][rgb] */
   std::vector<float> E_M_up;   /* [theta][phi][rgb] */
   std::vector<float> E_M_down; /* [theta][phi][rgb] */
+  std::vector<FallbackLobe> lobes; /* fallback_lobes() of the scalars below */
+  std::vector<float> W;            /* [theta][phi][lobe][rgb]: the fitted weights */
 
   /* Scalars the fallbacks need, copied from the model (radians). */
   double beta_R_rad = 0.0;      /* longitudinal width of the surface fibers' R lobe        */
@@ -68,10 +89,20 @@ struct FallbackTables {
 struct FallbackOptions {
   int theta_bins = 18, phi_bins = 18;
   int quad_theta = 256, quad_phi = 512;
+  /* The weight fit: light directions on a fit_theta x fit_phi midpoint grid of the surface-fiber frame's
+   * (theta, phi) (0.35 x 2.8 degrees: 3 cells per half width of silk's 1-degree R lobe), and the relative
+   * error's eps as a fraction of the mean R + M value E / 4 pi. */
+  int fit_theta = 512, fit_phi = 128;
+  double fit_rel_eps = 0.1;
   int threads = 0; /* 0: all cores */
 };
 
 FallbackTables compute_fallback(const YarnModel &model, const FallbackOptions &options = {});
+
+/* The lobes the weights refer to, from the scalars (beta_R_rad, beta_M_rad): alpha = 0.9147 beta gives a
+ * GGX the half width at half maximum in theta_o of a Gaussian of width beta (the slope's half width
+ * alpha sqrt(sqrt 2 - 1) doubled, against beta sqrt(2 ln 2)); clamped to [0.001, 1]. */
+std::vector<FallbackLobe> fallback_lobes(const FallbackTables &scalars);
 
 /* FNV-1a 64 of a float array's bytes, as 16 lowercase hex digits. */
 std::string fnv1a64_hex(const std::vector<float> &values);
