@@ -228,7 +228,7 @@ def build_nodes(tree, model: model_io.YarnModel, tilt: float) -> None:
     theta = g.math("ARCSINE", g.math("MINIMUM", g.math("MAXIMUM", wx, -1.0), 1.0))
     phi = g.math("ARCTAN2", wy, wz, y=-200.0)
     # Texture coordinates: s = phi / pi + 1/2 (columns), t = theta / pi + 1/2 (rows): cell centres at texel
-    # centres, so Linear + Extend is the bilinear lookup with edge clamping of model_io.fallback_lookup.
+    # centres, so Linear + Extend is the OSL shader's bilinear lookup (ny_cell) with edge clamping.
     g.column = 4
     uv = g.node("ShaderNodeCombineXYZ")
     g.feed(uv.inputs[0], g.math("ADD", g.math("MULTIPLY", phi, 1.0 / math.pi), 0.5))

@@ -158,30 +158,3 @@ def load_model_file(path: str) -> YarnModel:
     except (OSError, UnicodeDecodeError) as e:
         raise _fail(path, f"cannot be read ({e})") from None
     return parse_model(text, path)
-
-
-def fallback_lookup(tables: FallbackTables, theta: float, phi: float) -> dict:
-    """Bilinear lookup (clamped at the edges) of the tables at a view direction (radians) — the same
-    interpolation the OSL shader and the image textures of the node fallback perform. Used by tests."""
-    def coord(x, lo, hi, n):
-        u = (x - lo) / (hi - lo) * n - 0.5
-        u = min(max(u, 0.0), n - 1.0)
-        i0 = min(int(math.floor(u)), n - 2) if n > 1 else 0
-        return i0, u - i0
-
-    i, fi = coord(theta, -math.pi / 2, math.pi / 2, tables.theta_bins)
-    j, fj = coord(phi, -math.pi / 2, math.pi / 2, tables.phi_bins)
-
-    def lerp(values, stride, c):
-        def at(a, b):
-            return values[(a * tables.phi_bins + b) * stride + c]
-        return ((1 - fi) * ((1 - fj) * at(i, j) + fj * at(i, j + 1))
-                + fi * ((1 - fj) * at(i + 1, j) + fj * at(i + 1, j + 1)))
-
-    return {
-        "P_T": lerp(tables.P_T, 1, 0),
-        "E_R": [lerp(tables.E_R, 3, c) for c in range(3)],
-        "E_M_up": [lerp(tables.E_M_up, 3, c) for c in range(3)],
-        "E_M_down": [lerp(tables.E_M_down, 3, c) for c in range(3)],
-        "W": [[lerp(tables.W, 3 * len(tables.lobes), 3 * k + c) for c in range(3)] for k in range(len(tables.lobes))],
-    }

@@ -173,32 +173,31 @@ def _evaluate_basis(P: np.ndarray, idx: np.ndarray, basis: np.ndarray, samples: 
     return out
 
 
+def _four_point_spline(control_points, cyclic: bool, curve_type: str, basis, samples_per_segment: int) -> np.ndarray:
+    """A uniform spline whose segment i uses points i-1 .. i+2 (Catmull-Rom, B-spline): n segments closed
+    (indices mod n), n-3 open (from P1 to P(n-2))."""
+    P = np.asarray(control_points, dtype=np.float64)
+    n = len(P)
+    problem = control_point_problem(curve_type, n, cyclic)
+    if problem:
+        raise GeometryError(problem)
+    i = np.arange(n) if cyclic else np.arange(1, n - 2)
+    idx = np.stack([(i - 1) % n, i % n, (i + 1) % n, (i + 2) % n], axis=1)
+    return _evaluate_basis(P, idx, basis, samples_per_segment, cyclic)
+
+
 def catmull_rom(control_points: np.ndarray, cyclic: bool, samples_per_segment: int = 8) -> np.ndarray:
     """Uniform Catmull-Rom (BCC 'C0'): passes through every control point it spans.
 
     Open curves treat the first and last control points as phantoms that only set the end tangents, so n
     points give n-3 segments from P1 to P(n-2) (yarn_geometry.md §1.3); closed curves take indices mod n.
     """
-    P = np.asarray(control_points, dtype=np.float64)
-    n = len(P)
-    problem = control_point_problem("C0", n, cyclic)
-    if problem:
-        raise GeometryError(problem)
-    i = np.arange(n) if cyclic else np.arange(1, n - 2)
-    idx = np.stack([(i - 1) % n, i % n, (i + 1) % n, (i + 2) % n], axis=1)
-    return _evaluate_basis(P, idx, _CATMULL_ROM, samples_per_segment, cyclic)
+    return _four_point_spline(control_points, cyclic, "C0", _CATMULL_ROM, samples_per_segment)
 
 
 def bspline(control_points: np.ndarray, cyclic: bool, samples_per_segment: int = 8) -> np.ndarray:
     """Uniform cubic B-spline (BCC 'BS'): C2, approximating; n-3 segments open, n closed (unclamped)."""
-    P = np.asarray(control_points, dtype=np.float64)
-    n = len(P)
-    problem = control_point_problem("BS", n, cyclic)
-    if problem:
-        raise GeometryError(problem)
-    i = np.arange(n) if cyclic else np.arange(1, n - 2)
-    idx = np.stack([(i - 1) % n, i % n, (i + 1) % n, (i + 2) % n], axis=1)
-    return _evaluate_basis(P, idx, _BSPLINE, samples_per_segment, cyclic)
+    return _four_point_spline(control_points, cyclic, "BS", _BSPLINE, samples_per_segment)
 
 
 def bezier(control_points: np.ndarray, cyclic: bool, samples_per_segment: int = 8) -> np.ndarray:

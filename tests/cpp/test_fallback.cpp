@@ -410,17 +410,11 @@ TEST(Fallback, FittedWeightsKeepTheEnergyAndFollowTheModel)
     const ny::Vec3 wv = view(f, i, j);
     const ny::Vec3 vf = ny::yarn_to_surface_fiber(p.twist, wv);
     const cl::Dir v{vf.x, vf.y, vf.z};
-    auto lobe_eval = [&](size_t q, const cl::Dir &o) {
-      const model::FallbackLobe &L = f.lobes[q];
-      return L.closure == "ggx" ? cl::ggx_eval(L.alpha_x, L.alpha_y, v, o)
-             : L.closure == "diffuse" ? cl::diffuse_eval(o) : cl::translucent_eval(o);
-    };
     for (int c = 0; c < 3; c++) {
       const double E = double(f.E_R[k * 3 + size_t(c)]) + f.E_M_up[k * 3 + size_t(c)] + f.E_M_down[k * 3 + size_t(c)];
       double sum = 0.0;
       for (size_t q = 0; q < K; q++) {
-        const double a = f.lobes[q].closure == "ggx" ? cl::ggx_albedo(f.lobes[q].alpha_x, f.lobes[q].alpha_y, v) : 1.0;
-        sum += double(f.W[(k * K + q) * 3 + size_t(c)]) * a;
+        sum += double(f.W[(k * K + q) * 3 + size_t(c)]) * model::fallback_lobe_albedo(f.lobes[q], v);
       }
       /* The constraint row weighs 10^4 times the fit: it holds to float rounding of the weights. */
       EXPECT_NEAR(sum, E, 1e-3 * E + 1e-6) << "cell " << i << "," << j << " channel " << c;
@@ -443,7 +437,7 @@ TEST(Fallback, FittedWeightsKeepTheEnergyAndFollowTheModel)
         const double S = ny::yarn_eval_lobes(p, l, wo).r;
         double fit = 0.0;
         for (size_t q = 0; q < K; q++) {
-          fit += double(f.W[(k * K + q) * 3]) * lobe_eval(q, o);
+          fit += double(f.W[(k * K + q) * 3]) * model::fallback_lobe_eval(f.lobes[q], v, o);
         }
         const double flat_lobes = up * cl::diffuse_eval(o) + down * cl::translucent_eval(o);
         err_fit += std::abs(fit - S) / (S + eps) * dw;

@@ -122,8 +122,7 @@ std::vector<float> fit_view_weights(const ny::YarnBsdfParams &p, const std::vect
   const cl::Dir v{vf.x, vf.y, vf.z};
   std::vector<double> albedo(static_cast<size_t>(K));
   for (int k = 0; k < K; k++) {
-    const FallbackLobe &L = lobes[size_t(k)];
-    albedo[size_t(k)] = L.closure == "ggx" ? cl::ggx_albedo(L.alpha_x, L.alpha_y, v) : 1.0;
+    albedo[size_t(k)] = fallback_lobe_albedo(lobes[size_t(k)], v);
   }
   std::vector<Eigen::MatrixXd> G(3, Eigen::MatrixXd::Zero(K, K));
   std::vector<Eigen::VectorXd> b(3, Eigen::VectorXd::Zero(K));
@@ -143,10 +142,7 @@ std::vector<float> fit_view_weights(const ny::YarnBsdfParams &p, const std::vect
           ny::surface_fiber_to_yarn(p.twist, ny::make_vec3(float(w.x), float(w.y), float(w.z)));
       const ny::Rgb S = ny::yarn_eval_lobes(p, l, wo);
       for (int k = 0; k < K; k++) {
-        const FallbackLobe &L = lobes[size_t(k)];
-        B[size_t(k)] = L.closure == "ggx"       ? cl::ggx_eval(L.alpha_x, L.alpha_y, v, w)
-                       : L.closure == "diffuse" ? cl::diffuse_eval(w)
-                                                : cl::translucent_eval(w);
+        B[size_t(k)] = fallback_lobe_eval(lobes[size_t(k)], v, w);
       }
       const double s[3] = {S.r, S.g, S.b};
       for (int c = 0; c < 3; c++) {
@@ -265,6 +261,19 @@ FallbackTables scalars_of(const std::vector<float> &flat)
   return f;
 }
 }  // namespace
+
+double fallback_lobe_eval(const FallbackLobe &L, const cycles_lobes::Dir &v, const cycles_lobes::Dir &o)
+{
+  if (L.closure == "ggx") {
+    return cycles_lobes::ggx_eval(L.alpha_x, L.alpha_y, v, o);
+  }
+  return L.closure == "diffuse" ? cycles_lobes::diffuse_eval(o) : cycles_lobes::translucent_eval(o);
+}
+
+double fallback_lobe_albedo(const FallbackLobe &L, const cycles_lobes::Dir &v)
+{
+  return L.closure == "ggx" ? cycles_lobes::ggx_albedo(L.alpha_x, L.alpha_y, v) : 1.0; /* diffuse, translucent: 1 */
+}
 
 std::vector<FallbackLobe> fallback_lobes(const FallbackTables &f)
 {

@@ -42,6 +42,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "neuralyarn/model/cycles_lobes.h"
+
 namespace neuralyarn::model {
 
 struct YarnModel;
@@ -103,6 +105,11 @@ FallbackTables compute_fallback(const YarnModel &model, const FallbackOptions &o
  * GGX the half width at half maximum in theta_o of a Gaussian of width beta (the slope's half width
  * alpha sqrt(sqrt 2 - 1) doubled, against beta sqrt(2 ln 2)); clamped to [0.001, 1]. */
 std::vector<FallbackLobe> fallback_lobes(const FallbackTables &scalars);
+
+/* A lobe's eval (f |cos theta_o|, Cycles' convention) and directional albedo, view v and light o in the
+ * lobe frame (x = t_f, z = n): the fit's and the tests' one dispatch over the closures. */
+double fallback_lobe_eval(const FallbackLobe &lobe, const cycles_lobes::Dir &v, const cycles_lobes::Dir &o);
+double fallback_lobe_albedo(const FallbackLobe &lobe, const cycles_lobes::Dir &v);
 
 /* FNV-1a 64 of a float array's bytes, as 16 lowercase hex digits. */
 std::string fnv1a64_hex(const std::vector<float> &values);
