@@ -41,11 +41,12 @@ void add_network_options(CLI::App *cmd, const char *name, NetworkOptions *o)
   cmd->add_option_function<std::string>(
          p + "loss",
          [o](const std::string &s) {
-           o->loss = s == "log" ? train::Loss::kLogMse : train::Loss::kMse;
+           o->loss = s == "log" ? train::Loss::kLogMse : s == "rel" ? train::Loss::kRelativeMse : train::Loss::kMse;
          },
-         "Loss: mse (the paper's) or log (MSE of log(y + eps))")
-      ->check(CLI::IsMember({"mse", "log"}));
-  cmd->add_option(p + "log-eps", o->log_eps, "Offset of the log loss")->check(finite_range(1e-9, 1.0))->capture_default_str();
+         "Loss: mse (the paper's), log (MSE of log(y + eps)) or rel (relative MSE (y - t)^2 / (y^2 + eps), "
+         "targets scaled to mean 1)")
+      ->check(CLI::IsMember({"mse", "log", "rel"}));
+  cmd->add_option(p + "log-eps", o->log_eps, "Offset of the log and relative losses")->check(finite_range(1e-9, 1.0))->capture_default_str();
 }
 
 void add_train_options(CLI::App *cmd, TrainModelOptions *o)
@@ -80,6 +81,38 @@ void print_proxy(const model::YarnModel &m)
   std::printf("\n");
 }
 
+/* The 4D lobe fidelity (model/lobe_fidelity.h), one row per theta_i bin. */
+void print_lobes(const model::LobeFidelity &f)
+{
+  const model::LobeComparison &R = f.R, &M = f.M;
+  const bool nr = M.noise_removed;
+  std::printf("lobes (4D)       energy-weighted relative L1 per (w_i, w_o) cell, %s;\n"
+              "                 energy ratios model / maps per exit band (theta_o from the ply normal; axial: within\n"
+              "                 30 deg of the ply axis)\n",
+              nr ? "model error with the maps' noise removed (raw L1 and noise floor in brackets)"
+                 : "against one map, its noise included (--maps-b gives the noise floor)");
+  std::printf("  theta_i |   R L1%s |   M L1%s | R  0-30 30-60 60-90 | M  0-30 30-60 60-90 90-120 120-150 150-180 axial\n",
+              nr ? " (raw, floor)" : "", nr ? " (raw, floor)" : "");
+  for (size_t t = 0; t < M.l1.size(); t++) {
+    std::printf("  %5.1f   | %5.1f %%", M.theta_i_deg[t], 100 * R.l1[t]);
+    if (nr) {
+      std::printf(" (%4.1f, %4.1f)", 100 * R.l1_raw[t], 100 * R.noise_floor[t]);
+    }
+    std::printf(" | %5.1f %%", 100 * M.l1[t]);
+    if (nr) {
+      std::printf(" (%4.1f, %4.1f)", 100 * M.l1_raw[t], 100 * M.noise_floor[t]);
+    }
+    std::printf(" |   %4.2f  %4.2f  %4.2f |  ", R.band_ratio[t][0], R.band_ratio[t][1], R.band_ratio[t][2]);
+    for (int k = 0; k < model::kLobeBands; k++) {
+      std::printf(" %5.2f", M.band_ratio[t][size_t(k)]);
+    }
+    std::printf("\n");
+  }
+  std::printf("  worst L1 but the grazing bin: R %.1f %%, M %.1f %%; grazing bin: R %.1f %%, M %.1f %% (%.1f s)\n",
+              100 * R.l1_max_but_grazing, 100 * M.l1_max_but_grazing, 100 * R.l1_grazing, 100 * M.l1_grazing,
+              f.seconds);
+}
+
 void print_fidelity(const model::FidelityReport &r)
 {
   std::printf("albedo vs map    mean abs error %.4f, mean relative error %.2f %%, max relative %.1f %%\n", r.albedo_mae,
@@ -97,7 +130,7 @@ void print_fidelity(const model::FidelityReport &r)
   std::printf("P_T              rms error %.4f\n", r.T_rmse);
   std::printf("energy vs map    R: mean relative error %.2f %%   M: %.2f %%\n", 100 * r.R_energy_mae_rel,
               100 * r.M_energy_mae_rel);
-  std::printf("M lobe           relative L1 distance to the map %.3f (includes the map's own noise)\n", r.M_rel_l1);
+  print_lobes(r.lobes);
   std::printf("sampling         relative variance of the albedo estimate: importance %.3f, uniform %.3f (%.1fx); "
               "kappa_R per w_i %.3f\n",
               r.rel_var_importance, r.rel_var_uniform,
@@ -195,6 +228,9 @@ class Commands : public ModelCommands {
     check_ = app.add_subcommand("check", "Fidelity of a model against maps (albedo, energies, sampling variance)");
     check_->add_option("model", model_, "Model file (.json)")->required();
     check_->add_option("--maps", maps_, "Map file (.nyrdm)")->required();
+    check_->add_option("--maps-b", maps_b_,
+                       "An independent map of the same ply (another path seed): separates the lobes' model error "
+                       "from the maps' noise");
     check_->add_option("--image", image_, "Comparison image (PNG)");
     check_->add_option("--theta-i", theta_i_, "Incident polar angle of the image, degrees")
         ->check(finite_range(0.0, 90.0))
@@ -298,27 +334,32 @@ class Commands : public ModelCommands {
     topt_.progress = bar_callback(&bar, topt_);
     model::YarnModel m = model::train_model(maps, topt_);
     m.provenance["gather_seconds"] = maps.stats.seconds;
-    rdm::RdmMaps check_maps;
+    /* Two independent check gathers of half the check paths each: their mean checks the energies, the
+     * pair the lobes with the maps' noise removed (model/lobe_fidelity.h). */
+    rdm::RdmMaps check_a, check_b;
     if (check_paths > 0) {
       rdm::GatherOptions c = gopt_;
-      c.paths = check_paths;
+      c.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };
+      c.paths = std::max<uint64_t>(check_paths / 2, gopt_.bins.incident());
       c.seed = gopt_.seed + 1000;
       bar.stage("check", "paths");
-      c.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };
-      check_maps = rdm::gather(preset, c);
+      check_a = rdm::gather(preset, c);
+      c.seed = gopt_.seed + 2000;
+      check_b = rdm::gather(preset, c);
     }
-    const rdm::RdmMaps &reference = check_paths > 0 ? check_maps : maps;
-    const model::FidelityReport r = model::check_model(m, reference);
+    const model::FidelityReport r = check_paths > 0 ? model::check_model(m, check_a, {}, &check_b)
+                                                    : model::check_model(m, maps);
     m.fidelity = r.to_json();
-    m.fidelity["maps"] = check_paths > 0 ? "independent maps: " + check_paths_ + " paths, seed " +
-                                               std::to_string(gopt_.seed + 1000) + ", same geometry"
+    m.fidelity["maps"] = check_paths > 0 ? "independent maps: two gathers of " + std::to_string(check_a.paths) +
+                                               " paths, seeds " + std::to_string(gopt_.seed + 1000) + " and " +
+                                               std::to_string(gopt_.seed + 2000) + ", same geometry"
                                          : std::string("the maps the model was trained on");
     model::save_model(m, out_);
     std::printf("gathered         %llu paths in %.1f s\n", (unsigned long long)maps.paths, maps.stats.seconds);
     print_networks(m);
     print_fidelity(r);
     if (!image_.empty()) {
-      model::write_comparison_image(m, reference, theta_i_, phi_i_, image_);
+      model::write_comparison_image(m, check_paths > 0 ? check_a : maps, theta_i_, phi_i_, image_);
       std::printf("wrote %s\n", image_.c_str());
     }
     std::printf("wrote %s\n", out_.c_str());
@@ -330,8 +371,13 @@ class Commands : public ModelCommands {
     const model::YarnModel m = model::load_model(model_);
     const rdm::RdmMaps maps = rdm::load_maps(maps_);
     require_same_preset(m, maps);
+    rdm::RdmMaps maps_b;
+    if (!maps_b_.empty()) {
+      maps_b = rdm::load_maps(maps_b_);
+      require_same_preset(m, maps_b);
+    }
     print_proxy(m);
-    const model::FidelityReport r = model::check_model(m, maps);
+    const model::FidelityReport r = model::check_model(m, maps, {}, maps_b_.empty() ? nullptr : &maps_b);
     print_fidelity(r);
     if (!image_.empty()) {
       model::write_comparison_image(m, maps, theta_i_, phi_i_, image_);
@@ -396,7 +442,7 @@ class Commands : public ModelCommands {
   TrainModelOptions topt_;
   model::FallbackOptions fbopt_;
   rdm::GatherOptions gopt_;
-  std::string maps_, out_, model_, preset_ = "fleece", params_, paths_ = "4e7", check_paths_ = "0", bins_ = "22x90x45x90", maps_out_,
+  std::string maps_, maps_b_, out_, model_, preset_ = "fleece", params_, paths_ = "4e7", check_paths_ = "0", bins_ = "22x90x45x90", maps_out_,
                                    image_;
   int threads_ = 0;
   bool no_fit_ = false, quiet_ = false;

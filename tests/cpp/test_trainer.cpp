@@ -131,3 +131,35 @@ TEST(Dataset, MultipleScatteringSamplesCarryTheirBinsValue)
   /* w_o uniform on the whole sphere: E[cos theta_o] = 0, standard deviation 1/sqrt(3). */
   EXPECT_NEAR(mean_zo / d.X.cols(), 0.0, 5 * 0.577 / std::sqrt(double(d.X.cols())));
 }
+
+TEST(Trainer, RelativeLossIsUnbiasedForSparseNoisyTargets)
+{
+  /* Monte Carlo bins of few paths: a target that is 0 nine times in ten and 10 otherwise (mean 1). The
+   * relative loss (weight from the prediction, not the target) converges to the mean; the log loss to
+   * far below it (its optimum is the geometric mean of t + eps, minus eps). */
+  const int n = 20000;
+  train::Dataset d;
+  d.X = train::Mlp<float>::Mat::Constant(1, n, 0.5f);
+  d.Y.resize(1, n);
+  for (int j = 0; j < n; j++) {
+    d.Y(0, j) = j % 10 == 3 ? 10.0f : 0.0f;
+  }
+  auto fit = [&](train::Loss loss) {
+    train::TrainOptions o;
+    o.steps = 3000;
+    o.learning_rate = 1e-2f;
+    o.final_learning_rate_fraction = 0.05f;
+    o.batch = 2000;
+    o.loss = loss;
+    o.log_eps = 1e-3f;
+    o.seed = 4;
+    o.threads = 1;
+    const train::TrainResult r = train::train_network(train::MlpShape{{1, 4, 1}, ny::kMlpHeadExp}, d, d, o);
+    return r.net.forward(d.X.leftCols(1))(0, 0);
+  };
+  const float rel = fit(train::Loss::kRelativeMse), log = fit(train::Loss::kLogMse), mse = fit(train::Loss::kMse);
+  std::printf("mean 1: relative %.4f, log %.4f, mse %.4f\n", rel, log, mse);
+  EXPECT_NEAR(rel, 1.0f, 0.05f);
+  EXPECT_NEAR(mse, 1.0f, 0.05f);
+  EXPECT_LT(log, 0.1f);
+}

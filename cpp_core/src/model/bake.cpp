@@ -14,7 +14,10 @@ namespace neuralyarn::model {
 using nlohmann::json;
 
 namespace {
-const char *loss_name(train::Loss l) { return l == train::Loss::kMse ? "mse" : "log_mse"; }
+const char *loss_name(train::Loss l)
+{
+  return l == train::Loss::kMse ? "mse" : l == train::Loss::kLogMse ? "log_mse" : "relative_mse";
+}
 
 train::Dataset dataset_for(const char *name, const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation)
 {

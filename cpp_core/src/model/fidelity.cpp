@@ -41,12 +41,16 @@ json FidelityReport::to_json() const
           {"rel_var_per_wi_kappa_R", rel_var_per_wi_kappa_R},
           {"albedo_rel_by_theta_i", albedo_rel_by_theta},
           {"M_energy_rel_by_theta_i", M_rel_by_theta},
-          {"R_energy_rel_by_theta_i", R_rel_by_theta}};
+          {"R_energy_rel_by_theta_i", R_rel_by_theta},
+          {"lobes", lobes.to_json()}};
 }
 
-FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, const FidelityOptions &o)
+FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps_a, const FidelityOptions &o,
+                           const rdm::RdmMaps *maps_b)
 {
   const auto t0 = std::chrono::steady_clock::now();
+  const rdm::RdmMaps mean = maps_b ? rdm::mean_of_maps(maps_a, *maps_b) : rdm::RdmMaps{};
+  const rdm::RdmMaps &maps = maps_b ? mean : maps_a;
   const std::vector<float> flat = model.kernel_flat();
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
   const rdm::MapResolution &b = maps.bins;
@@ -167,6 +171,7 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, con
     r.rel_var_uniform += rv_uni[size_t(d)] / o.variance_directions;
     r.rel_var_per_wi_kappa_R += rv_opt[size_t(d)] / o.variance_directions;
   }
+  r.lobes = check_lobes(model, maps_a, maps_b);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

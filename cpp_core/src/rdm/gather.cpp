@@ -9,6 +9,7 @@
 #include <memory>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -366,6 +367,41 @@ int bin_of(double value, double lo, double hi, int n)
 }
 
 double bin_center(int index, double lo, double hi, int n) { return lo + (hi - lo) * (index + 0.5) / n; }
+
+RdmMaps mean_of_maps(const RdmMaps &a, const RdmMaps &b)
+{
+  const MapResolution &x = a.bins, &y = b.bins;
+  if (x.theta_i != y.theta_i || x.phi_i != y.phi_i || x.theta_o != y.theta_o || x.phi_o != y.phi_o) {
+    throw ParameterError("maps", "maps of different resolutions cannot be averaged");
+  }
+  if (preset_to_json(a.preset) != preset_to_json(b.preset) || a.packing_seed != b.packing_seed ||
+      a.symmetrized != b.symmetrized) {
+    throw ParameterError("maps", "maps of different plies (preset, packing seed or symmetrisation) cannot be averaged");
+  }
+  if (a.seed == b.seed) {
+    throw ParameterError("maps", "maps of the same path seed are not independent");
+  }
+  const double wa = double(a.paths) / double(a.paths + b.paths), wb = 1.0 - wa;
+  RdmMaps m = a;
+  auto mix = [&](auto &out, const auto &va, const auto &vb) {
+    for (size_t i = 0; i < out.size(); i++) {
+      out[i] = decltype(out[i] + 0)(wa * va[i] + wb * vb[i]);
+    }
+  };
+  mix(m.p_t, a.p_t, b.p_t);
+  mix(m.r, a.r, b.r);
+  mix(m.m, a.m, b.m);
+  mix(m.exit_energy, a.exit_energy, b.exit_energy);
+  mix(m.absorbed, a.absorbed, b.absorbed);
+  for (size_t i = 0; i < m.count.size(); i++) {
+    m.count[i] = a.count[i] + b.count[i];
+  }
+  m.paths = a.paths + b.paths;
+  m.p_t_se.clear();
+  m.r_se.clear();
+  m.m_se.clear();
+  return m;
+}
 
 double RdmMaps::outgoing_solid_angle(int to) const
 {

@@ -21,6 +21,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/rdm/gather.h"
 
@@ -40,11 +41,17 @@ struct FidelityReport {
   double rel_var_importance = 0, rel_var_uniform = 0, rel_var_per_wi_kappa_R = 0;
   /* Per theta_i bin of the maps (averaged over phi_i): relative albedo, M energy and R energy errors. */
   std::vector<double> albedo_rel_by_theta, M_rel_by_theta, R_rel_by_theta;
+  /* The lobes' 4D shape against the maps (model/lobe_fidelity.h), with the noise removed when a second,
+   * independent map was given. */
+  LobeFidelity lobes;
   double seconds = 0;
   nlohmann::json to_json() const;
 };
 
-FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, const FidelityOptions &options = {});
+/* Energies and albedo against `maps`; the lobes against `maps` and, if given, `maps_b`, an independent
+ * gather of the same ply (then the energies are checked against the mean of both). */
+FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, const FidelityOptions &options = {},
+                           const rdm::RdmMaps *maps_b = nullptr);
 
 /* Side-by-side PNG for one incident direction: the M map and the M network, the R map and the analytic R
  * lobe, over (phi_o horizontal, theta_o vertical), each pair on the same log scale. */

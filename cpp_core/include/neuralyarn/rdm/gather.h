@@ -113,6 +113,11 @@ MapResolution parse_resolution(const std::string &text);
 /* Validates options without gathering (the CLI calls it before allocating anything). */
 void validate(const GatherOptions &options);
 
+/* The mean of two gathers of the same preset and resolution with different path seeds, weighted by their
+ * paths: statistically a gather of both path counts (the standard errors are dropped). Throws
+ * ParameterError if they do not fit together. */
+RdmMaps mean_of_maps(const RdmMaps &a, const RdmMaps &b);
+
 /* Bin helpers shared with the loader, tests and trainer. */
 int bin_of(double value, double lo, double hi, int n);
 double bin_center(int index, double lo, double hi, int n);

@@ -34,6 +34,10 @@ std::string format_widths(const std::vector<int> &widths);
 enum class Loss {
   kMse,    /* mean of (y - t)^2 over all outputs (the paper's) */
   kLogMse, /* mean of (log(y + eps) - log(t + eps))^2: relative errors, for targets spanning decades */
+  /* mean of (y - t)^2 / (sg(y)^2 + eps), sg = no gradient through it: relative errors like the log loss,
+   * but unbiased for noisy targets (the weight depends on the prediction, not on the target), so sparse
+   * Monte Carlo bins do not pull the fit down (Mueller et al. 2021, neural radiance caching). */
+  kRelativeMse,
 };
 
 template<class S> class Mlp {

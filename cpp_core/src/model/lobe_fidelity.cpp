@@ -1,0 +1,312 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/model/lobe_fidelity.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include <tbb/parallel_for.h>
+
+#include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/presets.h" /* ParameterError */
+
+namespace neuralyarn::model {
+
+using nlohmann::json;
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+
+int cells_for(double range_deg, int bins, double cell_deg)
+{
+  return std::clamp(int(std::lround(range_deg / cell_deg)), 1, bins);
+}
+
+/* Index of the cell that bin `i` of `n` falls into, with `cells` cells (an even split of the bins). */
+int cell_of(int i, int n, int cells) { return int((int64_t(i) * cells) / n); }
+
+/* Band of an outgoing bin: theta_o from the normal in 30-degree steps (0..5). */
+int band_of(int to, int n_theta_o) { return std::min(5, int((to + 0.5) / n_theta_o * 6.0)); }
+
+/* w_o of the bin centre within 30 degrees of the ply axis (+-x). */
+bool is_axial(int to, int po, const rdm::MapResolution &b)
+{
+  const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), ph = rdm::bin_center(po, -kPi, kPi, b.phi_o);
+  return std::abs(std::sin(th) * std::cos(ph)) > std::cos(30.0 * kDeg);
+}
+
+/* Number of incident bins in each phi_i group. */
+std::vector<int> group_sizes(const LobeGrid &g)
+{
+  std::vector<int> n(size_t(g.phi_i_groups), 0);
+  for (int pi = 0; pi < g.bins.phi_i; pi++) {
+    n[size_t(cell_of(pi, g.bins.phi_i, g.phi_i_groups))]++;
+  }
+  return n;
+}
+
+ny::Vec3 direction(double theta, double phi)
+{
+  return ny::make_vec3(float(std::sin(theta) * std::cos(phi)), float(std::sin(theta) * std::sin(phi)),
+                       float(std::cos(theta)));
+}
+
+/* Incident direction `s` of an n x n stratification of incident bin (ti, pi), uniform in solid angle. */
+ny::Vec3 incident_sub_direction(const rdm::MapResolution &b, int ti, int pi, int s, int n)
+{
+  const double t0 = 0.5 * kPi * ti / b.theta_i, t1 = 0.5 * kPi * (ti + 1) / b.theta_i;
+  const double u = (s / n + 0.5) / n, v = (s % n + 0.5) / n;
+  const double cos_t = std::cos(t0) + u * (std::cos(t1) - std::cos(t0));
+  const double phi = -kPi + 2.0 * kPi * (pi + v) / b.phi_i;
+  return direction(std::acos(cos_t), phi);
+}
+
+void check_same_bins(const rdm::MapResolution &x, const rdm::MapResolution &y, const char *what)
+{
+  if (x.theta_i != y.theta_i || x.phi_i != y.phi_i || x.theta_o != y.theta_o || x.phi_o != y.phi_o) {
+    throw ParameterError("maps", std::string(what) + ": the grids differ in resolution");
+  }
+}
+
+json band_json(const std::vector<std::array<double, kLobeBands>> &v)
+{
+  json out = json::array();
+  for (const auto &row : v) {
+    out.push_back(std::vector<double>(row.begin(), row.end()));
+  }
+  return out;
+}
+}  // namespace
+
+LobeGrid make_lobe_grid(const rdm::MapResolution &bins, const LobePooling &pooling)
+{
+  if (!(pooling.cell_deg > 0.0) || !std::isfinite(pooling.cell_deg)) {
+    throw ParameterError("cell_deg", "the cell size must be a positive number of degrees");
+  }
+  LobeGrid g;
+  g.bins = bins;
+  g.phi_i_groups = cells_for(360.0, bins.phi_i, pooling.cell_deg);
+  g.theta_o_cells = cells_for(180.0, bins.theta_o, pooling.cell_deg);
+  g.phi_o_cells = cells_for(360.0, bins.phi_o, pooling.cell_deg);
+  g.cells.assign(g.groups() * g.cells_per_group() * 3, 0.0);
+  g.bands.assign(g.groups() * kLobeBands * 3, 0.0);
+  return g;
+}
+
+void add_to_lobe_grid(LobeGrid *g, int ti, int pi, int to, int po, const double value[3], double w)
+{
+  const rdm::MapResolution &b = g->bins;
+  const size_t group = size_t(ti) * size_t(g->phi_i_groups) + size_t(cell_of(pi, b.phi_i, g->phi_i_groups));
+  const size_t cell = size_t(cell_of(to, b.theta_o, g->theta_o_cells)) * size_t(g->phi_o_cells) +
+                      size_t(cell_of(po, b.phi_o, g->phi_o_cells));
+  double *c = &g->cells[(group * g->cells_per_group() + cell) * 3];
+  double *band = &g->bands[(group * kLobeBands + size_t(band_of(to, b.theta_o))) * 3];
+  double *axial = &g->bands[(group * kLobeBands + kLobeAxialBand) * 3];
+  const bool ax = is_axial(to, po, b);
+  for (int k = 0; k < 3; k++) {
+    c[k] += w * value[k];
+    band[k] += w * value[k];
+    if (ax) {
+      axial[k] += w * value[k];
+    }
+  }
+}
+
+LobeGrid pool_map_lobe(const rdm::RdmMaps &maps, Lobe lobe, const LobePooling &pooling)
+{
+  const rdm::MapResolution &b = maps.bins;
+  LobeGrid g = make_lobe_grid(b, pooling);
+  const std::vector<float> &map = lobe == Lobe::kR ? maps.r : maps.m;
+  const std::vector<int> per_group = group_sizes(g);
+  tbb::parallel_for(0, b.theta_i, [&](int ti) { /* each row writes only its own groups */
+    for (int pi = 0; pi < b.phi_i; pi++) {
+      const double w = 1.0 / per_group[size_t(cell_of(pi, b.phi_i, g.phi_i_groups))];
+      for (int to = 0; to < b.theta_o; to++) {
+        const double dO = maps.outgoing_solid_angle(to);
+        for (int po = 0; po < b.phi_o; po++) {
+          const float *v = &map[maps.map_index(ti, pi, to, po)];
+          const double e[3] = {v[0] * dO, v[1] * dO, v[2] * dO};
+          add_to_lobe_grid(&g, ti, pi, to, po, e, w);
+        }
+      }
+    }
+  });
+  return g;
+}
+
+LobeGrid model_lobe_grid(const YarnModel &model, const rdm::MapResolution &b, Lobe lobe, const LobePooling &pooling)
+{
+  LobeGrid g = make_lobe_grid(b, pooling);
+  const std::vector<float> flat = model.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  const std::vector<int> per_group = group_sizes(g);
+  rdm::RdmMaps geometry; /* only for its solid angles */
+  geometry.bins = b;
+  /* Incident sub-directions per bin (n x n); R lobe strata in theta~ and phi~ per sub-direction. */
+  const int n_sub = lobe == Lobe::kR ? 4 : 2, n_theta = 32, n_phi = 64;
+  tbb::parallel_for(0, b.theta_i, [&](int ti) {
+    for (int pi = 0; pi < b.phi_i; pi++) {
+      const double w_bin = 1.0 / (per_group[size_t(cell_of(pi, b.phi_i, g.phi_i_groups))] * n_sub * n_sub);
+      for (int s = 0; s < n_sub * n_sub; s++) {
+        const ny::Vec3 wi = incident_sub_direction(b, ti, pi, s, n_sub);
+        const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+        if (lobe == Lobe::kM) {
+          for (int to = 0; to < b.theta_o; to++) {
+            const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), dO = geometry.outgoing_solid_angle(to);
+            for (int po = 0; po < b.phi_o; po++) {
+              const ny::Rgb v = ny::yarn_eval_M(p, l, direction(th, rdm::bin_center(po, -kPi, kPi, b.phi_o)));
+              const double e[3] = {v.r * dO, v.g * dO, v.b * dO};
+              add_to_lobe_grid(&g, ti, pi, to, po, e, w_bin);
+            }
+          }
+          continue;
+        }
+        /* R: stratified samples of the lobe's own proposal (truncated normal in theta~, uniform phi~ on the
+         * upper half); eval / pdf / count is each sample's share of the lobe's energy. */
+        for (int j = 0; j < n_theta; j++) {
+          const float theta = ny::sample_truncated_normal(l.tn_R, (j + 0.5f) / n_theta);
+          for (int k = 0; k < n_phi; k++) {
+            const float phi = -ny::kHalfPi + ny::kPi * (k + 0.5f) / n_phi;
+            const ny::Vec3 wo_f = ny::direction_from_angles(theta, phi);
+            const float pdf = ny::yarn_pdf_R_fiber(l, wo_f);
+            if (!(pdf > 0.0f)) {
+              continue;
+            }
+            const ny::Rgb v = ny::yarn_eval_R_fiber(l, wo_f) * (1.0f / (pdf * n_theta * n_phi));
+            const ny::Vec3 wo = ny::surface_fiber_to_yarn(p.twist, wo_f);
+            const int to = rdm::bin_of(std::acos(std::clamp(double(wo.z), -1.0, 1.0)), 0.0, kPi, b.theta_o);
+            const int po = rdm::bin_of(std::atan2(double(wo.y), double(wo.x)), -kPi, kPi, b.phi_o);
+            const double e[3] = {v.r, v.g, v.b};
+            add_to_lobe_grid(&g, ti, pi, to, po, e, w_bin);
+          }
+        }
+      }
+    }
+  });
+  return g;
+}
+
+LobeComparison compare_lobes(const LobeGrid &x, const LobeGrid &a, const LobeGrid *b)
+{
+  check_same_bins(x.bins, a.bins, "model and maps A");
+  if (b) {
+    check_same_bins(a.bins, b->bins, "maps A and B");
+  }
+  if (x.cells.size() != a.cells.size() || (b && b->cells.size() != a.cells.size())) {
+    throw ParameterError("pooling", "the grids were pooled differently");
+  }
+  LobeComparison r;
+  r.noise_removed = b != nullptr;
+  const int nt = a.bins.theta_i;
+  const size_t per_row = size_t(a.phi_i_groups) * a.cells_per_group() * 3;
+  const size_t bands_per_row = size_t(a.phi_i_groups) * kLobeBands * 3;
+  for (int ti = 0; ti < nt; ti++) {
+    double mass = 0, l1_raw = 0, l1 = 0, floor = 0;
+    for (size_t i = size_t(ti) * per_row; i < size_t(ti + 1) * per_row; i++) {
+      const double xa = x.cells[i], aa = a.cells[i];
+      const double n = b ? 0.5 * (aa + b->cells[i]) : aa;
+      mass += n;
+      l1_raw += std::abs(xa - n);
+      if (b) {
+        const double bb = b->cells[i];
+        floor += 0.5 * std::abs(aa - bb);
+        l1 += std::sqrt(std::max(0.0, (xa - aa) * (xa - bb)));
+      }
+    }
+    std::array<double, kLobeBands> xb{}, nb{};
+    for (size_t i = size_t(ti) * bands_per_row; i < size_t(ti + 1) * bands_per_row; i++) {
+      const int band = int((i / 3) % kLobeBands);
+      xb[size_t(band)] += x.bands[i];
+      nb[size_t(band)] += b ? 0.5 * (a.bands[i] + b->bands[i]) : a.bands[i];
+    }
+    const double inv = mass > 0 ? 1.0 / mass : 0.0;
+    r.theta_i_deg.push_back(rdm::bin_center(ti, 0.0, 90.0, nt));
+    r.l1_raw.push_back(l1_raw * inv);
+    r.l1.push_back(b ? l1 * inv : l1_raw * inv);
+    if (b) {
+      r.noise_floor.push_back(floor * inv);
+    }
+    std::array<double, kLobeBands> ratio{}, share{};
+    for (int k = 0; k < kLobeBands; k++) {
+      /* A band holding less than 0.1 % of the row's energy has no meaningful ratio. */
+      ratio[size_t(k)] = nb[size_t(k)] > 1e-3 * mass && mass > 0 ? xb[size_t(k)] / nb[size_t(k)] : 0.0;
+      share[size_t(k)] = nb[size_t(k)] * inv;
+    }
+    r.band_ratio.push_back(ratio);
+    r.band_share.push_back(share);
+    const double xr = xb[0] + xb[1] + xb[2], nr = nb[0] + nb[1] + nb[2];
+    const double xt = xb[3] + xb[4] + xb[5], ntr = nb[3] + nb[4] + nb[5];
+    r.reflection_ratio.push_back(nr > 1e-3 * mass && mass > 0 ? xr / nr : 0.0);
+    r.transmission_ratio.push_back(ntr > 1e-3 * mass && mass > 0 ? xt / ntr : 0.0);
+  }
+  for (int ti = 0; ti + 1 < nt; ti++) {
+    r.l1_max_but_grazing = std::max(r.l1_max_but_grazing, r.l1[size_t(ti)]);
+  }
+  r.l1_grazing = r.l1.empty() ? 0.0 : r.l1.back();
+  return r;
+}
+
+json LobeComparison::to_json() const
+{
+  json j = {{"theta_i_deg", theta_i_deg},
+            {"l1", l1},
+            {"l1_raw", l1_raw},
+            {"noise_removed", noise_removed},
+            {"l1_max_but_grazing", l1_max_but_grazing},
+            {"l1_grazing", l1_grazing},
+            {"reflection_ratio", reflection_ratio},
+            {"transmission_ratio", transmission_ratio},
+            {"band_ratio", band_json(band_ratio)},
+            {"band_share", band_json(band_share)},
+            {"bands", "theta_o 0-30, 30-60, 60-90, 90-120, 120-150, 150-180 deg from the ply normal; axial: "
+                      "within 30 deg of the ply axis"}};
+  if (noise_removed) {
+    j["noise_floor"] = noise_floor;
+  }
+  return j;
+}
+
+json LobeFidelity::to_json() const { return {{"R", R.to_json()}, {"M", M.to_json()}, {"seconds", seconds}}; }
+
+LobeFidelity check_lobes(const YarnModel &model, const rdm::RdmMaps &a, const rdm::RdmMaps *b,
+                         const LobePooling &pooling)
+{
+  const auto t0 = std::chrono::steady_clock::now();
+  for (const rdm::RdmMaps *m : {&a, b}) {
+    if (!m) {
+      continue;
+    }
+    if (preset_to_json(m->preset) != preset_to_json(model.preset)) {
+      throw ParameterError("maps", "the maps were gathered for another preset than the model's");
+    }
+    if (std::find(m->count.begin(), m->count.end(), uint64_t(0)) != m->count.end()) {
+      throw ParameterError("maps", "an incident bin of the maps has no paths (gather at least one path per bin)");
+    }
+  }
+  if (b) {
+    check_same_bins(a.bins, b->bins, "maps A and B");
+    if (a.seed == b->seed) {
+      throw ParameterError("maps", "the two maps have the same path seed: they are not independent");
+    }
+  }
+  LobeFidelity f;
+  for (Lobe lobe : {Lobe::kR, Lobe::kM}) {
+    const LobeGrid x = model_lobe_grid(model, a.bins, lobe, pooling);
+    const LobeGrid ga = pool_map_lobe(a, lobe, pooling);
+    LobeComparison c;
+    if (b) {
+      const LobeGrid gb = pool_map_lobe(*b, lobe, pooling);
+      c = compare_lobes(x, ga, &gb);
+    }
+    else {
+      c = compare_lobes(x, ga);
+    }
+    (lobe == Lobe::kR ? f.R : f.M) = c;
+  }
+  f.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return f;
+}
+
+}  // namespace neuralyarn::model
