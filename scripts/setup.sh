@@ -25,14 +25,15 @@ done
 # GoogleTest, Google Benchmark and header-only Boost.Math for the tests; a font for plot labels;
 # python3-venv for the add-on's test environment; Debian's Blender 3.4.1 (Cycles without OSL), the
 # oldest Blender the add-on supports, which its tests run, and numpy for it (the add-on needs it; the
-# package does not depend on it).
+# package does not depend on it); GNU time (/usr/bin/time) for the renders' peak memory (scripts/evaluate.sh,
+# bench_*.sh).
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git ccache
   libembree-dev libopenimageio-dev openimageio-tools libopenexr-dev libtbb-dev libeigen3-dev
   nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev libboost-dev
   fonts-dejavu-core
-  python3-venv blender python3-numpy
+  python3-venv blender python3-numpy time
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -65,14 +66,16 @@ cmake --build "$BUILD"
 # --- 2b. The patched standalone Cycles (cycles_patch/): Debian's Blender 4.3.2 source, verified --------
 NY_BUILD_DIR="$BUILD" bash "$ROOT/scripts/build_cycles.sh"
 
-# --- 2c. Python environment for the add-on (.venv): the bpy wheel (Blender 4.5 as a module, Cycles with
-# OSL; CPython 3.11 = Debian 12's python3), numpy, pytest, matplotlib. Pinned to the 4.5 LTS series. ----
+# --- 2c. Python environment for the add-on and the evaluation harness (.venv): the bpy wheel (Blender 4.5
+# as a module, Cycles with OSL; CPython 3.11 = Debian 12's python3), numpy, pytest, matplotlib; for
+# scripts/evaluate.py NVIDIA's FLIP (flip-evaluator), scikit-image (SSIM) and the OpenEXR bindings (3.3+:
+# the File API). bpy pinned to the 4.5 LTS series. ----
 VENV="$ROOT/.venv"
-PY_REQS=("bpy==4.5.*" "numpy" "pytest>=7" "matplotlib>=3.6")
+PY_REQS=("bpy==4.5.*" "numpy" "pytest>=7" "matplotlib>=3.6" "flip-evaluator" "scikit-image" "OpenEXR>=3.3")
 if [[ ! -x "$VENV/bin/python" ]]; then
   /usr/bin/python3 -m venv "$VENV"
 fi
-if ! "$VENV/bin/python" -c "import bpy, numpy, pytest, matplotlib" >/dev/null 2>&1; then
+if ! "$VENV/bin/python" -c "import bpy, numpy, pytest, matplotlib, flip_evaluator, skimage, OpenEXR; OpenEXR.File" >/dev/null 2>&1; then
   echo "setup: installing ${PY_REQS[*]} into $VENV (the bpy wheel is ~350 MB)"
   "$VENV/bin/python" -m pip install -q --upgrade pip
   "$VENV/bin/python" -m pip install -q --progress-bar on "${PY_REQS[@]}"

@@ -175,7 +175,34 @@ int main(int argc, char **argv)
   scene->add_option("--width", s_opt.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
   scene->add_option("--height", s_opt.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
   scene->add_option("--packing-seed", s_opt.packing_seed, "Seed of the fiber cross-section")->capture_default_str();
-  scene->add_flag("--white-furnace", s_opt.white_furnace, "Uniform white background, no lights");
+  scene->add_option("--ply-length", s_opt.ply_length, "Length of the ply along x, centred on the origin (ply radii)")
+      ->check(finite_range(1.0, 1000.0))
+      ->capture_default_str();
+  std::string rig_names;
+  for (const auto &r : scenes::light_rigs()) {
+    rig_names += (rig_names.empty() ? "" : ", ") + r.name;
+  }
+  auto *s_opt_lights = scene->add_option("--lights", s_opt.lights, "Light rig: " + rig_names + " (--list-lights)")
+                           ->capture_default_str();
+  scene->add_flag("--white-furnace", s_opt.white_furnace,
+                  "Uniform white background, no lights (the environment rig) and no Russian roulette")
+      ->excludes(s_opt_lights);
+  /* Runs while parsing, before the check for the required --out: `cycles-scene --list-lights` alone works. */
+  scene->add_flag_callback(
+      "--list-lights",
+      [] {
+        for (const auto &r : scenes::light_rigs()) {
+          std::printf("%-12s %s\n", r.name.c_str(), r.description.c_str());
+        }
+        throw CLI::Success();
+      },
+      "Print the light rigs (name, description; one a line) and exit");
+  scene->add_option("--max-bounce", s_opt.max_bounce, "Cycles' bounce limit (Russian roulette ends paths before it)")
+      ->check(CLI::Range(1, 65535))
+      ->capture_default_str();
+  scene->add_option("--seed", s_opt.seed, "Cycles' integrator seed: renders with other seeds have independent noise")
+      ->check(CLI::Range(0, 2147483647))
+      ->capture_default_str();
   scene->add_option("--model", s_opt.model, "Aggregated version: one thick curve with this neural yarn model");
   scene->add_flag("--embed-model", s_opt.embed_model,
                   "With --model: write the model's JSON into the scene (a self-contained file; cycles_patch 0003)");
@@ -202,6 +229,7 @@ int main(int argc, char **argv)
       return 0;
     }
     if (scene->parsed()) {
+      scenes::find_light_rig(s_opt.lights); /* an unknown rig is named before anything else */
       check_writable(s_out);
       scenes::write_ply_scene(resolve_preset(s_preset, s_params), s_opt, s_out);
       std::printf("wrote %s\n", s_out.c_str());

@@ -20,6 +20,34 @@ namespace {
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 /* The camera: 12 radii in front of the ply (-z), looking along +z; field of view of the shorter side. */
 constexpr double kCameraDistance = 12.0, kCameraFov = 0.9;
+/* Distant lights: the sun's angular diameter (small, yet not a delta: BSDF samples can hit it and MIS
+ * works, which matters for the 1-degree R lobes of silk and cotton), and its strength: irradiance pi on a
+ * plane facing it, so a white Lambertian surface facing the light renders 1 (the key-rim key light gives
+ * 2000 W / (4 pi 9.4^2) = 1.8). */
+constexpr double kSunAngleDeg = 2.0, kSunStrength = 3.14159265358979323846;
+
+/* The distant light `deg` degrees from the view direction (from the ply toward the camera, -z), tilted
+ * toward the unit axis (ax, ay, 0) perpendicular to it. */
+RigLight sun(double deg, double ax, double ay)
+{
+  const double t = deg * kDegToRad;
+  RigLight l;
+  l.kind = RigLight::Kind::distant;
+  l.x = std::sin(t) * ax, l.y = std::sin(t) * ay, l.z = -std::cos(t);
+  l.strength = kSunStrength;
+  l.size = kSunAngleDeg;
+  return l;
+}
+
+RigLight sphere(double x, double y, double z)
+{
+  RigLight l;
+  l.kind = RigLight::Kind::point;
+  l.x = x, l.y = y, l.z = z;
+  l.strength = 2000.0;
+  l.size = 1.0;
+  return l;
+}
 
 /* Text for an XML attribute value in double quotes. */
 std::string xml_escape(const std::string &in)
@@ -51,9 +79,46 @@ std::string read_text_file(const std::string &path)
 }
 }
 
+const std::vector<LightRig> &light_rigs()
+{
+  static const std::vector<LightRig> rigs = {
+      {"key-rim", "two sphere lights (2000 W, radius 1): in front above left (reflection) and behind (transmission)",
+       false, {sphere(-3.0, 4.0, -8.0), sphere(2.0, -1.0, 9.0)}},
+      {"environment", "no lights, a uniform white background of strength 1", true, {}},
+      {"front", "distant light 10 deg from the view direction, toward +y", false, {sun(10.0, 0.0, 1.0)}},
+      {"grazing", "distant light 80 deg from the view, in the plane normal to the ply (toward +y)", false,
+       {sun(80.0, 0.0, 1.0)}},
+      {"back", "distant light 170 deg from the view, in the plane normal to the ply (behind it, toward +y)", false,
+       {sun(170.0, 0.0, 1.0)}},
+      {"axis", "distant light 80 deg from the view, along the ply axis (toward +x)", false, {sun(80.0, 1.0, 0.0)}},
+  };
+  return rigs;
+}
+
+const LightRig &find_light_rig(const std::string &name)
+{
+  std::string known;
+  for (const LightRig &r : light_rigs()) {
+    if (r.name == name) {
+      return r;
+    }
+    known += (known.empty() ? "" : ", ") + r.name;
+  }
+  throw std::runtime_error("unknown light rig '" + name + "' (known: " + known + ")");
+}
+
 void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const std::string &path)
 {
   validate(preset);
+  if (o.white_furnace && o.lights != "key-rim" && o.lights != "environment") {
+    throw std::runtime_error("the white furnace is the 'environment' light rig; it cannot use lights '" + o.lights +
+                             "'");
+  }
+  const LightRig &rig = find_light_rig(o.white_furnace ? std::string("environment") : o.lights);
+  if (o.max_bounce < 1 || o.max_bounce > 65535) {
+    /* Cycles keeps bounce counters in 16 bits. */
+    throw std::runtime_error("max_bounce must be in [1, 65535], got " + std::to_string(o.max_bounce));
+  }
   const bool aggregated = !o.model.empty();
   std::string model_path;
   if (aggregated) {
@@ -87,29 +152,64 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
   /* Camera 12 radii in front of the ply (-z), looking at the origin along +z. */
   x << "<transform translate=\"0 0 " << -kCameraDistance << "\">\n  <camera type=\"perspective\" fov=\"" << kCameraFov
     << "\" />\n</transform>\n";
-  /* The white furnace must not lose energy to the bounce limit or to roulette: every path runs until it
-   * leaves (an albedo-1 ply lets light out after tens of events). */
-  const int bounces = o.white_furnace ? 1024 : 64;
-  x << "<integrator max_bounce=\"" << bounces << "\" max_glossy_bounce=\"" << bounces
-    << "\" max_transmission_bounce=\"" << bounces << "\" min_bounce=\"" << (o.white_furnace ? bounces : 0)
+  /* Bounce limits: a limit cuts the long random walks inside bright plies and biases the explicit-fiber
+   * references dark (cotton, key-rim, 160 x 80, 256 spp, same seed: the ply's central region is 4.7 %
+   * darker at 64 bounces than at 4096; 1024 and 4096 gave bit-identical images), so the limit is high and
+   * Cycles' Russian roulette (from the first bounce) ends paths without bias. The white
+   * furnace must not lose energy at all: no roulette there (min_bounce = max_bounce), every path runs
+   * until it leaves (an albedo-1 ply lets light out after tens of events). Transparent bounces (the
+   * aggregated model's T lobe) and diffuse ones get the same limit. */
+  const int bounces = o.max_bounce;
+  x << "<integrator max_bounce=\"" << bounces << "\" max_diffuse_bounce=\"" << bounces << "\" max_glossy_bounce=\""
+    << bounces << "\" max_transmission_bounce=\"" << bounces << "\" transparent_max_bounce=\"" << bounces
+    << "\" min_bounce=\"" << (o.white_furnace ? bounces : 0)
     /* No sample clamping: Cycles clamps indirect light at 10 by default, which biases the explicit-fiber
      * references low (-10 to -15 % with these lights, more with more lights: the clamp acts on each light
      * sample divided by its selection probability) and makes the image depend on the number of lights. */
-    << "\" sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\" />\n";
-  x << "<background>\n  <background name=\"bg\" strength=\"" << (o.white_furnace ? 1.0 : 0.0)
+    << "\" sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\""
+    /* No adaptive sampling (Cycles' default stops converged pixels after 64 samples): N samples are N
+     * samples in every pixel, so renders at equal samples compare and references converge everywhere. */
+    << " use_adaptive_sampling=\"false\" seed=\"" << o.seed << "\" />\n";
+  x << "<!-- lights: " << rig.name << " (" << xml_escape(rig.description) << ") -->\n";
+  x << "<background>\n  <background name=\"bg\" strength=\"" << (rig.environment ? 1.0 : 0.0)
     << "\" color=\"1 1 1\" />\n  <connect from=\"bg background\" to=\"output surface\" />\n</background>\n";
-  if (!o.white_furnace) {
+  if (!rig.lights.empty()) {
     x << "<shader name=\"lamp\">\n  <emission name=\"e\" color=\"1 1 1\" strength=\"1\" />\n"
       << "  <connect from=\"e emission\" to=\"output surface\" />\n</shader>\n";
-    /* Cycles 4.3 lights are placed by their 3x4 transform (rows; translation in the last column). */
-    auto light = [&](double px, double py, double pz) {
-      x << "  <light light_type=\"point\" tfm=\"1 0 0 " << px << " 0 1 0 " << py << " 0 0 1 " << pz
-        << "\" strength=\"" << o.light_strength << " " << o.light_strength << " " << o.light_strength
-        << "\" size=\"1\" />\n";
-    };
     x << "<state shader=\"lamp\">\n";
-    light(-3.0, 4.0, -8.0); /* in front, above left: reflection */
-    light(2.0, -1.0, 9.0);  /* behind: transmission */
+    for (const RigLight &l : rig.lights) {
+      const double s = l.strength;
+      if (l.kind == RigLight::Kind::point) {
+        /* Cycles 4.3 lights are placed by their own 3x4 transform (rows; translation in the last column);
+         * the enclosing <transform> does not apply to them. */
+        x << "  <light light_type=\"point\" tfm=\"1 0 0 " << l.x << " 0 1 0 " << l.y << " 0 0 1 " << l.z
+          << "\" strength=\"" << s << " " << s << " " << s << "\" size=\"" << l.size << "\" />\n";
+      }
+      else {
+        /* A distant light shines along -Z of its transform (Light::get_dir() is minus the third column; the
+         * kernel's direction toward the light is that column), so the third column is the unit vector
+         * toward the light; the first two only orient its disc. Its angle is the full angular diameter in
+         * radians. Camera rays do not see it: the back rig's disc (radiance ~3300) is in the frame, above
+         * the ply, and would swamp every whole-frame measurement. */
+        const double zx = l.x, zy = l.y, zz = l.z;
+        /* First column: a unit vector perpendicular to z (z x e, e the coordinate axis least aligned with z). */
+        const double ax = std::fabs(zx), ay = std::fabs(zy), az = std::fabs(zz);
+        const double ex = (ax <= ay && ax <= az) ? 1.0 : 0.0, ey = (ex == 0.0 && ay <= az) ? 1.0 : 0.0,
+                     ez = 1.0 - ex - ey;
+        double ux = zy * ez - zz * ey, uy = zz * ex - zx * ez, uz = zx * ey - zy * ex;
+        const double un = std::sqrt(ux * ux + uy * uy + uz * uz);
+        ux /= un, uy /= un, uz /= un;
+        const double vx = zy * uz - zz * uy, vy = zz * ux - zx * uz, vz = zx * uy - zy * ux; /* z x u */
+        const double rows[3][3] = {{ux, vx, zx}, {uy, vy, zy}, {uz, vz, zz}};
+        x << "  <light light_type=\"distant\" tfm=\"";
+        for (int r = 0; r < 3; r++) {
+          /* (+ 0.0 writes -0 as 0) */
+          x << (r ? " " : "") << rows[r][0] + 0.0 << " " << rows[r][1] + 0.0 << " " << rows[r][2] + 0.0 << " 0";
+        }
+        x << "\" strength=\"" << s << " " << s << " " << s
+          << "\" angle=\"" << l.size * kDegToRad << "\" use_mis=\"true\" use_camera=\"false\" />\n";
+      }
+    }
     x << "</state>\n";
   }
   if (aggregated) {

@@ -1,27 +1,53 @@
 // SPDX-License-Identifier: Apache-2.0
 //
 // Scenes for the patched standalone Cycles (`cycles scene.xml`, cycles_patch/): the paper's single-ply
-// close-up — a straight ply across the frame, seen from the side, lit by a sphere light in front and one
-// behind it (for transmission) — in two versions from the same preset and packing seed: explicit (the
-// ply's fibers as <hair> curves shaded by the khungurn_fiber_bsdf closure) and aggregated (one thick
-// curve of the ply's radius shaded by the neural_yarn_bsdf closure with a model file). Units: the ply
-// radius is 1.
+// close-up — a straight ply across the frame, seen from the side, lit by one of the light rigs below
+// (by default a sphere light in front and one behind it, for transmission) — in two versions from the
+// same preset and packing seed: explicit (the ply's fibers as <hair> curves shaded by the
+// khungurn_fiber_bsdf closure) and aggregated (one thick curve of the ply's radius shaded by the
+// neural_yarn_bsdf closure with a model file). Units: the ply radius is 1; the ply lies along x through
+// the origin, the camera looks along +z from z = -12.
 #pragma once
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "neuralyarn/presets.h"
 
 namespace neuralyarn::scenes {
 
+/* One light of a rig. */
+struct RigLight {
+  enum class Kind { point, distant };
+  Kind kind = Kind::point;
+  double x = 0, y = 0, z = 0; /* point: the position; distant: the unit vector from the ply toward the light */
+  double strength = 0;        /* point: power, W; distant: irradiance on a plane facing the light, W/m^2 */
+  double size = 0;            /* point: the sphere's radius; distant: the light's angular diameter, degrees */
+};
+
+/* A named lighting of the close-up. */
+struct LightRig {
+  std::string name, description;
+  bool environment = false; /* a uniform white background of strength 1 (otherwise black) */
+  std::vector<RigLight> lights;
+};
+
+/* The rigs, in a fixed order; the first, "key-rim", is the default. */
+const std::vector<LightRig> &light_rigs();
+/* The rig of that name; throws std::runtime_error listing the known names otherwise. */
+const LightRig &find_light_rig(const std::string &name);
+
 struct PlySceneOptions {
   int width = 320, height = 160;
-  double ply_length = 16.0;     /* along x, centred on the origin (the frame shows about 10) */
+  double ply_length = 16.0;     /* along x, centred on the origin (a 2:1 frame is 23 wide at the ply: the ends show) */
   int segments_per_turn = 32;   /* curve keys per helix turn (Cycles interpolates them smoothly) */
   uint64_t packing_seed = 1;
-  double light_strength = 2000.0; /* W, each sphere light */
-  bool white_furnace = false;    /* no lights, a uniform white background of strength 1 instead */
+  std::string lights = "key-rim"; /* the light rig (light_rigs()) */
+  bool white_furnace = false;    /* the "environment" rig without Russian roulette (lights must stay the default
+                                  * or be "environment"): every path runs until it leaves */
+  int max_bounce = 1024;         /* Cycles' bounce limits (all kinds); low limits bias bright fibers dark */
+  int seed = 0;                  /* Cycles' integrator seed: independent noise per value */
   std::string model;             /* aggregated version: the model file (written relative to the scene) */
   bool embed_model = false;      /* write the model's JSON into the scene (model_json), not its path */
 };

@@ -1,0 +1,587 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
+"""The evaluation harness: fidelity and cost of the neural aggregated model against explicit fibers.
+
+    bash scripts/evaluate.sh --out DIR [--quick] [--presets P ...] [--lights L ...] [--methods M ...]
+        [--scenes closeup] [--spp 64 256] [--seeds 1] [--ref-spp 1024] [--width 160 --height 80]
+        [--threads N] [--timeout 1800]
+
+Renders every (scene, method, preset, light, spp, seed) with the patched standalone Cycles
+(build/cycles/bin/cycles) and measures it against a reference: explicit fibers at --ref-spp with two
+Cycles seeds per (scene, preset, light) — reference A is the reference, B against A is the noise floor.
+References are cached in DIR/refs and reused when the scene file and the sample count are the same.
+
+Scenes: `closeup`, the single-ply close-up of `neuralyarn cycles-scene` (ply radius 1 along x, camera at
+distance 12; the ply 48 long so that its ends are out of the frame). Methods: `explicit` (the fibers
+themselves, the reference's method, at the test's samples) and `native` (`--model models/<preset>.json`:
+one thick curve with the neural_yarn_bsdf closure). Lights: the rigs of `neuralyarn cycles-scene
+--list-lights`.
+
+Metrics against reference A (linear HDR images):
+  mean_colour_error        per channel, mean colour / reference mean colour - 1, over the central region:
+                           the middle half of the width, the rows whose pixel centres see the ply's bounding
+                           cylinder (from the scene's camera), less one row at each silhouette;
+  mean_colour_error_frame  the same over the whole frame;
+  mean_luminance_error     the same for Rec. 709 luminance, central region;
+  flip                     mean HDR-FLIP (NVIDIA, PyPI flip-evaluator), 67 pixels per degree, whole frame;
+  relmse                   mean over pixels of mean_c (x - r)^2 / (r^2 + 0.01), the top 0.1 % discarded;
+  ssim                     as scripts/bench_render.py: display images (the reference's 99.5th percentile
+                           maps to 1, clamped, sRGB), Gaussian window sigma 1.5.
+Cost: seconds_load (wall time of a 1-sample render of the same scene), seconds_render (wall time minus
+that), peak_rss_mb (/usr/bin/time %M), baseline_rss_mb (an empty scene's), curve_keys (from the scene).
+
+Writes DIR/results.json, DIR/summary.md (also printed), DIR/strips/<scene>_<preset>_<light>.png
+(reference | native | explicit at the first --spp, one exposure). One progress line per render on
+stderr. Exit codes: 0 all rendered, 1 bad arguments or a missing build/model (one line on stderr, nothing
+rendered), 2 some renders failed (recorded in results.json with the reason).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import hashlib
+import json
+import math
+import os
+import platform
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
+BUILD = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
+CLI = os.path.join(BUILD, "cpp_core", "neuralyarn")
+CYCLES = os.path.join(BUILD, "cycles", "bin", "cycles")
+MODELS = os.path.join(ROOT, "models")
+
+PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
+SCENES = ["closeup"]
+METHODS = ["explicit", "native"]
+REFERENCE_METHOD = "explicit"
+# Cycles integrator seeds: the runs use 1..--seeds, the references two seeds of their own.
+REFERENCE_SEEDS = {"A": 1001, "B": 1002}
+PLY_RADIUS = 1.0  # cycles-scene's unit
+# The close-up's ply is longer than cycles-scene's default (16): its ends must lie outside the frame (the
+# frame is 23 radii wide at the ply, 2:1) and far enough from the central region that light entering through
+# an end cap does not reach it (the axis rig: with 16, the central region of the explicit ply is 7 % brighter).
+CLOSEUP_PLY_LENGTH = 48.0
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
+FLIP_PPD = 67.0
+RELMSE_EPS = 0.01
+RELMSE_DISCARD = 0.001
+QUICK = {"width": 96, "height": 48, "ref_spp": 64, "spp": [4], "presets": ["fleece"], "lights": ["key-rim", "grazing"]}
+DEFAULTS = {"width": 160, "height": 80, "ref_spp": 1024, "spp": [64], "presets": PRESETS, "lights": None}
+
+
+class Usage(Exception):
+    """A bad argument, a missing build or model: one line on stderr, exit code 1."""
+
+
+class RenderFailed(Exception):
+    pass
+
+
+def log(msg: str) -> None:
+    print(f"evaluate: {msg}", file=sys.stderr, flush=True)
+
+
+# --- command line ------------------------------------------------------------------------------------
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse's own errors: one line and exit code 1, as every other error
+        raise Usage(message)
+
+
+def names(values: list[str] | None) -> list[str] | None:
+    """`a b`, `a,b` or a mix."""
+    if values is None:
+        return None
+    return [n for v in values for n in v.split(",") if n]
+
+
+def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
+    ap = Parser(prog="evaluate.sh", description=__doc__.split("\n")[0])
+    ap.add_argument("--out", required=True, help="output directory (created; references cached there)")
+    ap.add_argument("--quick", action="store_true",
+                    help="96x48, reference 64 spp, 4 spp, fleece, lights key-rim and grazing (unless given)")
+    ap.add_argument("--scenes", nargs="+", help=f"scenes ({', '.join(SCENES)}; default all)")
+    ap.add_argument("--methods", nargs="+", help=f"methods ({', '.join(METHODS)}; default all)")
+    ap.add_argument("--presets", nargs="+", help=f"presets ({', '.join(PRESETS)}; default all)")
+    ap.add_argument("--lights", nargs="+", help=f"light rigs ({', '.join(rigs)}; default all)")
+    ap.add_argument("--spp", nargs="+", help="samples per pixel of the tested renders (default 64)")
+    ap.add_argument("--seeds", type=int, help="seeds per render (Cycles seeds 1..N; default 1)")
+    ap.add_argument("--ref-spp", type=int, help="samples per pixel of the references (default 1024)")
+    ap.add_argument("--width", type=int, help="image width (default 160)")
+    ap.add_argument("--height", type=int, help="image height (default 80)")
+    ap.add_argument("--threads", type=int, default=os.cpu_count() or 1, help="Cycles threads (default: all cores)")
+    ap.add_argument("--timeout", type=float, default=1800.0, help="seconds before a render counts as failed")
+    a = ap.parse_args(argv)
+    base = QUICK if a.quick else DEFAULTS
+    a.scenes = names(a.scenes) or SCENES
+    a.methods = names(a.methods) or METHODS
+    a.presets = names(a.presets) or base["presets"]
+    a.lights = names(a.lights) or base["lights"] or list(rigs)
+    for kind, given, known in (("scene", a.scenes, SCENES), ("method", a.methods, METHODS),
+                               ("preset", a.presets, PRESETS), ("light", a.lights, list(rigs))):
+        for n in given:
+            if n not in known:
+                raise Usage(f"unknown {kind} '{n}' (known: {', '.join(known)})")
+    try:
+        a.spp = [int(s) for s in names(a.spp)] if a.spp else base["spp"]
+    except ValueError:
+        raise Usage(f"--spp must be whole numbers, got {' '.join(a.spp)}")
+    a.width = a.width if a.width is not None else base["width"]
+    a.height = a.height if a.height is not None else base["height"]
+    a.ref_spp = a.ref_spp if a.ref_spp is not None else base["ref_spp"]
+    a.seeds = a.seeds if a.seeds is not None else 1
+    for flag, v in (("--spp", min(a.spp)), ("--ref-spp", a.ref_spp), ("--seeds", a.seeds), ("--width", a.width),
+                    ("--height", a.height), ("--threads", a.threads)):
+        if v < 1:
+            raise Usage(f"{flag} must be at least 1, got {v}")
+    if not a.timeout > 0:
+        raise Usage(f"--timeout must be positive, got {a.timeout}")
+    if "native" in a.methods:
+        for p in a.presets:
+            if not os.path.isfile(model_path(p)):
+                raise Usage(f"method native: model '{model_path(p)}' is missing (scripts/bake_models.sh makes it)")
+    return a
+
+
+def model_path(preset: str) -> str:
+    return os.path.join(MODELS, f"{preset}.json")
+
+
+# --- scenes and renders --------------------------------------------------------------------------------
+
+def run_cli(args: list[str]) -> str:
+    try:
+        r = subprocess.run([CLI, *args], capture_output=True, text=True)
+    except OSError as e:
+        raise RenderFailed(f"neuralyarn {args[0]}: {e}")
+    if r.returncode != 0:
+        raise RenderFailed(f"neuralyarn {' '.join(args)}: {(r.stderr or r.stdout).strip()}")
+    return r.stdout
+
+
+def light_rigs() -> dict[str, str]:
+    """name -> description, from the CLI (the one table of rigs, cpp_core/src/scenes/cycles_xml.cpp)."""
+    r = subprocess.run([CLI, "cycles-scene", "--list-lights"], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise Usage(f"{CLI} cycles-scene --list-lights failed: {r.stderr.strip()} (rebuild: scripts/setup.sh)")
+    rigs = {}
+    for line in r.stdout.splitlines():
+        name, _, desc = line.strip().partition(" ")
+        rigs[name] = desc.strip()
+    return rigs
+
+
+def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int) -> str:
+    """The scene file of one render (the closeup: `neuralyarn cycles-scene`)."""
+    assert scene == "closeup"
+    path = os.path.join(a.out, "scenes", f"{scene}_{preset}_{light}_{method}_seed{seed}.xml")
+    args = ["cycles-scene", "--preset", preset, "--lights", light, "--seed", str(seed), "--width", str(a.width),
+            "--height", str(a.height), "--ply-length", f"{CLOSEUP_PLY_LENGTH:g}", "--out", path]
+    if method == "native":
+        args += ["--model", model_path(preset)]
+    run_cli(args)
+    return path
+
+
+def empty_scene(a) -> str:
+    """Camera and a black background only: the renderer's own memory (baseline_rss_mb)."""
+    path = os.path.join(a.out, "scenes", "empty.xml")
+    with open(path, "w") as f:
+        f.write('<?xml version="1.0"?>\n<cycles>\n'
+                f'<camera width="{a.width}" height="{a.height}" />\n'
+                '<transform translate="0 0 -12">\n  <camera type="perspective" fov="0.9" />\n</transform>\n'
+                '<background>\n  <background name="bg" strength="0" color="1 1 1" />\n'
+                '  <connect from="bg background" to="output surface" />\n</background>\n</cycles>\n')
+    return path
+
+
+def render(a, scene: str, spp: int, exr: str, what: str) -> dict:
+    """Renders with the patched Cycles; returns seconds (wall) and peak_rss_mb, and logs the time. Raises
+    RenderFailed with the reason (exit code, signal, timeout, no image, non-finite pixels): the caller logs it."""
+    t0 = time.monotonic()
+    with tempfile.NamedTemporaryFile("r", suffix=".time") as tf:
+        cmd = ["/usr/bin/time", "-f", "%M", "-o", tf.name, CYCLES, "--background", "--quiet", "--samples",
+               str(spp), "--threads", str(a.threads), "--width", str(a.width), "--height", str(a.height),
+               "--output", exr, scene]
+        if os.path.exists(exr):
+            os.remove(exr)
+        # A session of its own, so that a timeout kills Cycles too, not only /usr/bin/time.
+        try:
+            p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 start_new_session=True)
+        except OSError as e:
+            raise RenderFailed(f"cannot run cycles: {e}")
+        try:
+            out, err = p.communicate(timeout=a.timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.communicate()
+            raise RenderFailed(f"timed out after {a.timeout:g} s")
+        seconds = time.monotonic() - t0
+        lines = [ln for ln in tf.read().splitlines() if ln.strip()]
+    tail = " ".join((err or out or "").strip().splitlines()[-3:])
+    if p.returncode != 0:
+        reason = f"cycles exited with {p.returncode}" + (f" ({signal.Signals(p.returncode - 128).name})"
+                                                          if p.returncode > 128 else "")
+        raise RenderFailed(f"{reason}: {tail}" if tail else reason)
+    if not os.path.isfile(exr):
+        raise RenderFailed(f"cycles wrote no image: {tail}")
+    img = read_exr(exr)
+    if not np.isfinite(img).all():
+        raise RenderFailed(f"{int((~np.isfinite(img)).sum())} non-finite pixel values")
+    log(f"{what}: {seconds:.1f} s")
+    return {"seconds": seconds, "peak_rss_mb": float(lines[-1]) / 1024.0 if lines else None}
+
+
+def read_exr(path: str) -> np.ndarray:
+    """The RGB channels of an EXR as float64 (H, W, 3), top row first (as scripts/bench_render.py)."""
+    import OpenEXR
+    with OpenEXR.File(path) as f:
+        channels = f.channels()
+        if "RGBA" in channels or "RGB" in channels:
+            img = channels["RGBA" if "RGBA" in channels else "RGB"].pixels[..., :3]
+        else:
+            img = np.stack([channels[c].pixels for c in "RGB"], axis=-1)
+    return np.asarray(img, dtype=np.float64)
+
+
+def sha256(path: str) -> str:
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def curve_keys(scene: str) -> int:
+    """Curve control points in the scene (all <hair P="..."> lists)."""
+    with open(scene) as f:
+        text = f.read()
+    return sum(len(m.group(1).split()) // 3 for m in re.finditer(r'<hair\b[^>]*\sP="([^"]*)"', text))
+
+
+def camera(scene: str) -> tuple[float, float]:
+    """(distance, fov) of the close-up's camera, read from the scene: at (0, 0, -distance) looking along +z."""
+    with open(scene) as f:
+        text = f.read()
+    t = re.search(r'<transform translate="0 0 (-?[0-9.eE+-]+)">\s*<camera type="perspective" fov="([0-9.eE+-]+)"', text)
+    if not t:
+        raise RenderFailed(f"{scene}: no close-up camera found")
+    return -float(t.group(1)), float(t.group(2))
+
+
+def central_region(distance: float, fov: float, width: int, height: int) -> tuple[slice, slice]:
+    """Rows and columns of the central region: the middle half of the width; the rows whose pixel-centre
+    rays (x = 0) hit the ply's bounding cylinder y^2 + z^2 = R^2, less one row at each silhouette, where the
+    pixel filter mixes ply and background."""
+    # Cycles' standalone camera applies the field of view to the shorter side of the image.
+    t = math.tan(0.5 * fov) * (1.0 if width >= height else height / width)
+    # A ray from (0, 0, -d) with direction (0, v, 1) passes the axis at distance d |v| / sqrt(1 + v^2).
+    v_max = PLY_RADIUS / math.sqrt(distance * distance - PLY_RADIUS * PLY_RADIUS)
+    rows = [py for py in range(height) if abs((1.0 - 2.0 * (py + 0.5) / height) * t) <= v_max]
+    if len(rows) < 3:
+        raise RenderFailed(f"{width}x{height}: the ply covers {len(rows)} rows, too few for a central region")
+    return slice(rows[0] + 1, rows[-1]), slice(width // 4, width - width // 4)
+
+
+# --- metrics -------------------------------------------------------------------------------------------
+
+def display(img: np.ndarray, exposure: float) -> np.ndarray:
+    x = np.clip(img * exposure, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def exposure_of(ref: np.ndarray) -> float:
+    level = float(np.percentile(ref, 99.5))
+    return 1.0 / level if level > 0 else 1.0
+
+
+def metrics(img: np.ndarray, ref: np.ndarray, region: tuple[slice, slice]) -> dict:
+    import flip_evaluator
+    from skimage.metrics import structural_similarity
+
+    def rel(a, b):
+        return [float(x) for x in (a / b - 1.0)]
+
+    m_img, m_ref = img[region].mean(axis=(0, 1)), ref[region].mean(axis=(0, 1))
+    out = {
+        "mean_colour_error": rel(m_img, m_ref),
+        "mean_colour_error_frame": rel(img.mean(axis=(0, 1)), ref.mean(axis=(0, 1))),
+        "mean_luminance_error": float(m_img @ LUMINANCE / (m_ref @ LUMINANCE) - 1.0),
+    }
+    _, mean_flip, _ = flip_evaluator.evaluate(np.ascontiguousarray(ref, dtype=np.float32),
+                                              np.ascontiguousarray(img, dtype=np.float32), "HDR",
+                                              applyMagma=False, parameters={"ppd": FLIP_PPD})
+    out["flip"] = float(mean_flip)
+    e = (((img - ref) ** 2) / (ref ** 2 + RELMSE_EPS)).mean(axis=2).ravel()
+    keep = np.sort(e)[: max(1, int(math.ceil(e.size * (1.0 - RELMSE_DISCARD))))]
+    out["relmse"] = float(keep.mean())
+    x = exposure_of(ref)
+    out["ssim"] = float(structural_similarity(display(ref, x), display(img, x), channel_axis=2, data_range=1.0,
+                                              gaussian_weights=True, sigma=1.5, use_sample_covariance=False))
+    return out
+
+
+METRIC_KEYS = ["flip", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame", "mean_luminance_error"]
+
+
+# --- the run -------------------------------------------------------------------------------------------
+
+def git_revision() -> dict:
+    def git(*args):
+        r = subprocess.run(["git", "-C", ROOT, *args], capture_output=True, text=True)
+        return r.stdout.strip() if r.returncode == 0 else None
+    rev = git("rev-parse", "HEAD")
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {"revision": rev, "dirty": bool(status) if status is not None else None}
+
+
+def cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+class Progress:
+    def __init__(self, total: int):
+        self.done, self.total = 0, total
+
+    def __call__(self, what: str) -> str:
+        self.done += 1
+        return f"[{self.done}/{self.total}] {what}"
+
+
+def reference(a, scene: str, preset: str, light: str, which: str, what: str) -> dict:
+    """Reference `which` (A or B) of (scene, preset, light): rendered, or reused from DIR/refs when the
+    scene file and the samples are the same."""
+    seed = REFERENCE_SEEDS[which]
+    xml = write_scene(a, scene, REFERENCE_METHOD, preset, light, seed)
+    name = f"{scene}_{preset}_{light}_{which}"
+    exr = os.path.join(a.out, "refs", name + ".exr")
+    meta_path = os.path.join(a.out, "refs", name + ".json")
+    key = {"scene_sha256": sha256(xml), "spp": a.ref_spp, "width": a.width, "height": a.height}
+    if os.path.isfile(exr) and os.path.isfile(meta_path):
+        with open(meta_path) as f:
+            meta = json.load(f)
+        if all(meta.get(k) == v for k, v in key.items()):
+            log(f"{what}: cached")
+            return {**meta, "image": os.path.relpath(exr, a.out), "cached": True}
+    cost = render(a, xml, a.ref_spp, exr, what)
+    meta = {**key, "seed": seed, "seconds": cost["seconds"], "peak_rss_mb": cost["peak_rss_mb"]}
+    with open(meta_path, "w") as f:
+        json.dump(meta, f, indent=1)
+    return {**meta, "image": os.path.relpath(exr, a.out), "cached": False}
+
+
+def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
+    for sub in ("scenes", "refs", "renders", "strips"):
+        os.makedirs(os.path.join(a.out, sub), exist_ok=True)
+    groups = [(s, p, l) for s in a.scenes for p in a.presets for l in a.lights]
+    n_runs = len(a.methods) * len(a.spp) * a.seeds
+    progress = Progress(1 + len(groups) * (2 + len(a.methods) + n_runs))
+    failures = 0
+
+    try:
+        baseline = render(a, empty_scene(a), 1, os.path.join(a.out, "renders", "empty.exr"),
+                          progress("empty scene (baseline memory) 1 spp"))["peak_rss_mb"]
+    except RenderFailed as e:
+        baseline, failures = None, failures + 1
+        log(f"the empty scene: FAILED, {e}")
+
+    references, noise_floor, runs, cameras = [], [], [], {}
+    for scene, preset, light in groups:
+        group = {"scene": scene, "preset": preset, "light": light}
+        refs, failed = {}, {}
+        for which in ("A", "B"):
+            what = progress(f"reference {which} {scene} {preset} {light} {a.ref_spp} spp")
+            try:
+                refs[which] = reference(a, scene, preset, light, which, what)
+            except RenderFailed as e:
+                failed[which] = f"reference {which} failed: {e}"
+                failures += 1
+                log(f"{what}: FAILED, {e}")
+        references.append({**group, "spp": a.ref_spp, "seeds": REFERENCE_SEEDS,
+                           "failed": "; ".join(failed.values()) or False,
+                           **{f"image_{w}": r["image"] for w, r in refs.items()},
+                           **{f"seconds_{w}": r["seconds"] for w, r in refs.items()}})
+        ref_failed = failed.get("A")  # the runs need reference A only, the noise floor both
+        ref_img, region, distance = None, None, None
+        ref_scene = os.path.join(a.out, "scenes", f"{scene}_{preset}_{light}_{REFERENCE_METHOD}_seed{REFERENCE_SEEDS['A']}.xml")
+        if os.path.isfile(ref_scene):
+            distance, fov = camera(ref_scene)
+            cameras[scene] = {"distance": distance, "fov": fov, "ply_length": CLOSEUP_PLY_LENGTH}
+        if not ref_failed:
+            ref_img = read_exr(os.path.join(a.out, refs["A"]["image"]))
+            region = central_region(distance, fov, a.width, a.height)
+        floor = {**group, "failed": "; ".join(failed.values()) or False}
+        if not failed:
+            floor.update(metrics(read_exr(os.path.join(a.out, refs["B"]["image"])), ref_img, region))
+        else:
+            floor.update({k: None for k in METRIC_KEYS})
+        noise_floor.append(floor)
+
+        strip = {"reference": ref_img}
+        for method in a.methods:
+            # Load cost: a 1-sample render of the same scene (seed 1), once per method.
+            xml, load, load_failed = None, None, None
+            what = progress(f"{method} {scene} {preset} {light} 1 spp (load)")
+            try:
+                xml = write_scene(a, scene, method, preset, light, 1)
+                load = render(a, xml, 1, os.path.join(a.out, "renders", f"{scene}_{preset}_{light}_{method}_1spp.exr"),
+                              what)
+            except RenderFailed as e:
+                load_failed = f"load render failed: {e}"
+                failures += 1
+                log(f"{what}: FAILED, {e}")
+            keys = curve_keys(xml) if xml else None
+            for spp in a.spp:
+                for seed in range(1, a.seeds + 1):
+                    rec = {**group, "method": method, "distance": distance, "spp": spp,
+                           "seed": seed, "seconds_load": None, "seconds_render": None, "peak_rss_mb": None,
+                           "baseline_rss_mb": baseline, "curve_keys": keys, **{k: None for k in METRIC_KEYS},
+                           "image": None, "failed": False}
+                    what = progress(f"{method} {scene} {preset} {light} {spp} spp seed {seed}")
+                    if ref_failed or load_failed:
+                        rec["failed"] = ref_failed or load_failed
+                        log(f"{what}: skipped ({rec['failed']})")
+                        runs.append(rec)
+                        continue
+                    exr = os.path.join(a.out, "renders", f"{scene}_{preset}_{light}_{method}_{spp}spp_seed{seed}.exr")
+                    try:
+                        xml_s = xml if seed == 1 else write_scene(a, scene, method, preset, light, seed)
+                        cost = render(a, xml_s, spp, exr, what)
+                    except RenderFailed as e:
+                        rec["failed"] = str(e)
+                        failures += 1
+                        log(f"{what}: FAILED, {e}")
+                        runs.append(rec)
+                        continue
+                    img = read_exr(exr)
+                    # (A few-sample render can finish faster than the 1-sample one: timing noise, not a cost.)
+                    rec.update({"seconds_load": load["seconds"],
+                                "seconds_render": max(0.0, cost["seconds"] - load["seconds"]),
+                                "peak_rss_mb": cost["peak_rss_mb"], "image": os.path.relpath(exr, a.out),
+                                **metrics(img, ref_img, region)})
+                    runs.append(rec)
+                    if spp == a.spp[0] and seed == 1:
+                        strip[method] = img
+        if ref_img is not None:
+            write_strip(a, scene, preset, light, strip)
+
+    results = {
+        "format": "neuralyarn-evaluate 1",
+        "command": ["scripts/evaluate.sh", *sys.argv[1:]],
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "git": git_revision(),
+        "machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "system": platform.platform()},
+        "settings": {"width": a.width, "height": a.height, "ref_spp": a.ref_spp, "spp": a.spp, "seeds": a.seeds,
+                     "threads": a.threads, "timeout_s": a.timeout, "reference_method": REFERENCE_METHOD,
+                     "reference_seeds": REFERENCE_SEEDS, "flip_ppd": FLIP_PPD, "relmse_eps": RELMSE_EPS,
+                     "relmse_discard": RELMSE_DISCARD, "quick": a.quick},
+        "scenes": cameras,
+        "lights": {l: rigs[l] for l in a.lights},
+        "methods": a.methods,
+        "presets": a.presets,
+        "references": references,
+        "noise_floor": noise_floor,
+        "runs": runs,
+    }
+    return results, failures
+
+
+def write_strip(a, scene: str, preset: str, light: str, images: dict) -> None:
+    """reference | native | explicit, side by side on one exposure (the reference's); a missing or failed
+    method is a grey panel. Small images are enlarged (whole pixels) to at least 320 pixels a panel."""
+    import matplotlib.image
+    ref = images["reference"]
+    x = exposure_of(ref)
+    gap = np.ones((ref.shape[0], 1, 3))
+    panels = []
+    for k in ("reference", "native", "explicit"):
+        panels += [display(images[k], x) if k in images else np.full_like(ref, 0.5), gap]
+    strip = np.clip(np.concatenate(panels[:-1], axis=1), 0.0, 1.0)
+    k = max(1, math.ceil(320 / ref.shape[1]))
+    matplotlib.image.imsave(os.path.join(a.out, "strips", f"{scene}_{preset}_{light}.png"),
+                            np.repeat(np.repeat(strip, k, axis=0), k, axis=1))
+
+
+def summary(results: dict) -> str:
+    s = results["settings"]
+    lines = [f"# Evaluation: {s['width']}x{s['height']}, reference explicit fibers at {s['ref_spp']} spp",
+             "",
+             f"`{' '.join(results['command'])}`; {results['date']}; git {results['git']['revision']}"
+             f"{' (dirty)' if results['git']['dirty'] else ''}; {results['machine']['cpu']}, "
+             f"{results['machine']['cores']} cores, {s['threads']} threads.",
+             "",
+             "Errors over the central region of the ply, against reference A; noise floor: reference B against A. "
+             "Mean over seeds.",
+             "",
+             "| scene | preset | light | method | spp | R % | G % | B % | lum % | lum floor % | FLIP | FLIP floor "
+             "| render s | load s | peak MB | failed |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    floors = {(f["scene"], f["preset"], f["light"]): f for f in results["noise_floor"]}
+    groups: dict = {}
+    for r in results["runs"]:
+        groups.setdefault((r["scene"], r["preset"], r["light"], r["method"], r["spp"]), []).append(r)
+
+    def mean(vals):
+        vals = [v for v in vals if v is not None]
+        return sum(vals) / len(vals) if vals else None
+
+    def fmt(v, spec):
+        return format(v, spec) if v is not None else "-"
+
+    for (scene, preset, light, method, spp), rs in groups.items():
+        ok = [r for r in rs if not r["failed"]]
+        fl = floors[(scene, preset, light)]
+        rgb = [mean([r["mean_colour_error"][c] for r in ok]) for c in range(3)]
+        pct = [fmt(100 * v if v is not None else None, "+.1f") for v in rgb]
+        failed = "; ".join(sorted({str(r["failed"]) for r in rs if r["failed"]})) or ""
+        lines.append(
+            f"| {scene} | {preset} | {light} | {method} | {spp} | {' | '.join(pct)} | "
+            f"{fmt(100 * mean([r['mean_luminance_error'] for r in ok]) if ok else None, '+.1f')} | "
+            f"{fmt(100 * fl['mean_luminance_error'] if fl['mean_luminance_error'] is not None else None, '+.1f')} | "
+            f"{fmt(mean([r['flip'] for r in ok]), '.3f')} | {fmt(fl['flip'], '.3f')} | "
+            f"{fmt(mean([r['seconds_render'] for r in ok]), '.2f')} | {fmt(mean([r['seconds_load'] for r in ok]), '.2f')} | "
+            f"{fmt(mean([r['peak_rss_mb'] for r in ok]), '.0f')} | {failed.replace('|', '/')[:80]} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str]) -> int:
+    try:
+        for tool in (CLI, CYCLES):
+            if not os.access(tool, os.X_OK):
+                raise Usage(f"{tool} is not built (scripts/setup.sh builds it)")
+        rigs = light_rigs()
+        a = parse_args(argv, rigs)
+        a.out = os.path.abspath(a.out)
+        os.makedirs(a.out, exist_ok=True)
+    except Usage as e:
+        print(f"evaluate: error: {e}", file=sys.stderr)
+        return 1
+    t0 = time.monotonic()
+    results, failures = evaluate(a, rigs)
+    with open(os.path.join(a.out, "results.json"), "w") as f:
+        json.dump(results, f, indent=1)
+    table = summary(results)
+    with open(os.path.join(a.out, "summary.md"), "w") as f:
+        f.write(table)
+    print(table, end="")
+    log(f"wrote {os.path.join(a.out, 'results.json')}, summary.md, strips/ in {time.monotonic() - t0:.0f} s"
+        + (f"; {failures} render(s) FAILED" if failures else ""))
+    return 2 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

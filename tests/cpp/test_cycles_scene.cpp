@@ -1,0 +1,229 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// The close-up's light rigs (`neuralyarn cycles-scene --lights`): each rig writes the lights it names, read
+// back from the scene file the way Cycles 4.3's XML reader reads them (a distant light's third transform
+// column is the direction toward the light), and the integrator settings that keep references unbiased.
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "neuralyarn/presets.h"
+#include "neuralyarn/scenes/cycles_xml.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using neuralyarn::scenes::find_light_rig;
+using neuralyarn::scenes::light_rigs;
+using neuralyarn::scenes::PlySceneOptions;
+using neuralyarn::scenes::RigLight;
+
+constexpr double kPi = 3.14159265358979323846;
+
+using Attributes = std::map<std::string, std::string>;
+
+/* The attributes of every element `<tag ...>` in the text, in order. */
+std::vector<Attributes> elements(const std::string &xml, const std::string &tag)
+{
+  std::vector<Attributes> out;
+  const std::regex element("<" + tag + "\\s([^>]*)>"), attribute("([A-Za-z_]+)=\"([^\"]*)\"");
+  for (auto e = std::sregex_iterator(xml.begin(), xml.end(), element); e != std::sregex_iterator(); ++e) {
+    Attributes a;
+    const std::string body = (*e)[1];
+    for (auto m = std::sregex_iterator(body.begin(), body.end(), attribute); m != std::sregex_iterator(); ++m) {
+      a[(*m)[1]] = (*m)[2];
+    }
+    out.push_back(a);
+  }
+  return out;
+}
+
+std::vector<double> numbers(const std::string &text)
+{
+  std::istringstream in(text);
+  std::vector<double> v;
+  double x;
+  while (in >> x) {
+    v.push_back(x);
+  }
+  return v;
+}
+
+/* The scene a rig writes (explicit fibers of a short fleece ply), as text. */
+std::string scene_text(PlySceneOptions o)
+{
+  const fs::path path = fs::temp_directory_path() / ("ny_scene_test_" + std::to_string(::getpid()) + ".xml");
+  o.ply_length = 1.0;
+  neuralyarn::scenes::write_ply_scene(neuralyarn::find_preset("fleece"), o, path.string());
+  std::ifstream f(path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  fs::remove(path);
+  return ss.str();
+}
+
+std::string scene_text(const std::string &lights)
+{
+  PlySceneOptions o;
+  o.lights = lights;
+  return scene_text(o);
+}
+
+/* The distant light's direction toward the light: the third column of its 3x4 row-major transform. */
+struct Dir {
+  double x, y, z;
+};
+Dir distant_direction(const Attributes &light)
+{
+  const std::vector<double> t = numbers(light.at("tfm"));
+  EXPECT_EQ(t.size(), 12u);
+  /* Columns 0, 1, 2 orthonormal and right-handed (x cross y = z). */
+  auto col = [&](int c) { return Dir{t[c], t[4 + c], t[8 + c]}; };
+  auto dot = [](Dir a, Dir b) { return a.x * b.x + a.y * b.y + a.z * b.z; };
+  const Dir u = col(0), v = col(1), z = col(2);
+  EXPECT_NEAR(dot(u, u), 1.0, 1e-6);
+  EXPECT_NEAR(dot(v, v), 1.0, 1e-6);
+  EXPECT_NEAR(dot(z, z), 1.0, 1e-6);
+  EXPECT_NEAR(dot(u, v), 0.0, 1e-6);
+  EXPECT_NEAR(dot(u, z), 0.0, 1e-6);
+  EXPECT_NEAR(u.y * v.z - u.z * v.y, z.x, 1e-6);
+  EXPECT_NEAR(u.z * v.x - u.x * v.z, z.y, 1e-6);
+  EXPECT_NEAR(u.x * v.y - u.y * v.x, z.z, 1e-6);
+  return z;
+}
+
+/* Degrees between a direction and the view direction from the ply toward the camera (-z). */
+double degrees_from_view(Dir d)
+{
+  return std::acos(-d.z) * 180.0 / kPi;
+}
+
+TEST(CyclesScene, RigNamesInOrderAndUnknownNameListsThem)
+{
+  std::vector<std::string> names;
+  for (const auto &r : light_rigs()) {
+    names.push_back(r.name);
+    EXPECT_FALSE(r.description.empty());
+  }
+  EXPECT_EQ(names, (std::vector<std::string>{"key-rim", "environment", "front", "grazing", "back", "axis"}));
+  EXPECT_EQ(PlySceneOptions().lights, "key-rim");
+  try {
+    find_light_rig("sun");
+    FAIL() << "no exception";
+  }
+  catch (const std::runtime_error &e) {
+    EXPECT_STREQ(e.what(), "unknown light rig 'sun' (known: key-rim, environment, front, grazing, back, axis)");
+  }
+  EXPECT_THROW(scene_text("sun"), std::runtime_error);
+}
+
+TEST(CyclesScene, KeyRimIsTheTwoSphereLights)
+{
+  const std::string xml = scene_text("key-rim");
+  const auto lights = elements(xml, "light");
+  ASSERT_EQ(lights.size(), 2u);
+  const double pos[2][3] = {{-3, 4, -8}, {2, -1, 9}};
+  for (int i = 0; i < 2; i++) {
+    EXPECT_EQ(lights[i].at("light_type"), "point");
+    const std::vector<double> t = numbers(lights[i].at("tfm"));
+    ASSERT_EQ(t.size(), 12u);
+    EXPECT_EQ(t[3], pos[i][0]);
+    EXPECT_EQ(t[7], pos[i][1]);
+    EXPECT_EQ(t[11], pos[i][2]);
+    EXPECT_EQ(numbers(lights[i].at("strength")), (std::vector<double>{2000, 2000, 2000}));
+    EXPECT_EQ(lights[i].at("size"), "1");
+  }
+  EXPECT_EQ(elements(xml, "background").at(0).at("strength"), "0");
+}
+
+TEST(CyclesScene, EnvironmentIsAWhiteBackgroundWithoutLights)
+{
+  const std::string xml = scene_text("environment");
+  EXPECT_TRUE(elements(xml, "light").empty());
+  const auto bg = elements(xml, "background");
+  ASSERT_EQ(bg.size(), 1u); /* the background node (the bare <background> element has no attributes) */
+  EXPECT_EQ(bg[0].at("strength"), "1");
+  EXPECT_EQ(bg[0].at("color"), "1 1 1");
+  /* Roulette is on (min_bounce 0), unlike the white furnace. */
+  EXPECT_EQ(elements(xml, "integrator").at(0).at("min_bounce"), "0");
+}
+
+TEST(CyclesScene, DistantRigsPointWhereTheyAreNamed)
+{
+  struct Expect {
+    std::string rig;
+    double degrees; /* from the view direction */
+    char toward;    /* the axis the light leans to: 'y' (plane normal to the ply) or 'x' (along it) */
+  };
+  for (const Expect &e : {Expect{"front", 10, 'y'}, Expect{"grazing", 80, 'y'}, Expect{"back", 170, 'y'},
+                          Expect{"axis", 80, 'x'}}) {
+    SCOPED_TRACE(e.rig);
+    const std::string xml = scene_text(e.rig);
+    const auto lights = elements(xml, "light");
+    ASSERT_EQ(lights.size(), 1u);
+    EXPECT_EQ(lights[0].at("light_type"), "distant");
+    const Dir d = distant_direction(lights[0]);
+    EXPECT_NEAR(degrees_from_view(d), e.degrees, 1e-4);
+    /* In the named plane, on its positive side. */
+    EXPECT_NEAR(e.toward == 'y' ? d.x : d.y, 0.0, 1e-7);
+    EXPECT_GT(e.toward == 'y' ? d.y : d.x, 0.1);
+    /* Angular diameter 2 degrees, in radians; irradiance pi; MIS on; not seen by camera rays. */
+    EXPECT_NEAR(std::stod(lights[0].at("angle")), 2.0 * kPi / 180.0, 1e-6);
+    EXPECT_EQ(numbers(lights[0].at("strength")), (std::vector<double>(3, std::stod(lights[0].at("strength")))));
+    EXPECT_NEAR(std::stod(lights[0].at("strength")), kPi, 1e-5);
+    EXPECT_EQ(lights[0].at("use_mis"), "true");
+    EXPECT_EQ(lights[0].at("use_camera"), "false");
+    /* The table says the same. */
+    const RigLight &l = find_light_rig(e.rig).lights.at(0);
+    EXPECT_NEAR(l.x, d.x, 1e-6);
+    EXPECT_NEAR(l.y, d.y, 1e-6);
+    EXPECT_NEAR(l.z, d.z, 1e-6);
+    EXPECT_EQ(elements(xml, "background").at(0).at("strength"), "0");
+  }
+}
+
+TEST(CyclesScene, IntegratorHasNoClampNoAdaptiveSamplingAndTheBounceLimitAndSeed)
+{
+  PlySceneOptions o;
+  const Attributes d = elements(scene_text(o), "integrator").at(0);
+  for (const char *k : {"max_bounce", "max_diffuse_bounce", "max_glossy_bounce", "max_transmission_bounce",
+                        "transparent_max_bounce"}) {
+    EXPECT_EQ(d.at(k), "1024") << k;
+  }
+  EXPECT_EQ(d.at("min_bounce"), "0");
+  EXPECT_EQ(d.at("sample_clamp_direct"), "0");
+  EXPECT_EQ(d.at("sample_clamp_indirect"), "0");
+  EXPECT_EQ(d.at("use_adaptive_sampling"), "false");
+  EXPECT_EQ(d.at("seed"), "0");
+
+  o.max_bounce = 4096;
+  o.seed = 7;
+  o.lights = "grazing";
+  const Attributes a = elements(scene_text(o), "integrator").at(0);
+  EXPECT_EQ(a.at("max_bounce"), "4096");
+  EXPECT_EQ(a.at("transparent_max_bounce"), "4096");
+  EXPECT_EQ(a.at("seed"), "7");
+
+  /* The white furnace: the environment rig, no roulette (min_bounce = max_bounce). */
+  PlySceneOptions f;
+  f.white_furnace = true;
+  const std::string furnace = scene_text(f);
+  EXPECT_TRUE(elements(furnace, "light").empty());
+  EXPECT_EQ(elements(furnace, "background").at(0).at("strength"), "1");
+  EXPECT_EQ(elements(furnace, "integrator").at(0).at("min_bounce"), "1024");
+  f.lights = "front";
+  EXPECT_THROW(scene_text(f), std::runtime_error);
+  o.max_bounce = 0;
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+}
+
+}  // namespace

@@ -1,0 +1,106 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The evaluation harness, scripts/evaluate.sh: a quick run (fleece, key-rim and grazing, 96x48) writes a
+record with every field for every run, finite numbers, the noise floor of each light; a second run reuses
+the cached references; unknown names exit 1 with one line on stderr, before rendering anything.
+
+Run by ctest (eval.pytest_quick) with .venv/bin/python -m pytest; NY_EVAL_OUT names the output directory
+(default: a pytest temporary directory), NY_BUILD_DIR the build.
+"""
+import json
+import math
+import os
+import shutil
+import subprocess
+
+import pytest
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir, os.pardir))
+EVALUATE = os.path.join(ROOT, "scripts", "evaluate.sh")
+LIGHTS = ["key-rim", "grazing"]
+RUN_FIELDS = ["scene", "method", "preset", "light", "distance", "spp", "seed", "seconds_load", "seconds_render",
+              "peak_rss_mb", "baseline_rss_mb", "curve_keys", "flip", "relmse", "ssim", "mean_colour_error",
+              "mean_colour_error_frame", "mean_luminance_error", "failed"]
+METRICS = ["flip", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame", "mean_luminance_error"]
+
+
+def evaluate(*args):
+    return subprocess.run(["bash", EVALUATE, *args], capture_output=True, text=True, timeout=600)
+
+
+def finite(v):
+    if isinstance(v, list):
+        return len(v) == 3 and all(finite(x) for x in v)
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    out = os.environ.get("NY_EVAL_OUT") or str(tmp_path_factory.mktemp("eval"))
+    shutil.rmtree(out, ignore_errors=True)  # cold: references rendered, not reused
+    args = ["--quick", "--presets", "fleece", "--lights", *LIGHTS, "--out", out]
+    first = evaluate(*args)
+    assert first.returncode == 0, first.stderr
+    with open(os.path.join(out, "results.json")) as f:
+        results = json.load(f)
+    second = evaluate(*args)
+    assert second.returncode == 0, second.stderr
+    return out, results, first, second
+
+
+def test_every_run_has_every_field(quick):
+    _, results, _, _ = quick
+    runs = results["runs"]
+    assert sorted((r["method"], r["light"]) for r in runs) == sorted(
+        (m, l) for m in ("explicit", "native") for l in LIGHTS)
+    for r in runs:
+        assert set(RUN_FIELDS) <= set(r), set(RUN_FIELDS) - set(r)
+        assert r["failed"] is False, r["failed"]
+        assert (r["scene"], r["preset"], r["spp"], r["seed"], r["distance"]) == ("closeup", "fleece", 4, 1, 12.0)
+        for k in RUN_FIELDS[4:-1]:
+            assert finite(r[k]), (k, r[k])
+        assert r["seconds_load"] > 0 and r["seconds_render"] >= 0
+        assert r["peak_rss_mb"] > 0 and r["baseline_rss_mb"] > 0
+        assert 0 < r["flip"] < 1 and -1 <= r["ssim"] <= 1 and r["relmse"] >= 0
+    # The aggregated ply is one curve; the explicit one has the fibers.
+    keys = {r["method"]: r["curve_keys"] for r in runs}
+    assert keys["native"] == 17 and keys["explicit"] > 100 * keys["native"]
+
+
+def test_noise_floor_and_header(quick):
+    out, results, _, _ = quick
+    floors = {f["light"]: f for f in results["noise_floor"]}
+    assert sorted(floors) == sorted(LIGHTS)
+    for f in floors.values():
+        assert (f["scene"], f["preset"], f["failed"]) == ("closeup", "fleece", False)
+        for k in METRICS:
+            assert finite(f[k]), (k, f[k])
+    assert results["command"][0] == "scripts/evaluate.sh" and "--quick" in results["command"]
+    assert results["machine"]["cores"] >= 1 and results["machine"]["cpu"]
+    assert results["date"] and "revision" in results["git"]
+    assert results["scenes"]["closeup"]["distance"] == 12.0
+    assert results["settings"]["ref_spp"] == 64 and results["settings"]["width"] == 96
+    assert sorted(results["lights"]) == sorted(LIGHTS)
+    with open(os.path.join(out, "summary.md")) as f:
+        rows = [ln for ln in f if ln.startswith("| closeup | fleece |")]
+    assert len(rows) == 4
+    for light in LIGHTS:
+        assert os.path.getsize(os.path.join(out, "strips", f"closeup_fleece_{light}.png")) > 0
+
+
+def test_progress_and_cached_references(quick):
+    _, _, first, second = quick
+    assert "[1/13] empty scene" in first.stderr and "cached" not in first.stderr
+    assert second.stderr.count(": cached") == 4  # references A and B of both lights
+    assert "| closeup | fleece | grazing | native | 4 |" in second.stdout
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--lights", "sun"], "evaluate: error: unknown light 'sun' (known: key-rim, environment, front, grazing, back, axis)"),
+    (["--methods", "cycles-osl"], "evaluate: error: unknown method 'cycles-osl' (known: explicit, native)"),
+    (["--presets", "wool"], "evaluate: error: unknown preset 'wool' (known: fleece, silk, polyester, cotton, gabardine)"),
+])
+def test_unknown_name_exits_1_with_one_line(tmp_path, args, message):
+    r = evaluate("--quick", *args, "--out", str(tmp_path / "never"))
+    assert r.returncode == 1
+    assert r.stderr.strip().splitlines() == [message]
+    assert not (tmp_path / "never").exists()
