@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from . import resources
 
 FORMAT = "neuralyarn-model"
-SUPPORTED_VERSIONS = (2,)
+SUPPORTED_VERSIONS = (2, 3)
 FALLBACK_VERSION = 2
 FALLBACK_MAX_WEIGHT = 100.0
 PRESETS = ("fleece", "silk", "polyester", "cotton", "gabardine")

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // A synthetic neural yarn model for the tests: seeded random networks in a plausible output range and a
-// small calibration table near identity (used by test_yarn_bsdf.cpp and test_fallback.cpp).
+// small calibration table near identity and an R azimuth table far from uniform (used by test_yarn_bsdf.cpp
+// and test_fallback.cpp).
 #pragma once
 
 #include <cstdint>
@@ -47,6 +48,21 @@ inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, doubl
     m.calibration.values.push_back(0.05f * U(rng));
     for (int j = 1; j < ny::kYarnCalStride; j++) {
       m.calibration.values.push_back(1.0f + 0.2f * U(rng));
+    }
+  }
+  /* A 2 x 4 x 6 R azimuth table, far from uniform (densities 0.1-1.9 times the mean), so every test also
+   * runs through yarn_r_azimuth(): each row normalised, sum nu pi / 6 = 1. */
+  m.r_azimuth.theta_bins = 2;
+  m.r_azimuth.phi_bins = 4;
+  m.r_azimuth.azimuth_bins = 6;
+  for (int row = 0; row < 8; row++) {
+    float v[6], sum = 0.0f;
+    for (float &x : v) {
+      x = 1.0f + 0.9f * U(rng);
+      sum += x;
+    }
+    for (float x : v) {
+      m.r_azimuth.values.push_back(x / (sum * 3.14159265f / 6.0f));
     }
   }
   return m;

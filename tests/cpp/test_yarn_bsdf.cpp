@@ -49,8 +49,11 @@ TEST(YarnBsdf, ReflectionLobeEnergyIsHalfTheFiberR)
     const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
     for (double theta_i : {0.1, 0.7, 1.2, 1.5}) {
       const ny::YarnLobes l = ny::yarn_lobes(p, from_polar(theta_i, 0.8));
+      /* The synthetic model's R azimuth table makes the lobe far from uniform in phi~; its energy must not
+       * change (each row of the table integrates to 1). */
+      EXPECT_GT(std::abs(std::log(ny::yarn_r_azimuth(l, -1.2f) / ny::yarn_r_azimuth(l, 0.9f))), 0.1);
       /* Integrate over the surface-fiber frame's (theta~, phi~): dw = cos theta~ dtheta~ dphi~. */
-      const int nt = 6000, np = 64;
+      const int nt = 6000, np = 512;
       double e = 0.0;
       for (int i = 0; i < nt; i++) {
         const double th = -M_PI / 2 + M_PI * (i + 0.5) / nt;
@@ -347,6 +350,17 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
   v = j;
   v["kernel_flat"][table + ny::kYarnCalStride] = 1.5; /* a dP_T outside [-1, 1] */
   expect_error("cal_dpt.json", v.dump(), "dP_T in [-1, 1]");
+  const size_t az = size_t(j["kernel_flat"][ny::kYarnFlatOffset_Az].get<float>());
+  ASSERT_TRUE(j.contains("r_azimuth"));
+  v = j;
+  v["kernel_flat"][az + 2] = v["kernel_flat"][az + 2].get<float>() * 1.2f; /* the row no longer integrates to 1 */
+  expect_error("az_norm.json", v.dump(), "integrates to");
+  v = j;
+  v["kernel_flat"][az + 1] = -0.1;
+  expect_error("az_negative.json", v.dump(), "negative R azimuth density");
+  v = j;
+  v["r_azimuth"]["azimuth_bins"] = 5;
+  expect_error("az_bins.json", v.dump(), "disagree with the kernel array");
   v = j;
   v["kernel_flat"][ny::kYarnFlatKappa_R] = 0.25; /* consistent by itself, but not with "sampling" */
   expect_error("flat_mismatch.json", v.dump(), "disagrees with the networks");

@@ -6,6 +6,7 @@
 #include "neuralyarn/io.h"
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/calibration.h"
+#include "neuralyarn/model/r_azimuth.h"
 #include "neuralyarn/train/dataset.h"
 #include "neuralyarn/version.h"
 
@@ -165,6 +166,8 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
   for (double &a : m.albedo_M) {
     a /= wsum;
   }
+  /* The R lobe's shape (its energy is unchanged by it), then the energies. */
+  m.r_azimuth = fit_r_azimuth(m, maps);
   m.calibration = calibrate_energy(m, maps, o.threads);
   m.provenance = {{"maps", maps_provenance(maps)},
                   {"training_seed", o.seed},

@@ -119,7 +119,7 @@ std::vector<float> float_array(const json &j, const char *key, const std::string
 
 /* The table's shape from the "calibration" object, its values from the kernel array (already checked
  * by ny::yarn_flat_check, which guarantees the size). */
-EnergyCalibration calibration_from(const json &j, const std::vector<float> &flat, const std::string &where)
+EnergyCalibration calibration_from(const json &j, const std::vector<float> &flat, size_t end, const std::string &where)
 {
   EnergyCalibration c;
   if (!j.is_object()) {
@@ -131,7 +131,11 @@ EnergyCalibration calibration_from(const json &j, const std::vector<float> &flat
   if (float(c.theta_bins) != flat[ny::kYarnFlatCalThetaBins] || float(c.phi_bins) != flat[ny::kYarnFlatCalPhiBins]) {
     throw ModelError(where + "its bins disagree with the kernel array's header");
   }
-  c.values.assign(flat.begin() + long(flat[ny::kYarnFlatOffset_Cal]), flat.end());
+  const size_t begin = size_t(flat[ny::kYarnFlatOffset_Cal]);
+  if (begin + size_t(c.theta_bins) * size_t(c.phi_bins) * ny::kYarnCalStride != end || end > flat.size()) {
+    throw ModelError(where + "the kernel array holds a table of another size");
+  }
+  c.values.assign(flat.begin() + long(begin), flat.begin() + long(end));
   for (size_t i = 0; i < c.values.size(); i++) {
     /* dP_T in [-1, 1], the factors in [0, kMaxCalibration]. */
     const bool is_dP_T = i % ny::kYarnCalStride == 0;
@@ -143,6 +147,34 @@ EnergyCalibration calibration_from(const json &j, const std::vector<float> &flat
     }
   }
   return c;
+}
+/* The R azimuth table's shape from the "r_azimuth" object, its values from the kernel array (checked by
+ * ny::yarn_flat_check); every row must integrate to 1. */
+RAzimuthTable r_azimuth_from(const json &j, const std::vector<float> &flat, const std::string &where)
+{
+  if (!j.is_object()) {
+    throw ModelError(where + "must be an object");
+  }
+  RAzimuthTable t;
+  t.theta_bins = int(finite_in(j, "theta_i_bins", 1, 1024, where));
+  t.phi_bins = int(finite_in(j, "phi_i_bins", 1, 1024, where));
+  t.azimuth_bins = int(finite_in(j, "azimuth_bins", 2, 1024, where));
+  if (float(t.theta_bins) != flat[ny::kYarnFlatAzThetaBins] || float(t.phi_bins) != flat[ny::kYarnFlatAzPhiBins] ||
+      float(t.azimuth_bins) != flat[ny::kYarnFlatAzBins]) {
+    throw ModelError(where + "its bins disagree with the kernel array's header");
+  }
+  t.values.assign(flat.begin() + long(flat[ny::kYarnFlatOffset_Az]), flat.end());
+  const double d = 3.14159265358979323846 / t.azimuth_bins;
+  for (size_t r = 0; r < t.values.size() / size_t(t.azimuth_bins); r++) {
+    double sum = 0;
+    for (int k = 0; k < t.azimuth_bins; k++) {
+      sum += t.values[r * size_t(t.azimuth_bins) + size_t(k)] * d;
+    }
+    if (!(std::abs(sum - 1.0) < 1e-3)) {
+      throw ModelError(where + "row " + std::to_string(r) + " integrates to " + std::to_string(sum) + ", not 1");
+    }
+  }
+  return t;
 }
 }  // namespace
 
@@ -183,6 +215,11 @@ std::vector<float> YarnModel::kernel_flat() const
   f[ny::kYarnFlatCalThetaBins] = float(calibration.theta_bins);
   f[ny::kYarnFlatCalPhiBins] = float(calibration.phi_bins);
   f.insert(f.end(), calibration.values.begin(), calibration.values.end());
+  f[ny::kYarnFlatOffset_Az] = float(f.size());
+  f[ny::kYarnFlatAzThetaBins] = float(r_azimuth.theta_bins);
+  f[ny::kYarnFlatAzPhiBins] = float(r_azimuth.phi_bins);
+  f[ny::kYarnFlatAzBins] = float(r_azimuth.azimuth_bins);
+  f.insert(f.end(), r_azimuth.values.begin(), r_azimuth.values.end());
   f[ny::kYarnFlatSize] = float(f.size());
   return f;
 }
@@ -205,6 +242,12 @@ json model_to_json(const YarnModel &m)
                         {"phi_i_bins", m.calibration.phi_bins},
                         {"layout", "[theta_i][phi_i][dP_T, c_R.r, c_R.g, c_R.b, c_M.r, c_M.g, c_M.b]"},
                         {"clamped_bins", m.calibration.clamped}};
+  }
+  if (!m.r_azimuth.empty()) {
+    j["r_azimuth"] = {{"theta_i_bins", m.r_azimuth.theta_bins},
+                      {"phi_i_bins", m.r_azimuth.phi_bins},
+                      {"azimuth_bins", m.r_azimuth.azimuth_bins},
+                      {"layout", "[theta_i][phi_i][phi~_o in (-90, 90) deg]: density nu of the R lobe's azimuth"}};
   }
   /* What a renderer uploads, ready to use (kernel/yarn_bsdf.h): the calibration table's values are only
    * here; the loader checks that the rest agrees with the parts above. */
@@ -277,13 +320,33 @@ YarnModel model_from_json(const json &j, const std::string &source)
     }
     m.albedo_M[c] = v.get<double>();
   }
-  if (j["version"].get<int>() >= 2) {
+  const int version = j["version"].get<int>();
+  if (version == 2) {
+    /* Layout 2 (no R azimuth table): the calibration table runs to the end; the array is rebuilt. */
+    const std::vector<float> flat = float_array(j, "kernel_flat", where);
+    if (flat.size() < 20 || flat[0] != 2.0f) {
+      throw ModelError(where + "'kernel_flat' is not a layout 2 array");
+    }
+    for (float v : flat) {
+      if (!std::isfinite(v)) {
+        throw ModelError(where + "'kernel_flat' holds a non-finite number");
+      }
+    }
+    if (j.contains("calibration")) {
+      m.calibration = calibration_from(j["calibration"], flat, flat.size(), where + "calibration: ");
+    }
+  }
+  else if (version >= 3) {
     const std::vector<float> flat = float_array(j, "kernel_flat", where);
     if (const char *problem = ny::yarn_flat_check(flat.data(), int(flat.size()))) {
       throw ModelError(where + "'kernel_flat' " + problem);
     }
     if (j.contains("calibration")) {
-      m.calibration = calibration_from(j["calibration"], flat, where + "calibration: ");
+      m.calibration =
+          calibration_from(j["calibration"], flat, size_t(flat[ny::kYarnFlatOffset_Az]), where + "calibration: ");
+    }
+    if (j.contains("r_azimuth")) {
+      m.r_azimuth = r_azimuth_from(j["r_azimuth"], flat, where + "r_azimuth: ");
     }
     if (m.kernel_flat() != flat) {
       throw ModelError(where + "'kernel_flat' disagrees with the networks, preset and sampling parameters");
@@ -291,7 +354,9 @@ YarnModel model_from_json(const json &j, const std::string &source)
   }
   m.provenance = j.value("provenance", json::object());
   m.fidelity = j.value("fidelity", json::object());
-  if (j.contains("fallback")) {
+  /* A version 2 file's fallback tables refer to its layout 2 kernel array by hash; they are left out (the
+   * maths is the same: `neuralyarn fallback` recomputes them in the current layout). */
+  if (j.contains("fallback") && version >= 3) {
     m.fallback = fallback_from_json(j["fallback"], m, where);
   }
   return m;

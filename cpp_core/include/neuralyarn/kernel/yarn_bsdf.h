@@ -24,6 +24,15 @@
 // as a too bright or too dark cloth; the table removes that (docs/decisions.md D16). A model without a
 // table (zero bins) uses dP_T = 0, c = 1.
 //
+// The R lobe's azimuth: the fiber's own R lobe is uniform in azimuth about the fiber, but in a ply the
+// surface fibers shadow and mask each other, so the maps hold 0.7x the uniform lobe's share near the normal
+// and 1.5-2x less toward grazing exits, and the other way round for grazing light (docs/decisions.md D18).
+// An optional table holds the azimuthal density nu(phi~_o | w_i) over the upper half of phi~_o in
+// [-pi/2, pi/2], fitted to the R map at bake time (model/r_azimuth.h): linear between bin centres and flat
+// at both ends, each row normalised so that its integral is exactly 1, and bilinear in w_i; the uniform
+// lobe's 1/pi is replaced by nu. The lobe's energy stays exactly rho_R F / 2 (a mixture of normalised rows
+// is normalised), so the calibration and every energy of the model are unchanged by it.
+//
 // Both arguments point away from the surface. The first is the direction the maps call incident (the
 // light side when the maps were gathered; a path tracer passes the direction toward the previous vertex,
 // using reciprocity), the second the one that is evaluated or sampled. eval returns S |cos theta_o|, the
@@ -70,9 +79,13 @@ enum YarnFlatField {
   kYarnFlatOffset_Cal = 17,   /* offset of the calibration table ([theta_i][phi_i][dP_T, c_R rgb, c_M rgb]) */
   kYarnFlatCalThetaBins = 18, /* its bins over theta_i in [0, pi/2] (0: no table)                 */
   kYarnFlatCalPhiBins = 19,   /* its bins over phi_i in [-pi, pi)                                 */
-  kYarnFlatHeader = 20
+  kYarnFlatOffset_Az = 20,    /* offset of the R azimuth table ([theta_i][phi_i][phi~_o] densities)  */
+  kYarnFlatAzThetaBins = 21,  /* its bins over theta_i in [0, pi/2] (0: no table, uniform azimuth)  */
+  kYarnFlatAzPhiBins = 22,    /* its bins over phi_i in [-pi, pi)                                 */
+  kYarnFlatAzBins = 23,       /* its bins over phi~_o in [-pi/2, pi/2]                            */
+  kYarnFlatHeader = 24
 };
-constexpr float kYarnFlatFormat = 2.0f;
+constexpr float kYarnFlatFormat = 3.0f;
 constexpr int kYarnCalStride = 7; /* dP_T, c_R.r, c_R.g, c_R.b, c_M.r, c_M.g, c_M.b */
 
 struct YarnBsdfParams {
@@ -86,6 +99,8 @@ struct YarnBsdfParams {
   Rgb albedo_M;
   const float *cal; /* energy calibration table, or null */
   int cal_theta_bins, cal_phi_bins;
+  const float *az;  /* R azimuth table, or null (uniform azimuth) */
+  int az_theta_bins, az_phi_bins, az_bins;
 };
 
 /* Checks one network of a flat array: the header at `offset`, its size within [offset, end), its input and
@@ -137,8 +152,8 @@ NY_KERNEL_FN const char *yarn_flat_check(const float *f, int n)
     return "has sampling parameters out of range";
   }
   const float oT = f[kYarnFlatOffset_T], oR = f[kYarnFlatOffset_R], oM = f[kYarnFlatOffset_M],
-              oC = f[kYarnFlatOffset_Cal];
-  if (!(oT >= 0.0f && oT <= oR && oR <= oM && oM <= oC && oC <= (float)n)) {
+              oC = f[kYarnFlatOffset_Cal], oA = f[kYarnFlatOffset_Az];
+  if (!(oT >= 0.0f && oT <= oR && oR <= oM && oM <= oC && oC <= oA && oA <= (float)n) || oA != (float)(int)oA) {
     return "has network offsets out of order";
   }
   if (!yarn_flat_network_ok(f, (int)oT, (int)oR, 3, 1, kMlpHeadSigmoid)) {
@@ -152,9 +167,24 @@ NY_KERNEL_FN const char *yarn_flat_check(const float *f, int n)
   }
   const float nt = f[kYarnFlatCalThetaBins], np = f[kYarnFlatCalPhiBins];
   if (!(nt >= 0.0f && np >= 0.0f && nt <= 4096.0f && np <= 4096.0f) || nt != (float)(int)nt ||
-      np != (float)(int)np || (int)oC + (int)nt * (int)np * kYarnCalStride != n)
+      np != (float)(int)np || (int)oC + (int)nt * (int)np * kYarnCalStride != (int)oA)
   {
     return "has a calibration table of the wrong size";
+  }
+  const float at = f[kYarnFlatAzThetaBins], ap = f[kYarnFlatAzPhiBins], ab = f[kYarnFlatAzBins];
+  const bool no_table = at == 0.0f && ap == 0.0f && ab == 0.0f;
+  if (!no_table && (!(at >= 1.0f && ap >= 1.0f && ab >= 2.0f && at <= 1024.0f && ap <= 1024.0f && ab <= 1024.0f) ||
+                    at != (float)(int)at || ap != (float)(int)ap || ab != (float)(int)ab))
+  {
+    return "has an R azimuth table of the wrong shape";
+  }
+  if ((int)oA + (no_table ? 0 : (int)at * (int)ap * (int)ab) != n) {
+    return "has an R azimuth table of the wrong size";
+  }
+  for (int i = (int)oA; i < n; i++) {
+    if (!(f[i] >= 0.0f)) {
+      return "has a negative R azimuth density";
+    }
   }
   return nullptr;
 }
@@ -180,7 +210,25 @@ NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(const float *f)
   p.cal_theta_bins = (int)f[kYarnFlatCalThetaBins];
   p.cal_phi_bins = (int)f[kYarnFlatCalPhiBins];
   p.cal = (p.cal_theta_bins > 0 && p.cal_phi_bins > 0) ? f + (int)f[kYarnFlatOffset_Cal] : nullptr;
+  p.az_theta_bins = (int)f[kYarnFlatAzThetaBins];
+  p.az_phi_bins = (int)f[kYarnFlatAzPhiBins];
+  p.az_bins = (int)f[kYarnFlatAzBins];
+  p.az = p.az_theta_bins > 0 ? f + (int)f[kYarnFlatOffset_Az] : nullptr;
   return p;
+}
+
+/* Bilinear weights of a table over incident directions (theta_i in [0, pi/2], nt bins, clamped; phi_i in
+ * [-pi, pi), np bins, periodic) between bin centres: the four entries' indices [theta][phi] and weights. */
+NY_KERNEL_FN void yarn_incident_bilinear(int nt, int np, Vec3 wi, int idx[4], float w[4])
+{
+  const float ft = clampf(acosf(clampf(wi.z, -1.0f, 1.0f)) * (2.0f * kInvPi) * (float)nt - 0.5f, 0.0f, (float)(nt - 1));
+  float fp = (atan2f(wi.y, wi.x) + kPi) * kInvTwoPi * (float)np - 0.5f;
+  fp = fp < 0.0f ? fp + (float)np : fp;
+  const int t0 = (int)ft < nt - 1 ? (int)ft : nt - 1, t1 = t0 + 1 < nt ? t0 + 1 : nt - 1;
+  const int p0 = (int)fp < np - 1 ? (int)fp : np - 1, p1 = p0 + 1 < np ? p0 + 1 : 0;
+  const float wt = ft - (float)t0, wp = fp - (float)p0;
+  idx[0] = t0 * np + p0, idx[1] = t0 * np + p1, idx[2] = t1 * np + p0, idx[3] = t1 * np + p1;
+  w[0] = (1.0f - wt) * (1.0f - wp), w[1] = (1.0f - wt) * wp, w[2] = wt * (1.0f - wp), w[3] = wt * wp;
 }
 
 /* Energy calibration at w_i (yarn frame, w_i.z > 0): bilinear between bin centres, clamped in theta,
@@ -193,18 +241,13 @@ NY_KERNEL_FN void yarn_calibration(const YarnBsdfParams &p, Vec3 wi, float *dP_T
     *c_M = make_rgb(1.0f);
     return;
   }
-  const int nt = p.cal_theta_bins, np = p.cal_phi_bins;
-  const float ft = clampf(acosf(clampf(wi.z, -1.0f, 1.0f)) * (2.0f * kInvPi) * (float)nt - 0.5f, 0.0f, (float)(nt - 1));
-  float fp = (atan2f(wi.y, wi.x) + kPi) * kInvTwoPi * (float)np - 0.5f;
-  fp = fp < 0.0f ? fp + (float)np : fp;
-  const int t0 = (int)ft < nt - 1 ? (int)ft : nt - 1, t1 = t0 + 1 < nt ? t0 + 1 : nt - 1;
-  const int p0 = (int)fp < np - 1 ? (int)fp : np - 1, p1 = p0 + 1 < np ? p0 + 1 : 0;
-  const float wt = ft - (float)t0, wp = fp - (float)p0;
+  int idx[4];
+  float w[4];
+  yarn_incident_bilinear(p.cal_theta_bins, p.cal_phi_bins, wi, idx, w);
   float c[kYarnCalStride];
   for (int k = 0; k < kYarnCalStride; k++) {
-    const float a = p.cal[(t0 * np + p0) * kYarnCalStride + k], b = p.cal[(t0 * np + p1) * kYarnCalStride + k];
-    const float d = p.cal[(t1 * np + p0) * kYarnCalStride + k], e = p.cal[(t1 * np + p1) * kYarnCalStride + k];
-    c[k] = (1.0f - wt) * ((1.0f - wp) * a + wp * b) + wt * ((1.0f - wp) * d + wp * e);
+    c[k] = w[0] * p.cal[idx[0] * kYarnCalStride + k] + w[1] * p.cal[idx[1] * kYarnCalStride + k] +
+           w[2] * p.cal[idx[2] * kYarnCalStride + k] + w[3] * p.cal[idx[3] * kYarnCalStride + k];
   }
   *dP_T = c[0];
   *c_R = make_rgb(c[1], c[2], c[3]);
@@ -223,6 +266,9 @@ struct YarnLobes {
   LongitudinalLobe m_R;
   TruncatedNormal tn_R, tn_M;
   float kappa_vm; /* von Mises concentration of the M azimuth */
+  const float *az_row[4]; /* the R azimuth table's rows around w_i and their weights (az_bins 0: uniform) */
+  float az_w[4];
+  int az_bins;
 };
 
 NY_KERNEL_FN float yarn_transmission(const YarnBsdfParams &p, Vec3 wi)
@@ -275,7 +321,33 @@ NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_ev
   l.tn_R = make_truncated_normal(-theta_i, p.fiber.beta_R, -kHalfPi, kHalfPi);
   l.tn_M = make_truncated_normal(-theta_i, p.beta_M, -kHalfPi, kHalfPi);
   l.kappa_vm = 1.0f / (p.gamma_M * p.gamma_M);
+  l.az_bins = 0;
+  if (p.az && l.valid) {
+    int idx[4];
+    yarn_incident_bilinear(p.az_theta_bins, p.az_phi_bins, wi, idx, l.az_w);
+    for (int k = 0; k < 4; k++) {
+      l.az_row[k] = p.az + idx[k] * p.az_bins;
+    }
+    l.az_bins = p.az_bins;
+  }
   return l;
+}
+
+/* pi nu(phi~_o | w_i): the R lobe's azimuthal density relative to the uniform 1 / pi (1 without a table). */
+NY_KERNEL_FN float yarn_r_azimuth(const YarnLobes &l, float phi)
+{
+  if (l.az_bins == 0) {
+    return 1.0f;
+  }
+  const int n = l.az_bins;
+  const float f = clampf((phi + kHalfPi) * kInvPi * (float)n - 0.5f, 0.0f, (float)(n - 1));
+  const int k0 = (int)f < n - 1 ? (int)f : n - 1, k1 = k0 + 1 < n ? k0 + 1 : n - 1;
+  const float w = f - (float)k0;
+  float nu = 0.0f;
+  for (int r = 0; r < 4; r++) {
+    nu += l.az_w[r] * ((1.0f - w) * l.az_row[r][k0] + w * l.az_row[r][k1]);
+  }
+  return kPi * nu;
 }
 
 /* S_R |cos theta~_o|, w_o in the surface-fiber frame. The cosine is the fiber's own (longitudinal), so
@@ -286,7 +358,8 @@ NY_KERNEL_FN Rgb yarn_eval_R_fiber(const YarnLobes &l, Vec3 wo_f)
   if (!l.valid || !(wo_f.z > 0.0f)) {
     return make_rgb(0.0f);
   }
-  return l.weight_R * (longitudinal_eval(l.m_R, theta_of(wo_f)) * kInvTwoPi * cos_theta(wo_f));
+  return l.weight_R * (longitudinal_eval(l.m_R, theta_of(wo_f)) * kInvTwoPi * cos_theta(wo_f) *
+                       yarn_r_azimuth(l, phi_of(wo_f)));
 }
 
 NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo)

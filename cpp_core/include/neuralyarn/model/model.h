@@ -19,7 +19,9 @@
 
 namespace neuralyarn::model {
 
-constexpr int kModelFormatVersion = 2; /* 2: energy calibration table; version 1 files still load (no table) */
+/* 2: energy calibration table; 3: R azimuth table (kernel array layout 3). Versions 1 and 2 still load
+ * (without the tables they lack; their kernel array is rebuilt in the current layout). */
+constexpr int kModelFormatVersion = 3;
 
 class ModelError : public std::runtime_error {
  public:
@@ -51,11 +53,20 @@ struct EnergyCalibration {
   bool empty() const { return theta_bins == 0; }
 };
 
+/* The R lobe's azimuthal density nu(phi~_o | w_i) (kernel/yarn_bsdf.h yarn_r_azimuth, model/r_azimuth.h).
+ * Empty: uniform. */
+struct RAzimuthTable {
+  int theta_bins = 0, phi_bins = 0, azimuth_bins = 0;
+  std::vector<float> values; /* [theta_i][phi_i][phi~_o], each row: sum * pi / azimuth_bins = 1 */
+  bool empty() const { return theta_bins == 0; }
+};
+
 struct YarnModel {
   FiberPreset preset;
   NetworkRecord T, R, M;
   SamplingProxy proxy;
   EnergyCalibration calibration;
+  RAzimuthTable r_azimuth;
   std::array<double, 3> albedo_M{}; /* M albedo averaged over w_i on the hemisphere */
   nlohmann::json provenance = nlohmann::json::object(); /* maps, seeds, code version, dates */
   nlohmann::json fidelity = nlohmann::json::object();   /* the numbers of `neuralyarn check`, if run */
@@ -64,7 +75,7 @@ struct YarnModel {
   std::optional<FallbackTables> fallback;
 
   /* The kernel's array: header (kernel/yarn_bsdf.h YarnFlatField), the T, R and M networks, then the
-   * calibration table. */
+   * calibration table and the R azimuth table. */
   std::vector<float> kernel_flat() const;
 };
 
