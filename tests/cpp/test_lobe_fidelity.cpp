@@ -36,9 +36,9 @@ double truth(int ti, int pi, int to, int po)
 /* Grid of truth(.) * factor(.) plus, with sigma > 0, independent Gaussian noise of standard deviation
  * sigma * sqrt(truth) per map bin (Monte Carlo bins: variance proportional to the mean). */
 template <class Factor>
-model::LobeGrid grid(Factor factor, double sigma, uint64_t seed)
+model::LobeGrid grid(Factor factor, double sigma, uint64_t seed, const model::LobePooling &pooling = {})
 {
-  model::LobeGrid g = model::make_lobe_grid(kBins);
+  model::LobeGrid g = model::make_lobe_grid(kBins, pooling);
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> N(0.0, 1.0);
   for (int ti = 0; ti < kBins.theta_i; ti++) {
@@ -105,28 +105,9 @@ TEST(LobeFidelity, RecoversAKnownShapeErrorThroughTheNoise)
   /* Pooled cells average the checkerboard out: measure on unpooled cells (1-degree cells keep every bin). */
   model::LobePooling fine;
   fine.cell_deg = 1.0;
-  auto regrid = [&](auto factor, double sigma, uint64_t seed) {
-    model::LobeGrid g = model::make_lobe_grid(kBins, fine);
-    std::mt19937_64 rng(seed);
-    std::normal_distribution<double> N(0.0, 1.0);
-    for (int ti = 0; ti < kBins.theta_i; ti++) {
-      for (int pi = 0; pi < kBins.phi_i; pi++) {
-        for (int to = 0; to < kBins.theta_o; to++) {
-          for (int po = 0; po < kBins.phi_o; po++) {
-            const double tv = truth(ti, pi, to, po) * factor(ti, pi, to, po);
-            double v[3];
-            for (double &c : v) {
-              c = tv + sigma * std::sqrt(tv) * N(rng);
-            }
-            add_to_lobe_grid(&g, ti, pi, to, po, v, 1.0);
-          }
-        }
-      }
-    }
-    return g;
-  };
   /* Map noise with a floor of 1.5-3 %, a fifth to a third of the error. */
-  const model::LobeGrid xf = regrid(checker, 0.0, 0), af = regrid(one, 0.0025, 3), bf = regrid(one, 0.0025, 4);
+  const model::LobeGrid xf = grid(checker, 0.0, 0, fine), af = grid(one, 0.0025, 3, fine),
+                        bf = grid(one, 0.0025, 4, fine);
   const model::LobeComparison c = model::compare_lobes(xf, af, &bf);
   for (int ti = 0; ti < kBins.theta_i; ti++) {
     std::printf("theta_i %d: raw %.4f, floor %.4f, model error %.4f (true 0.1)\n", ti, c.l1_raw[size_t(ti)],
