@@ -2,7 +2,7 @@
 # Render benchmark of the patched Cycles: the single-ply close-up of each preset, explicit fibers
 # (khungurn_fiber_bsdf on every fiber curve) against the aggregated model (one thick curve, neural_yarn_bsdf),
 # at equal samples: wall time and peak RSS of the `cycles` process, curve geometry size, and SSIM of both
-# against a converged explicit-fiber reference (scripts/bench_render.py; scikit-image in a private venv).
+# against a converged explicit-fiber reference (scripts/bench_render.py with .venv).
 #
 #   bash scripts/bench_render.sh                       # all presets, 320x160, 64 spp, reference 1024 spp
 #   NY_SPP=16 NY_REF_SPP=256 bash scripts/bench_render.sh fleece
@@ -21,10 +21,9 @@ for tool in "$CLI" "$CYCLES"; do
   [ -x "$tool" ] || { echo "bench_render.sh: $tool not built (scripts/setup.sh builds both)" >&2; exit 1; }
 done
 command -v oiiotool > /dev/null || { echo "bench_render.sh: oiiotool missing (apt-get install openimageio-tools)" >&2; exit 1; }
-VENV="$BUILD/bench-venv"
-[ -x "$VENV/bin/python" ] || python3 -m venv "$VENV"
+VENV="$ROOT/.venv" # scikit-image and OpenEXR come from scripts/setup.sh
 "$VENV/bin/python" -c "import skimage, OpenEXR" 2>/dev/null || \
-  "$VENV/bin/pip" install --quiet numpy scikit-image "OpenEXR>=3.3"
+  { echo "bench_render.sh: $VENV lacks scikit-image or OpenEXR; run scripts/setup.sh" >&2; exit 1; }
 PRESETS=("$@")
 [ ${#PRESETS[@]} -gt 0 ] || PRESETS=(fleece silk polyester cotton gabardine)
 mkdir -p "$OUT"

@@ -25,7 +25,7 @@ Metrics against reference A (linear HDR images):
   mean_luminance_error     the same for Rec. 709 luminance, central region;
   flip                     mean HDR-FLIP (NVIDIA, PyPI flip-evaluator), 67 pixels per degree, whole frame;
   relmse                   mean over pixels of mean_c (x - r)^2 / (r^2 + 0.01), the top 0.1 % discarded;
-  ssim                     as scripts/bench_render.py: display images (the reference's 99.5th percentile
+  ssim                     scripts/images.py: display images (the reference's 99.5th percentile
                            maps to 1, clamped, sRGB), Gaussian window sigma 1.5.
 Cost: seconds_load (wall time of a 1-sample render of the same scene), seconds_render (wall time minus
 that), peak_rss_mb (/usr/bin/time %M), baseline_rss_mb (an empty scene's), curve_keys (from the scene).
@@ -52,6 +52,8 @@ import tempfile
 import time
 
 import numpy as np
+
+from images import display, display_ssim, exposure_of, read_exr
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
 BUILD = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
@@ -242,18 +244,6 @@ def render(a, scene: str, spp: int, exr: str, what: str) -> dict:
     return {"seconds": seconds, "peak_rss_mb": float(lines[-1]) / 1024.0 if lines else None}
 
 
-def read_exr(path: str) -> np.ndarray:
-    """The RGB channels of an EXR as float64 (H, W, 3), top row first (as scripts/bench_render.py)."""
-    import OpenEXR
-    with OpenEXR.File(path) as f:
-        channels = f.channels()
-        if "RGBA" in channels or "RGB" in channels:
-            img = channels["RGBA" if "RGBA" in channels else "RGB"].pixels[..., :3]
-        else:
-            img = np.stack([channels[c].pixels for c in "RGB"], axis=-1)
-    return np.asarray(img, dtype=np.float64)
-
-
 def sha256(path: str) -> str:
     with open(path, "rb") as f:
         return hashlib.sha256(f.read()).hexdigest()
@@ -292,19 +282,8 @@ def central_region(distance: float, fov: float, width: int, height: int) -> tupl
 
 # --- metrics -------------------------------------------------------------------------------------------
 
-def display(img: np.ndarray, exposure: float) -> np.ndarray:
-    x = np.clip(img * exposure, 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-
-
-def exposure_of(ref: np.ndarray) -> float:
-    level = float(np.percentile(ref, 99.5))
-    return 1.0 / level if level > 0 else 1.0
-
-
 def metrics(img: np.ndarray, ref: np.ndarray, region: tuple[slice, slice]) -> dict:
     import flip_evaluator
-    from skimage.metrics import structural_similarity
 
     def rel(a, b):
         return [float(x) for x in (a / b - 1.0)]
@@ -322,9 +301,7 @@ def metrics(img: np.ndarray, ref: np.ndarray, region: tuple[slice, slice]) -> di
     e = (((img - ref) ** 2) / (ref ** 2 + RELMSE_EPS)).mean(axis=2).ravel()
     keep = np.sort(e)[: max(1, int(math.ceil(e.size * (1.0 - RELMSE_DISCARD))))]
     out["relmse"] = float(keep.mean())
-    x = exposure_of(ref)
-    out["ssim"] = float(structural_similarity(display(ref, x), display(img, x), channel_axis=2, data_range=1.0,
-                                              gaussian_weights=True, sigma=1.5, use_sample_covariance=False))
+    out["ssim"] = display_ssim(ref, img, exposure_of(ref))
     return out
 
 

@@ -178,11 +178,8 @@ int main(int argc, char **argv)
   scene->add_option("--ply-length", s_opt.ply_length, "Length of the ply along x, centred on the origin (ply radii)")
       ->check(finite_range(1.0, 1000.0))
       ->capture_default_str();
-  std::string rig_names;
-  for (const auto &r : scenes::light_rigs()) {
-    rig_names += (rig_names.empty() ? "" : ", ") + r.name;
-  }
-  auto *s_opt_lights = scene->add_option("--lights", s_opt.lights, "Light rig: " + rig_names + " (--list-lights)")
+  auto *s_opt_lights = scene->add_option("--lights", s_opt.lights,
+                                         "Light rig: " + scenes::light_rig_names() + " (--list-lights)")
                            ->capture_default_str();
   scene->add_flag("--white-furnace", s_opt.white_furnace,
                   "Uniform white background, no lights (the environment rig) and no Russian roulette")

@@ -35,7 +35,6 @@ json FidelityReport::to_json() const
           {"T_rmse", T_rmse},
           {"R_energy_mae_rel", R_energy_mae_rel},
           {"M_energy_mae_rel", M_energy_mae_rel},
-          {"M_rel_l1", M_rel_l1},
           {"rel_var_importance", rel_var_importance},
           {"rel_var_uniform", rel_var_uniform},
           {"rel_var_per_wi_kappa_R", rel_var_per_wi_kappa_R},
@@ -57,7 +56,7 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps_a, c
   const std::vector<double> ER = train::map_energy(maps, maps.r), EM = train::map_energy(maps, maps.m);
 
   struct Row {
-    double w = 0, a_abs = 0, a_rel = 0, a_max = 0, t2 = 0, r_rel = 0, m_rel = 0, l1 = 0;
+    double w = 0, a_abs = 0, a_rel = 0, a_max = 0, t2 = 0, r_rel = 0, m_rel = 0;
   };
   std::vector<Row> rows(b.incident());
   tbb::parallel_for(0, int(b.incident()), [&](int k) {
@@ -72,20 +71,6 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps_a, c
     const ny::YarnLobes l = ny::yarn_lobes(p, wi);
     const ny::Rgb e_m = m_lobe_energy(p, l);
     const ny::Rgb e_r = l.weight_R * 0.5f;
-    double l1 = 0, mass = 0;
-    for (int to = 0; to < b.theta_o; to++) {
-      const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), dO = maps.outgoing_solid_angle(to);
-      for (int po = 0; po < b.phi_o; po++) {
-        const ny::Rgb v =
-            ny::yarn_eval_M(p, l, vec(train::entry_direction(th, rdm::bin_center(po, -kPi, kPi, b.phi_o))));
-        const float *m = &maps.m[maps.map_index(ti, pi, to, po)];
-        for (int c = 0; c < 3; c++) {
-          l1 += std::abs(channel(v, c) - m[c]) * dO;
-          mass += m[c] * dO;
-        }
-      }
-    }
-    row.l1 = mass > 0 ? l1 / mass : 0.0;
     const double pt = l.P_T - maps.p_t[size_t(k)];
     row.t2 = pt * pt;
     for (int c = 0; c < 3; c++) {
@@ -121,14 +106,12 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps_a, c
     r.T_rmse += row.w * row.t2;
     r.R_energy_mae_rel += row.w * row.r_rel;
     r.M_energy_mae_rel += row.w * row.m_rel;
-    r.M_rel_l1 += row.w * row.l1;
   }
   r.albedo_mae /= wsum;
   r.albedo_mae_rel /= wsum;
   r.T_rmse = std::sqrt(r.T_rmse / wsum);
   r.R_energy_mae_rel /= wsum;
   r.M_energy_mae_rel /= wsum;
-  r.M_rel_l1 /= wsum;
 
   /* Sampling efficiency. */
   std::vector<double> rv_imp(size_t(o.variance_directions)), rv_uni(rv_imp.size()), rv_opt(rv_imp.size());

@@ -10,6 +10,7 @@
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/presets.h" /* ParameterError */
+#include "neuralyarn/train/dataset.h"
 
 namespace neuralyarn::model {
 
@@ -49,23 +50,13 @@ std::vector<int> group_sizes(const LobeGrid &g)
 
 ny::Vec3 direction(double theta, double phi)
 {
-  return ny::make_vec3(float(std::sin(theta) * std::cos(phi)), float(std::sin(theta) * std::sin(phi)),
-                       float(std::cos(theta)));
-}
-
-/* Incident direction `s` of an n x n stratification of incident bin (ti, pi), uniform in solid angle. */
-ny::Vec3 incident_sub_direction(const rdm::MapResolution &b, int ti, int pi, int s, int n)
-{
-  const double t0 = 0.5 * kPi * ti / b.theta_i, t1 = 0.5 * kPi * (ti + 1) / b.theta_i;
-  const double u = (s / n + 0.5) / n, v = (s % n + 0.5) / n;
-  const double cos_t = std::cos(t0) + u * (std::cos(t1) - std::cos(t0));
-  const double phi = -kPi + 2.0 * kPi * (pi + v) / b.phi_i;
-  return direction(std::acos(cos_t), phi);
+  const Eigen::Vector3f w = train::entry_direction(theta, phi);
+  return ny::make_vec3(w.x(), w.y(), w.z());
 }
 
 void check_same_bins(const rdm::MapResolution &x, const rdm::MapResolution &y, const char *what)
 {
-  if (x.theta_i != y.theta_i || x.phi_i != y.phi_i || x.theta_o != y.theta_o || x.phi_o != y.phi_o) {
+  if (!(x == y)) {
     throw ParameterError("maps", std::string(what) + ": the grids differ in resolution");
   }
 }
@@ -79,6 +70,38 @@ json band_json(const std::vector<std::array<double, kLobeBands>> &v)
   return out;
 }
 }  // namespace
+
+ny::Vec3 incident_sub_direction(const rdm::MapResolution &b, int ti, int pi, int s, int n)
+{
+  const double t0 = 0.5 * kPi * ti / b.theta_i, t1 = 0.5 * kPi * (ti + 1) / b.theta_i;
+  const double u = (s / n + 0.5) / n, v = (s % n + 0.5) / n;
+  const double cos_t = std::cos(t0) + u * (std::cos(t1) - std::cos(t0));
+  return direction(std::acos(cos_t), -kPi + 2.0 * kPi * (pi + v) / b.phi_i);
+}
+
+void integrate_r_lobe(const ny::YarnBsdfParams &p, const rdm::MapResolution &b, int ti, int pi,
+                      const std::function<void(int to, int po, const ny::Rgb &energy)> &add)
+{
+  constexpr int n_sub = 4, n_theta = 32, n_phi = 64;
+  const float share = 1.0f / float(n_sub * n_sub * n_theta * n_phi);
+  for (int s = 0; s < n_sub * n_sub; s++) {
+    const ny::YarnLobes l = ny::yarn_lobes(p, incident_sub_direction(b, ti, pi, s, n_sub));
+    for (int j = 0; j < n_theta; j++) {
+      const float theta = ny::sample_truncated_normal(l.tn_R, (j + 0.5f) / n_theta);
+      for (int k = 0; k < n_phi; k++) {
+        const ny::Vec3 wo_f = ny::direction_from_angles(theta, -ny::kHalfPi + ny::kPi * (k + 0.5f) / n_phi);
+        const float pdf = ny::yarn_pdf_R_fiber(l, wo_f);
+        if (!(pdf > 0.0f)) {
+          continue;
+        }
+        const ny::Vec3 wo = ny::surface_fiber_to_yarn(p.twist, wo_f);
+        const int to = rdm::bin_of(std::acos(std::clamp(double(wo.z), -1.0, 1.0)), 0.0, kPi, b.theta_o);
+        const int po = rdm::bin_of(std::atan2(double(wo.y), double(wo.x)), -kPi, kPi, b.phi_o);
+        add(to, po, ny::yarn_eval_R_fiber(l, wo_f) * (share / pdf));
+      }
+    }
+  }
+}
 
 LobeGrid make_lobe_grid(const rdm::MapResolution &bins, const LobePooling &pooling)
 {
@@ -144,42 +167,26 @@ LobeGrid model_lobe_grid(const YarnModel &model, const rdm::MapResolution &b, Lo
   const std::vector<int> per_group = group_sizes(g);
   rdm::RdmMaps geometry; /* only for its solid angles */
   geometry.bins = b;
-  /* Incident sub-directions per bin (n x n); R lobe strata in theta~ and phi~ per sub-direction. */
-  const int n_sub = lobe == Lobe::kR ? 4 : 2, n_theta = 32, n_phi = 64;
   tbb::parallel_for(0, b.theta_i, [&](int ti) {
     for (int pi = 0; pi < b.phi_i; pi++) {
-      const double w_bin = 1.0 / (per_group[size_t(cell_of(pi, b.phi_i, g.phi_i_groups))] * n_sub * n_sub);
+      const double w_group = 1.0 / per_group[size_t(cell_of(pi, b.phi_i, g.phi_i_groups))];
+      if (lobe == Lobe::kR) {
+        integrate_r_lobe(p, b, ti, pi, [&](int to, int po, const ny::Rgb &v) {
+          const double e[3] = {v.r, v.g, v.b};
+          add_to_lobe_grid(&g, ti, pi, to, po, e, w_group);
+        });
+        continue;
+      }
+      /* M (tens of degrees wide): at every map bin centre, for 2 x 2 incident directions inside the bin. */
+      constexpr int n_sub = 2;
       for (int s = 0; s < n_sub * n_sub; s++) {
-        const ny::Vec3 wi = incident_sub_direction(b, ti, pi, s, n_sub);
-        const ny::YarnLobes l = ny::yarn_lobes(p, wi);
-        if (lobe == Lobe::kM) {
-          for (int to = 0; to < b.theta_o; to++) {
-            const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), dO = geometry.outgoing_solid_angle(to);
-            for (int po = 0; po < b.phi_o; po++) {
-              const ny::Rgb v = ny::yarn_eval_M(p, l, direction(th, rdm::bin_center(po, -kPi, kPi, b.phi_o)));
-              const double e[3] = {v.r * dO, v.g * dO, v.b * dO};
-              add_to_lobe_grid(&g, ti, pi, to, po, e, w_bin);
-            }
-          }
-          continue;
-        }
-        /* R: stratified samples of the lobe's own proposal (truncated normal in theta~, uniform phi~ on the
-         * upper half); eval / pdf / count is each sample's share of the lobe's energy. */
-        for (int j = 0; j < n_theta; j++) {
-          const float theta = ny::sample_truncated_normal(l.tn_R, (j + 0.5f) / n_theta);
-          for (int k = 0; k < n_phi; k++) {
-            const float phi = -ny::kHalfPi + ny::kPi * (k + 0.5f) / n_phi;
-            const ny::Vec3 wo_f = ny::direction_from_angles(theta, phi);
-            const float pdf = ny::yarn_pdf_R_fiber(l, wo_f);
-            if (!(pdf > 0.0f)) {
-              continue;
-            }
-            const ny::Rgb v = ny::yarn_eval_R_fiber(l, wo_f) * (1.0f / (pdf * n_theta * n_phi));
-            const ny::Vec3 wo = ny::surface_fiber_to_yarn(p.twist, wo_f);
-            const int to = rdm::bin_of(std::acos(std::clamp(double(wo.z), -1.0, 1.0)), 0.0, kPi, b.theta_o);
-            const int po = rdm::bin_of(std::atan2(double(wo.y), double(wo.x)), -kPi, kPi, b.phi_o);
-            const double e[3] = {v.r, v.g, v.b};
-            add_to_lobe_grid(&g, ti, pi, to, po, e, w_bin);
+        const ny::YarnLobes l = ny::yarn_lobes(p, incident_sub_direction(b, ti, pi, s, n_sub));
+        for (int to = 0; to < b.theta_o; to++) {
+          const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), dO = geometry.outgoing_solid_angle(to);
+          for (int po = 0; po < b.phi_o; po++) {
+            const ny::Rgb v = ny::yarn_eval_M(p, l, direction(th, rdm::bin_center(po, -kPi, kPi, b.phi_o)));
+            const double e[3] = {v.r * dO, v.g * dO, v.b * dO};
+            add_to_lobe_grid(&g, ti, pi, to, po, e, w_group / (n_sub * n_sub));
           }
         }
       }

@@ -7,18 +7,14 @@
 #include <tbb/parallel_for.h>
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/presets.h" /* ParameterError */
+#include "neuralyarn/train/dataset.h"
 
 namespace neuralyarn::model {
 
 namespace {
 constexpr double kPi = 3.14159265358979323846;
-
-ny::Vec3 direction(double theta, double phi)
-{
-  return ny::make_vec3(float(std::sin(theta) * std::cos(phi)), float(std::sin(theta) * std::sin(phi)),
-                       float(std::cos(theta)));
-}
 }  // namespace
 
 RAzimuthTable fit_r_azimuth(const YarnModel &model, const rdm::RdmMaps &maps, const RAzimuthOptions &o)
@@ -38,8 +34,9 @@ RAzimuthTable fit_r_azimuth(const YarnModel &model, const rdm::RdmMaps &maps, co
   std::vector<int> az_of(b.outgoing(), -1);
   for (int to = 0; to < b.theta_o; to++) {
     for (int po = 0; po < b.phi_o; po++) {
-      const ny::Vec3 wf = ny::yarn_to_surface_fiber(
-          p.twist, direction(rdm::bin_center(to, 0.0, kPi, b.theta_o), rdm::bin_center(po, -kPi, kPi, b.phi_o)));
+      const Eigen::Vector3f w =
+          train::entry_direction(rdm::bin_center(to, 0.0, kPi, b.theta_o), rdm::bin_center(po, -kPi, kPi, b.phi_o));
+      const ny::Vec3 wf = ny::yarn_to_surface_fiber(p.twist, ny::make_vec3(w.x(), w.y(), w.z()));
       if (wf.z > 0.0f) {
         az_of[size_t(to) * size_t(b.phi_o) + size_t(po)] =
             std::min(na - 1, int((ny::phi_of(wf) + 0.5 * kPi) / kPi * na));
@@ -52,10 +49,8 @@ RAzimuthTable fit_r_azimuth(const YarnModel &model, const rdm::RdmMaps &maps, co
   t.phi_bins = o.phi_bins;
   t.azimuth_bins = na;
   t.values.assign(size_t(o.theta_bins) * size_t(o.phi_bins) * size_t(na), 0.0f);
-  const int n_sub = 4, n_theta = 32, n_phi = 64;
   tbb::parallel_for(0, o.theta_bins, [&](int tt) {
     std::vector<double> map_e(size_t(o.phi_bins) * size_t(na), 0.0), lobe_e(map_e.size(), 0.0);
-    std::vector<double> bins(b.outgoing(), 0.0);
     for (int ti = 0; ti < b.theta_i; ti++) {
       if (ti * o.theta_bins / b.theta_i != tt) {
         continue;
@@ -73,35 +68,13 @@ RAzimuthTable fit_r_azimuth(const YarnModel &model, const rdm::RdmMaps &maps, co
             }
           }
         }
-        /* The uniform-azimuth lobe over the same bins: stratified samples of its own proposal for n_sub^2
-         * incident directions inside the bin (eval / pdf / count is each sample's share of its energy). */
-        std::fill(bins.begin(), bins.end(), 0.0);
-        const double t0 = 0.5 * kPi * ti / b.theta_i, t1 = 0.5 * kPi * (ti + 1) / b.theta_i;
-        for (int s = 0; s < n_sub * n_sub; s++) {
-          const double ct = std::cos(t0) + ((s / n_sub) + 0.5) / n_sub * (std::cos(t1) - std::cos(t0));
-          const double ph = -kPi + 2.0 * kPi * (pi + (s % n_sub + 0.5) / n_sub) / b.phi_i;
-          const ny::YarnLobes l = ny::yarn_lobes(p, direction(std::acos(ct), ph));
-          for (int j = 0; j < n_theta; j++) {
-            const float theta = ny::sample_truncated_normal(l.tn_R, (j + 0.5f) / n_theta);
-            for (int k = 0; k < n_phi; k++) {
-              const ny::Vec3 wo_f = ny::direction_from_angles(theta, -ny::kHalfPi + ny::kPi * (k + 0.5f) / n_phi);
-              const float pdf = ny::yarn_pdf_R_fiber(l, wo_f);
-              if (!(pdf > 0.0f)) {
-                continue;
-              }
-              const ny::Vec3 wo = ny::surface_fiber_to_yarn(p.twist, wo_f);
-              const int to = rdm::bin_of(std::acos(std::clamp(double(wo.z), -1.0, 1.0)), 0.0, kPi, b.theta_o);
-              const int po = rdm::bin_of(std::atan2(double(wo.y), double(wo.x)), -kPi, kPi, b.phi_o);
-              bins[size_t(to) * size_t(b.phi_o) + size_t(po)] +=
-                  ny::average(ny::yarn_eval_R_fiber(l, wo_f)) / (pdf * n_theta * n_phi * n_sub * n_sub);
-            }
+        /* The uniform-azimuth lobe over the same bins. */
+        integrate_r_lobe(p, b, ti, pi, [&](int to, int po, const ny::Rgb &e) {
+          const int k = az_of[size_t(to) * size_t(b.phi_o) + size_t(po)];
+          if (k >= 0) {
+            lobe_e[row + size_t(k)] += ny::average(e);
           }
-        }
-        for (size_t q = 0; q < bins.size(); q++) {
-          if (bins[q] > 0.0 && az_of[q] >= 0) {
-            lobe_e[row + size_t(az_of[q])] += bins[q];
-          }
-        }
+        });
       }
     }
     for (int tp = 0; tp < o.phi_bins; tp++) {

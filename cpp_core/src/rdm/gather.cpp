@@ -370,8 +370,7 @@ double bin_center(int index, double lo, double hi, int n) { return lo + (hi - lo
 
 RdmMaps mean_of_maps(const RdmMaps &a, const RdmMaps &b)
 {
-  const MapResolution &x = a.bins, &y = b.bins;
-  if (x.theta_i != y.theta_i || x.phi_i != y.phi_i || x.theta_o != y.theta_o || x.phi_o != y.phi_o) {
+  if (!(a.bins == b.bins)) {
     throw ParameterError("maps", "maps of different resolutions cannot be averaged");
   }
   if (preset_to_json(a.preset) != preset_to_json(b.preset) || a.packing_seed != b.packing_seed ||

@@ -9,6 +9,8 @@
 
 #include <filesystem>
 
+#include <Eigen/Geometry>
+
 #include "neuralyarn/geometry/ply.h"
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/calibration.h"
@@ -95,16 +97,23 @@ const std::vector<LightRig> &light_rigs()
   return rigs;
 }
 
+std::string light_rig_names()
+{
+  std::string names;
+  for (const LightRig &r : light_rigs()) {
+    names += (names.empty() ? "" : ", ") + r.name;
+  }
+  return names;
+}
+
 const LightRig &find_light_rig(const std::string &name)
 {
-  std::string known;
   for (const LightRig &r : light_rigs()) {
     if (r.name == name) {
       return r;
     }
-    known += (known.empty() ? "" : ", ") + r.name;
   }
-  throw std::runtime_error("unknown light rig '" + name + "' (known: " + known + ")");
+  throw std::runtime_error("unknown light rig '" + name + "' (known: " + light_rig_names() + ")");
 }
 
 void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const std::string &path)
@@ -191,20 +200,11 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
          * toward the light; the first two only orient its disc. Its angle is the full angular diameter in
          * radians. Camera rays do not see it: the back rig's disc (radiance ~3300) is in the frame, above
          * the ply, and would swamp every whole-frame measurement. */
-        const double zx = l.x, zy = l.y, zz = l.z;
-        /* First column: a unit vector perpendicular to z (z x e, e the coordinate axis least aligned with z). */
-        const double ax = std::fabs(zx), ay = std::fabs(zy), az = std::fabs(zz);
-        const double ex = (ax <= ay && ax <= az) ? 1.0 : 0.0, ey = (ex == 0.0 && ay <= az) ? 1.0 : 0.0,
-                     ez = 1.0 - ex - ey;
-        double ux = zy * ez - zz * ey, uy = zz * ex - zx * ez, uz = zx * ey - zy * ex;
-        const double un = std::sqrt(ux * ux + uy * uy + uz * uz);
-        ux /= un, uy /= un, uz /= un;
-        const double vx = zy * uz - zz * uy, vy = zz * ux - zx * uz, vz = zx * uy - zy * ux; /* z x u */
-        const double rows[3][3] = {{ux, vx, zx}, {uy, vy, zy}, {uz, vz, zz}};
+        const Eigen::Vector3d z(l.x, l.y, l.z), u = z.unitOrthogonal(), v = z.cross(u);
         x << "  <light light_type=\"distant\" tfm=\"";
         for (int r = 0; r < 3; r++) {
           /* (+ 0.0 writes -0 as 0) */
-          x << (r ? " " : "") << rows[r][0] + 0.0 << " " << rows[r][1] + 0.0 << " " << rows[r][2] + 0.0 << " 0";
+          x << (r ? " " : "") << u[r] + 0.0 << " " << v[r] + 0.0 << " " << z[r] + 0.0 << " 0";
         }
         x << "\" strength=\"" << s << " " << s << " " << s
           << "\" angle=\"" << l.size * kDegToRad << "\" use_mis=\"true\" use_camera=\"false\" />\n";

@@ -37,7 +37,6 @@ struct FidelityReport {
   double albedo_mae = 0, albedo_mae_rel = 0, albedo_max_rel = 0; /* model vs map exit energy */
   double T_rmse = 0;                                               /* P_T model vs map        */
   double R_energy_mae_rel = 0, M_energy_mae_rel = 0;
-  double M_rel_l1 = 0;         /* sum |M_model - M_map| dw / sum M_map dw, averaged over w_i (incl. map noise) */
   double rel_var_importance = 0, rel_var_uniform = 0, rel_var_per_wi_kappa_R = 0;
   /* Per theta_i bin of the maps (averaged over phi_i): relative albedo, M energy and R energy errors. */
   std::vector<double> albedo_rel_by_theta, M_rel_by_theta, R_rel_by_theta;

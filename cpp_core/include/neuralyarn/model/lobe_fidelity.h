@@ -29,10 +29,12 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/rdm/gather.h"
 
@@ -69,6 +71,16 @@ LobeGrid pool_map_lobe(const rdm::RdmMaps &maps, Lobe lobe, const LobePooling &p
 /* The model's lobe, integrated over the same bins and pooled (calibration included, as rendered). */
 LobeGrid model_lobe_grid(const YarnModel &model, const rdm::MapResolution &bins, Lobe lobe,
                          const LobePooling &pooling = {});
+
+/* Incident direction `s` of an n x n stratification of incident bin (ti, pi), uniform in solid angle. */
+ny::Vec3 incident_sub_direction(const rdm::MapResolution &bins, int ti, int pi, int s, int n);
+
+/* The R lobe of `p` integrated over the map bins for incident bin (ti, pi): 4 x 4 incident directions
+ * inside the bin, each lobe by 32 x 64 stratified samples of its own proposal (truncated normal in theta~,
+ * uniform phi~ on the upper half); add(to, po, energy) receives every sample's share of the lobe's energy
+ * (eval / pdf / count), averaged over the incident directions. Used by the measure and the R azimuth fit. */
+void integrate_r_lobe(const ny::YarnBsdfParams &p, const rdm::MapResolution &bins, int ti, int pi,
+                      const std::function<void(int to, int po, const ny::Rgb &energy)> &add);
 
 /* Adds `value` (RGB, energy) of one map bin (ti, pi, to, po) to a grid, with weight `w`. */
 void add_to_lobe_grid(LobeGrid *grid, int ti, int pi, int to, int po, const double value[3], double w);

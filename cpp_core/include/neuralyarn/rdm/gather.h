@@ -37,6 +37,10 @@ struct MapResolution {
   int theta_i = 22, phi_i = 90, theta_o = 45, phi_o = 90;
   size_t incident() const { return size_t(theta_i) * size_t(phi_i); }
   size_t outgoing() const { return size_t(theta_o) * size_t(phi_o); }
+  bool operator==(const MapResolution &o) const
+  {
+    return theta_i == o.theta_i && phi_i == o.phi_i && theta_o == o.theta_o && phi_o == o.phi_o;
+  }
 };
 
 struct GatherOptions {

@@ -35,6 +35,8 @@ struct LightRig {
 
 /* The rigs, in a fixed order; the first, "key-rim", is the default. */
 const std::vector<LightRig> &light_rigs();
+/* "key-rim, environment, ...": the rigs' names in order. */
+std::string light_rig_names();
 /* The rig of that name; throws std::runtime_error listing the known names otherwise. */
 const LightRig &find_light_rig(const std::string &name);
 
