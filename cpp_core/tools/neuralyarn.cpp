@@ -22,6 +22,7 @@
 #include "neuralyarn/presets.h"
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/rdm/map_file.h"
+#include "neuralyarn/scenes/closeup_prediction.h"
 #include "neuralyarn/scenes/cycles_xml.h"
 #include "neuralyarn/version.h"
 
@@ -194,6 +195,11 @@ int main(int argc, char **argv)
         throw CLI::Success();
       },
       "Print the light rigs (name, description; one a line) and exit");
+  scene->add_option("--ply-rotation", s_opt.ply_rotation_deg,
+                    "Explicit version: turn the fibers by this many degrees about the ply axis (another "
+                    "orientation of the same cross-section; references average over several)")
+      ->check(CLI::Range(-360.0, 360.0))
+      ->capture_default_str();
   scene->add_option("--max-bounce", s_opt.max_bounce, "Cycles' bounce limit (Russian roulette ends paths before it)")
       ->check(CLI::Range(1, 65535))
       ->capture_default_str();
@@ -204,10 +210,16 @@ int main(int argc, char **argv)
   scene->add_flag("--embed-model", s_opt.embed_model,
                   "With --model: write the model's JSON into the scene (a self-contained file; cycles_patch 0003)");
   std::vector<int> s_region;
+  std::vector<std::string> s_predict_maps;
   scene->add_option("--predict-region", s_region,
-                    "With --model and --white-furnace: print the furnace value the core library predicts over "
-                    "the pixel rectangle X Y W H of a WIDTH x HEIGHT render (see --width/--height)")
+                    "Print the mean colour the core library predicts over the pixel rectangle X Y W H of a WIDTH x "
+                    "HEIGHT render (see --width/--height) under the environment or a distant-light rig: of the "
+                    "--model, and of each --predict-maps file")
       ->expected(4);
+  scene->add_option("--predict-maps", s_predict_maps,
+                    "With --predict-region: also predict with these radiance distribution maps (.nyrdm) as the "
+                    "ply's scattering (the tabulated far field)")
+      ->check(CLI::ExistingFile);
   scene->add_option("--out", s_out, "Scene file to write (.xml)")->required();
 
   auto model_commands = add_model_commands(app);
@@ -231,12 +243,21 @@ int main(int argc, char **argv)
       scenes::write_ply_scene(resolve_preset(s_preset, s_params), s_opt, s_out);
       std::printf("wrote %s\n", s_out.c_str());
       if (!s_region.empty()) {
-        if (s_opt.model.empty() || !s_opt.white_furnace) {
-          throw std::runtime_error("--predict-region needs --model and --white-furnace");
+        const scenes::LightRig &rig = scenes::find_light_rig(s_opt.white_furnace ? "environment" : s_opt.lights);
+        const scenes::PixelRegion region{s_opt.width, s_opt.height, s_region[0], s_region[1], s_region[2], s_region[3]};
+        if (!s_opt.model.empty()) {
+          const scenes::Rgb3 a =
+              scenes::predict_closeup(scenes::model_far_field(model::load_model(s_opt.model)), rig, region);
+          std::printf("predicted model %.5f %.5f %.5f\n", a.r, a.g, a.b);
         }
-        const scenes::Rgb3 a = scenes::predicted_furnace(s_opt.model, s_opt.width, s_opt.height, s_region[0],
-                                                         s_region[1], s_region[2], s_region[3]);
-        std::printf("predicted furnace %.5f %.5f %.5f\n", a.r, a.g, a.b);
+        for (const std::string &path : s_predict_maps) {
+          const rdm::RdmMaps maps = rdm::load_maps(path);
+          const scenes::Rgb3 a = scenes::predict_closeup(scenes::maps_far_field(maps), rig, region);
+          std::printf("predicted maps %.5f %.5f %.5f %s\n", a.r, a.g, a.b, path.c_str());
+        }
+      }
+      else if (!s_predict_maps.empty()) {
+        throw std::runtime_error("--predict-maps needs --predict-region");
       }
       return 0;
     }

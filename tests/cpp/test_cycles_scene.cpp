@@ -227,3 +227,33 @@ TEST(CyclesScene, IntegratorHasNoClampNoAdaptiveSamplingAndTheBounceLimitAndSeed
 }
 
 }  // namespace
+
+namespace {
+
+/* The keys of the scene's <hair> element (std::regex recurses per character: too deep for its long lists). */
+std::vector<double> hair_keys(const std::string &xml)
+{
+  const size_t hair = xml.find("<hair "), p = xml.find(" P=\"", hair);
+  if (hair == std::string::npos || p == std::string::npos) {
+    return {};
+  }
+  return numbers(xml.substr(p + 4, xml.find('"', p + 4) - (p + 4)));
+}
+
+TEST(CyclesScene, PlyRotationTurnsTheFibersAboutTheAxis)
+{
+  PlySceneOptions o;
+  const std::vector<double> p0 = hair_keys(scene_text(o));
+  o.ply_rotation_deg = 90.0;
+  const std::vector<double> p90 = hair_keys(scene_text(o));
+  ASSERT_EQ(p0.size(), p90.size());
+  ASSERT_GT(p0.size(), 30u);
+  /* Right-handed about +x: (x, y, z) -> (x, -z, y), every key (the writer's 7 significant digits). */
+  for (size_t i = 0; i < p0.size(); i += 3) {
+    EXPECT_NEAR(p90[i], p0[i], 1e-6);
+    EXPECT_NEAR(p90[i + 1], -p0[i + 2], 1e-6);
+    EXPECT_NEAR(p90[i + 2], p0[i + 1], 1e-6);
+  }
+}
+
+}  // namespace

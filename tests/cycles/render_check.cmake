@@ -7,7 +7,8 @@
 # furnace: the ply region of a white-furnace render averages within [LOW, HIGH] (albedo-1 fibers under a
 #          uniform white environment must vanish: energy conservation of the closure inside Cycles);
 # predicted: the ply region equals, within relative TOL, what `cycles-scene --predict-region` printed
-#          (the aggregated model's albedo from the core library for the same pixels).
+#          (the aggregated model's image mean from the core library for the same pixels, under the
+#          environment or a distant-light rig).
 if(NOT EXISTS "${CYCLES}")
   message(FATAL_ERROR "patched Cycles not built at ${CYCLES}: run scripts/build_cycles.sh (scripts/test.sh does)")
 endif()
@@ -19,7 +20,7 @@ if(NOT rc EQUAL 0)
   message(FATAL_ERROR "cycles-scene failed: ${o}${e}")
 endif()
 if(CHECK STREQUAL "predicted")
-  string(REGEX MATCH "predicted furnace ([0-9.eE+-]+) ([0-9.eE+-]+) ([0-9.eE+-]+)" _ "${o}")
+  string(REGEX MATCH "predicted model ([0-9.eE+-]+) ([0-9.eE+-]+) ([0-9.eE+-]+)" _ "${o}")
   set(expected "${CMAKE_MATCH_1};${CMAKE_MATCH_2};${CMAKE_MATCH_3}")
   if(NOT CMAKE_MATCH_3)
     message(FATAL_ERROR "cycles-scene printed no prediction: ${o}")
@@ -66,7 +67,7 @@ elseif(CHECK STREQUAL "predicted")
   execute_process(COMMAND python3 -c "import sys; r=[float(x) for x in sys.argv[1:4]]; p=[float(x) for x in sys.argv[4:7]]; t=float(sys.argv[7]); bad=[(a,b) for a,b in zip(r,p) if abs(a-b)>t*b+5e-4]; print('mismatch', bad) if bad else None; sys.exit(1 if bad else 0)"
                           ${r} ${g} ${b} ${expected} ${TOL} RESULT_VARIABLE rc OUTPUT_VARIABLE o)
   if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "white furnace of the aggregated ply: rendered ${r} ${g} ${b}, predicted ${expected} (tolerance ${TOL} relative): ${o}")
+    message(FATAL_ERROR "aggregated ply: rendered ${r} ${g} ${b}, predicted ${expected} (tolerance ${TOL} relative): ${o}")
   endif()
 elseif(CHECK STREQUAL "furnace")
   foreach(v ${r} ${g} ${b})

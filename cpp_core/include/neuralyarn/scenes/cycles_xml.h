@@ -17,6 +17,10 @@
 
 namespace neuralyarn::scenes {
 
+/* The close-up's camera: at (0, 0, -distance), looking along +z, field of view (radians) of the shorter
+ * side of the image. */
+constexpr double kCloseupCameraDistance = 12.0, kCloseupCameraFov = 0.9;
+
 /* One light of a rig. */
 struct RigLight {
   enum class Kind { point, distant };
@@ -45,6 +49,9 @@ struct PlySceneOptions {
   double ply_length = 16.0;     /* along x, centred on the origin (a 2:1 frame is 23 wide at the ply: the ends show) */
   int segments_per_turn = 32;   /* curve keys per helix turn (Cycles interpolates them smoothly) */
   uint64_t packing_seed = 1;
+  double ply_rotation_deg = 0.0; /* explicit version: the fibers turned about the ply axis (right-handed about +x):
+                                  * a slowly twisted ply shows the camera one orientation of its random
+                                  * cross-section, which the maps (and the model) average over */
   std::string lights = "key-rim"; /* the light rig (light_rigs()) */
   bool white_furnace = false;    /* the "environment" rig without Russian roulette (lights must stay the default
                                   * or be "environment"): every path runs until it leaves */
@@ -57,13 +64,9 @@ struct PlySceneOptions {
 /* Writes the scene; throws std::runtime_error naming the path when it cannot be written. */
 void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &options, const std::string &path);
 
-/* The white furnace of the aggregated version, predicted by the core library: the mean over the pixel
- * rectangle [x, x + w) x [y, y + h) of an image of width x height pixels of the model's albedo
- * P_T + E_R + E_M at the direction toward the camera (one camera ray per pixel centre; light that leaves
- * the convex ply never returns to it, so the pixel's expected value is exactly that albedo). */
+/* A colour in double precision. */
 struct Rgb3 {
   double r = 0, g = 0, b = 0;
 };
-Rgb3 predicted_furnace(const std::string &model_path, int width, int height, int x, int y, int w, int h);
 
 }  // namespace neuralyarn::scenes

@@ -1,0 +1,58 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// The close-up's image predicted without a renderer (issue 17: the tabulated method and the split of the
+// error into aggregation and fitting). In the close-up (scenes/cycles_xml.h) the camera sees one straight,
+// convex ply under a uniform environment or distant lights and a black background. Light that leaves the
+// ply never returns to it, so the expected value of a pixel is one integral of the ply's far-field
+// scattering function S |cos theta_o| at the camera ray's hit: for a distant light of irradiance E over a
+// disc of directions, E times its mean over the disc; for the white environment, the albedo. No
+// Monte Carlo, no bounces, no shadow rays.
+//
+// The same integral takes either of two functions:
+//   - a model: what the native closure renders, so a render that differs from it (beyond its noise) is a
+//     bug in the renderer's integration, not in the model;
+//   - the radiance distribution maps themselves (nearest bin, R + M; T straight through): the best any
+//     far-field model of this ply can do — the maps are the explicit fibers' own scattering, binned, and
+//     for this scene the far-field assumption is exact (a distant light reaches every exit point), so
+//     their prediction differs from the explicit-fiber render only by the bins' width and the maps' noise.
+// The model's error against explicit fibers then splits into fitting (model against maps) and
+// aggregation (maps against explicit fibers).
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "neuralyarn/kernel/frames.h"
+#include "neuralyarn/model/model.h"
+#include "neuralyarn/rdm/gather.h"
+#include "neuralyarn/scenes/cycles_xml.h"
+
+namespace neuralyarn::scenes {
+
+/* A far-field scattering function in the yarn frame (x = ply axis, z = the bounding cylinder's normal),
+ * both directions away from the surface: S |cos theta_o| for light between w_i and w_o (w_i = toward the
+ * camera), and the albedo at w_i (the white environment's pixel value). */
+struct FarField {
+  std::function<Rgb3(const ny::Vec3 &wi, const ny::Vec3 &wo)> eval;
+  std::function<Rgb3(const ny::Vec3 &wi)> albedo;
+};
+
+/* The model as the native closure renders it: R + M (with calibration and R azimuth); T is the
+ * transparent closure (a delta that the rigs' lights never lie on, and 1 x the white background). */
+FarField model_far_field(const model::YarnModel &model);
+
+/* The maps: the bin of (w_i, w_o), R + M; the albedo is the bin's exit energy (T + R + M). The maps must
+ * outlive the returned functions. */
+FarField maps_far_field(const rdm::RdmMaps &maps);
+
+/* A pixel rectangle [x, x + w) x [y, y + h) of a width x height render of the close-up. */
+struct PixelRegion {
+  int width = 0, height = 0, x = 0, y = 0, w = 0, h = 0;
+};
+
+/* The expected mean colour over the region of the close-up under `rig` (its environment or distant
+ * lights; throws std::runtime_error for sphere lights, whose near-field position and size this does not
+ * model), with the pixels filtered as Cycles does (Blackman-Harris, 1.5 pixels wide). */
+Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &region);
+
+}  // namespace neuralyarn::scenes

@@ -1,0 +1,170 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/scenes/closeup_prediction.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/model/calibration.h"
+
+namespace neuralyarn::scenes {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+Rgb3 to_rgb3(const ny::Rgb &c) { return {c.r, c.g, c.b}; }
+
+/* Sample offsets in [-0.75, 0.75] and weights of Cycles' pixel filter (Blackman-Harris, 1.5 pixels wide),
+ * which Cycles samples separably: a midpoint rule of n points. */
+void pixel_filter(int n, std::vector<double> *offset, std::vector<double> *weight)
+{
+  constexpr double width = 1.5;
+  double sum = 0.0;
+  for (int k = 0; k < n; k++) {
+    const double v = width * ((k + 0.5) / n - 0.5), x = 2.0 * kPi * (v / width + 0.5);
+    const double w = 0.35875 - 0.48829 * std::cos(x) + 0.14128 * std::cos(2 * x) - 0.01168 * std::cos(3 * x);
+    offset->push_back(v);
+    weight->push_back(w);
+    sum += w;
+  }
+  for (double &w : *weight) {
+    w /= sum;
+  }
+}
+
+/* Directions uniform in solid angle over a disc of angular diameter `deg` about the unit vector `z`
+ * (Cycles' distant light): n x n strata in (cos theta, phi). */
+std::vector<Eigen::Vector3d> disc_directions(const Eigen::Vector3d &z, double deg, int n)
+{
+  const Eigen::Vector3d u = z.unitOrthogonal(), v = z.cross(u);
+  const double cos_max = std::cos(0.5 * deg * kPi / 180.0);
+  std::vector<Eigen::Vector3d> out;
+  for (int a = 0; a < n; a++) {
+    for (int b = 0; b < n; b++) {
+      const double c = 1.0 - (1.0 - cos_max) * (a + 0.5) / n, s = std::sqrt(std::max(0.0, 1.0 - c * c));
+      const double phi = 2.0 * kPi * (b + 0.5) / n;
+      out.push_back(c * z + s * std::cos(phi) * u + s * std::sin(phi) * v);
+    }
+  }
+  return out;
+}
+}  // namespace
+
+FarField model_far_field(const model::YarnModel &model)
+{
+  auto flat = std::make_shared<std::vector<float>>(model.kernel_flat());
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat->data());
+  FarField f;
+  f.eval = [flat, p](const ny::Vec3 &wi, const ny::Vec3 &wo) {
+    return to_rgb3(ny::yarn_eval_lobes(p, ny::yarn_lobes(p, wi), wo));
+  };
+  f.albedo = [flat, p](const ny::Vec3 &wi) {
+    const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+    const ny::Rgb e = model::m_lobe_energy(p, l);
+    return Rgb3{l.P_T + 0.5 * l.weight_R.r + e.r, l.P_T + 0.5 * l.weight_R.g + e.g, l.P_T + 0.5 * l.weight_R.b + e.b};
+  };
+  return f;
+}
+
+FarField maps_far_field(const rdm::RdmMaps &maps)
+{
+  const rdm::MapResolution b = maps.bins;
+  auto incident = [b](const ny::Vec3 &wi, int *ti, int *pi) {
+    *ti = rdm::bin_of(std::acos(std::clamp(double(wi.z), -1.0, 1.0)), 0.0, 0.5 * kPi, b.theta_i);
+    *pi = rdm::bin_of(std::atan2(double(wi.y), double(wi.x)), -kPi, kPi, b.phi_i);
+  };
+  FarField f;
+  f.eval = [&maps, b, incident](const ny::Vec3 &wi, const ny::Vec3 &wo) {
+    int ti, pi;
+    incident(wi, &ti, &pi);
+    const int to = rdm::bin_of(std::acos(std::clamp(double(wo.z), -1.0, 1.0)), 0.0, kPi, b.theta_o);
+    const int po = rdm::bin_of(std::atan2(double(wo.y), double(wo.x)), -kPi, kPi, b.phi_o);
+    const size_t k = maps.map_index(ti, pi, to, po);
+    return Rgb3{double(maps.r[k]) + maps.m[k], double(maps.r[k + 1]) + maps.m[k + 1],
+                double(maps.r[k + 2]) + maps.m[k + 2]};
+  };
+  f.albedo = [&maps, incident](const ny::Vec3 &wi) {
+    int ti, pi;
+    incident(wi, &ti, &pi);
+    const size_t k = maps.incident_index(ti, pi) * 3;
+    return Rgb3{maps.exit_energy[k], maps.exit_energy[k + 1], maps.exit_energy[k + 2]};
+  };
+  return f;
+}
+
+Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &r)
+{
+  if (!(r.width > 0 && r.height > 0 && r.w > 0 && r.h > 0 && r.x >= 0 && r.y >= 0 && r.x + r.w <= r.width &&
+        r.y + r.h <= r.height))
+  {
+    throw std::runtime_error("the predicted region lies outside the image");
+  }
+  std::vector<std::pair<Eigen::Vector3d, double>> lights; /* direction toward the light, irradiance / count */
+  for (const RigLight &l : rig.lights) {
+    if (l.kind != RigLight::Kind::distant) {
+      throw std::runtime_error("light rig '" + rig.name +
+                               "' has sphere lights: the prediction covers the environment and distant lights");
+    }
+    const auto dirs = disc_directions(Eigen::Vector3d(l.x, l.y, l.z).normalized(), l.size, 6);
+    for (const auto &d : dirs) {
+      lights.emplace_back(d, l.strength / double(dirs.size()));
+    }
+  }
+  std::vector<double> offset, weight;
+  pixel_filter(6, &offset, &weight);
+  /* Cycles' standalone camera applies the field of view to the shorter side of the image; raster row 0
+   * is the top (+y). */
+  const double aspect = double(r.width) / double(r.height);
+  const double t = std::tan(0.5 * kCloseupCameraFov) * (r.width >= r.height ? 1.0 : 1.0 / aspect);
+  Rgb3 sum;
+  for (int py = r.y; py < r.y + r.h; py++) {
+    for (int px = r.x; px < r.x + r.w; px++) {
+      for (size_t sy = 0; sy < offset.size(); sy++) {
+        for (size_t sx = 0; sx < offset.size(); sx++) {
+          const double wgt = weight[sx] * weight[sy] / (double(r.w) * r.h);
+          const double u = (2.0 * (px + 0.5 + offset[sx]) / r.width - 1.0) * t * aspect;
+          const double v = (1.0 - 2.0 * (py + 0.5 + offset[sy]) / r.height) * t;
+          const Eigen::Vector3d d = Eigen::Vector3d(u, v, 1.0).normalized();
+          const Eigen::Vector3d o(0.0, 0.0, -kCloseupCameraDistance);
+          /* The cylinder y^2 + z^2 = 1 (axis x): nearest hit. */
+          const double a = d.y() * d.y() + d.z() * d.z(), b = 2.0 * o.z() * d.z(), c = o.z() * o.z() - 1.0;
+          const double disc = b * b - 4.0 * a * c;
+          if (!(disc >= 0.0)) {
+            /* The background: white in the environment, black otherwise (camera rays do not see the
+             * distant lights). */
+            const double bg = rig.environment ? 1.0 : 0.0;
+            sum.r += wgt * bg, sum.g += wgt * bg, sum.b += wgt * bg;
+            continue;
+          }
+          const double s = (-b - std::sqrt(disc)) / (2.0 * a);
+          const Eigen::Vector3d n(0.0, s * d.y(), o.z() + s * d.z());
+          /* Yarn frame: x = +x (the curve runs from -x to +x), z = n, y = z x x = (0, n_z, -n_y). */
+          auto local = [&n](const Eigen::Vector3d &w) {
+            return ny::make_vec3(float(w.x()), float(w.y() * n.z() - w.z() * n.y()),
+                                 float(w.y() * n.y() + w.z() * n.z()));
+          };
+          const ny::Vec3 wi = local(-d);
+          if (!(wi.z > 0.0f)) {
+            continue;
+          }
+          if (rig.environment) {
+            const Rgb3 e = f.albedo(wi);
+            sum.r += wgt * e.r, sum.g += wgt * e.g, sum.b += wgt * e.b;
+          }
+          for (const auto &[dir, irradiance] : lights) {
+            const Rgb3 e = f.eval(wi, local(dir));
+            sum.r += wgt * irradiance * e.r, sum.g += wgt * irradiance * e.g, sum.b += wgt * irradiance * e.b;
+          }
+        }
+      }
+    }
+  }
+  return sum;
+}
+
+}  // namespace neuralyarn::scenes

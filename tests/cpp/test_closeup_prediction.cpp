@@ -1,0 +1,125 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// The close-up predicted without a renderer (scenes/closeup_prediction.h): the camera geometry and pixel
+// filter (a white furnace is 1 everywhere, ply or background), the yarn frame of the hit (the direction
+// toward a distant light in that frame), the maps' bin lookup, and the errors. That Cycles renders what it
+// predicts for the shipped models under every distant-light rig is the cycles.yarn_predicted_* tests'.
+#include <cmath>
+#include <stdexcept>
+
+#include <gtest/gtest.h>
+
+#include "neuralyarn/rdm/gather.h"
+#include "neuralyarn/scenes/closeup_prediction.h"
+
+namespace {
+
+using neuralyarn::rdm::MapResolution;
+using neuralyarn::rdm::RdmMaps;
+using neuralyarn::scenes::FarField;
+using neuralyarn::scenes::find_light_rig;
+using neuralyarn::scenes::maps_far_field;
+using neuralyarn::scenes::PixelRegion;
+using neuralyarn::scenes::predict_closeup;
+using neuralyarn::scenes::Rgb3;
+
+constexpr double kPi = 3.14159265358979323846;
+
+FarField constant_far_field(double albedo)
+{
+  FarField f;
+  f.eval = [](const ny::Vec3 &, const ny::Vec3 &) { return Rgb3{}; };
+  f.albedo = [albedo](const ny::Vec3 &) { return Rgb3{albedo, albedo, albedo}; };
+  return f;
+}
+
+TEST(CloseupPrediction, WhiteFurnaceIsOneOnThePlyAndTheBackground)
+{
+  const auto &env = find_light_rig("environment");
+  /* The whole frame (background and ply, silhouettes included) and the central rows only. */
+  for (const PixelRegion r : {PixelRegion{160, 80, 0, 0, 160, 80}, PixelRegion{160, 80, 40, 36, 80, 8}}) {
+    const Rgb3 c = predict_closeup(constant_far_field(1.0), env, r);
+    EXPECT_NEAR(c.r, 1.0, 1e-9);
+    EXPECT_NEAR(c.b, 1.0, 1e-9);
+  }
+  /* An albedo-0.5 ply: the central rows are 0.5; the whole frame lies between 0.5 and 1. */
+  EXPECT_NEAR(predict_closeup(constant_far_field(0.5), env, {160, 80, 40, 36, 80, 8}).g, 0.5, 1e-9);
+  const double frame = predict_closeup(constant_far_field(0.5), env, {160, 80, 0, 0, 160, 80}).g;
+  EXPECT_GT(frame, 0.5);
+  EXPECT_LT(frame, 1.0);
+}
+
+TEST(CloseupPrediction, DistantLightArrivesInTheHitsFrame)
+{
+  /* eval = 1 when the light direction in the hit's yarn frame is within 30 degrees of w_i (the front rig,
+   * 10 degrees from the view: everywhere on the ply's central rows) and 0 otherwise; the irradiance is pi. */
+  FarField near_view;
+  near_view.eval = [](const ny::Vec3 &wi, const ny::Vec3 &wo) {
+    const double c = double(wi.x) * wo.x + double(wi.y) * wo.y + double(wi.z) * wo.z;
+    return c > std::cos(kPi / 6.0) ? Rgb3{1.0, 1.0, 1.0} : Rgb3{};
+  };
+  near_view.albedo = [](const ny::Vec3 &) { return Rgb3{}; };
+  const PixelRegion centre{160, 80, 40, 36, 80, 8};
+  EXPECT_NEAR(predict_closeup(near_view, find_light_rig("front"), centre).r, kPi, 1e-9);
+  /* The back light (170 degrees from the view) is never near w_i. */
+  EXPECT_EQ(predict_closeup(near_view, find_light_rig("back"), centre).r, 0.0);
+  /* The light's side: the grazing rig lights +y, so the hit's local z (its normal) sees it above the
+   * horizon on the rows facing +y only. Half of a symmetric region is lit, none of the rows facing -y. */
+  FarField lit;
+  lit.eval = [](const ny::Vec3 &, const ny::Vec3 &wo) { return wo.z > 0.0f ? Rgb3{1.0, 1.0, 1.0} : Rgb3{}; };
+  lit.albedo = near_view.albedo;
+  const auto &grazing = find_light_rig("grazing");
+  const double top = predict_closeup(lit, grazing, {160, 80, 40, 34, 80, 4}).r;
+  const double bottom = predict_closeup(lit, grazing, {160, 80, 40, 42, 80, 4}).r;
+  EXPECT_NEAR(top, kPi, 1e-9);
+  EXPECT_LT(bottom, 0.5 * kPi);
+}
+
+TEST(CloseupPrediction, MapsAreLookedUpInTheirBins)
+{
+  /* Every bin holds its own index code in R and 0 in M: the lookup of a direction pair inside a bin
+   * returns that bin's code. */
+  RdmMaps maps;
+  maps.bins = MapResolution{4, 8, 6, 12};
+  const size_t n = maps.bins.incident() * maps.bins.outgoing() * 3;
+  maps.r.resize(n);
+  maps.m.assign(n, 0.0f);
+  maps.exit_energy.resize(maps.bins.incident() * 3);
+  auto code = [](int ti, int pi, int to, int po) { return float(((ti * 10 + pi) * 10 + to) * 100 + po); };
+  for (int ti = 0; ti < 4; ti++) {
+    for (int pi = 0; pi < 8; pi++) {
+      for (int to = 0; to < 6; to++) {
+        for (int po = 0; po < 12; po++) {
+          const size_t k = maps.map_index(ti, pi, to, po);
+          maps.r[k] = maps.r[k + 1] = maps.r[k + 2] = code(ti, pi, to, po);
+        }
+      }
+      for (int c = 0; c < 3; c++) {
+        maps.exit_energy[maps.incident_index(ti, pi) * 3 + size_t(c)] = ti * 10 + pi;
+      }
+    }
+  }
+  const FarField f = maps_far_field(maps);
+  auto dir = [](double theta, double phi) {
+    return ny::make_vec3(float(std::sin(theta) * std::cos(phi)), float(std::sin(theta) * std::sin(phi)),
+                         float(std::cos(theta)));
+  };
+  /* theta_i 50 deg (bin 2 of 4 over [0, 90]), phi_i 100 deg (bin 6 of 8 over [-180, 180)); theta_o 100 deg
+   * (bin 3 of 6 over [0, 180]), phi_o -170 deg (bin 0 of 12). */
+  const ny::Vec3 wi = dir(50.0 * kPi / 180.0, 100.0 * kPi / 180.0);
+  EXPECT_EQ(f.eval(wi, dir(100.0 * kPi / 180.0, -170.0 * kPi / 180.0)).g, code(2, 6, 3, 0));
+  EXPECT_EQ(f.eval(wi, dir(5.0 * kPi / 180.0, 179.0 * kPi / 180.0)).b, code(2, 6, 0, 11));
+  EXPECT_EQ(f.albedo(wi).r, 26.0);
+}
+
+TEST(CloseupPrediction, RejectsSphereLightsAndRegionsOutsideTheImage)
+{
+  EXPECT_THROW(predict_closeup(constant_far_field(1.0), find_light_rig("key-rim"), {160, 80, 40, 36, 80, 8}),
+               std::runtime_error);
+  EXPECT_THROW(predict_closeup(constant_far_field(1.0), find_light_rig("front"), {160, 80, 100, 36, 80, 8}),
+               std::runtime_error);
+  EXPECT_THROW(predict_closeup(constant_far_field(1.0), find_light_rig("front"), {160, 80, 0, 0, 0, 8}),
+               std::runtime_error);
+}
+
+}  // namespace
