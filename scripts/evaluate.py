@@ -3,13 +3,15 @@
 """The evaluation harness: fidelity and cost of the neural aggregated model against explicit fibers.
 
     bash scripts/evaluate.sh --out DIR [--quick] [--presets P ...] [--lights L ...] [--methods M ...]
-        [--scenes closeup] [--spp 64 256] [--seeds 1] [--ref-spp 1024] [--width 160 --height 80]
+        [--scenes closeup] [--spp 64 256] [--seeds 1] [--ref-spp 1024] [--ref-rotations 8] [--width 160 --height 80]
         [--threads N] [--timeout 1800]
 
 Renders every (scene, method, preset, light, spp, seed) with the patched standalone Cycles
-(build/cycles/bin/cycles) and measures it against a reference: explicit fibers at --ref-spp with two
-Cycles seeds per (scene, preset, light) — reference A is the reference, B against A is the noise floor.
-References are cached in DIR/refs and reused when the scene file and the sample count are the same.
+(build/cycles/bin/cycles) and measures it against a reference: explicit fibers at --ref-spp, twice per
+(scene, preset, light) — reference A is the reference, B against A is the noise floor. Each is the mean of
+--ref-rotations renders of the ply turned about its axis (B's angles halfway between A's, other seeds), so
+that it holds the mean over the cross-section's orientation, as the maps do (D20).
+References are cached in DIR/refs and reused when the scene files and the sample count are the same.
 
 Scenes: `closeup`, the single-ply close-up of `neuralyarn cycles-scene` (ply radius 1 along x, camera at
 distance 12; the ply 48 long so that its ends are out of the frame). Methods: `explicit` (the fibers
@@ -53,7 +55,7 @@ import time
 
 import numpy as np
 
-from images import display, display_ssim, exposure_of, read_exr
+from images import display, display_ssim, exposure_of, read_exr, write_exr
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
 BUILD = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
@@ -67,6 +69,11 @@ METHODS = ["explicit", "native"]
 REFERENCE_METHOD = "explicit"
 # Cycles integrator seeds: the runs use 1..--seeds, the references two seeds of their own.
 REFERENCE_SEEDS = {"A": 1001, "B": 1002}
+# A reference is the mean of renders of the explicit ply turned about its axis to evenly spaced angles (A at
+# k 360/K, B halfway between, each with seed base + 2k and 1/K of the samples): the camera of the close-up sees
+# about a third of a twist period or less (silk is untwisted), so one render shows one orientation of the
+# random cross-section, while the maps and the model hold the mean over all of them. Under the back light one
+# orientation of silk differs from the next by up to a factor 3.8 (docs/decisions.md D20).
 PLY_RADIUS = 1.0  # cycles-scene's unit
 # The close-up's ply is longer than cycles-scene's default (16): its ends must lie outside the frame (the
 # frame is 23 radii wide at the ply, 2:1) and far enough from the central region that light entering through
@@ -76,8 +83,10 @@ LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
 FLIP_PPD = 67.0
 RELMSE_EPS = 0.01
 RELMSE_DISCARD = 0.001
-QUICK = {"width": 96, "height": 48, "ref_spp": 64, "spp": [4], "presets": ["fleece"], "lights": ["key-rim", "grazing"]}
-DEFAULTS = {"width": 160, "height": 80, "ref_spp": 1024, "spp": [64], "presets": PRESETS, "lights": None}
+QUICK = {"width": 96, "height": 48, "ref_spp": 64, "ref_rotations": 2, "spp": [4], "presets": ["fleece"],
+         "lights": ["key-rim", "grazing"]}
+DEFAULTS = {"width": 160, "height": 80, "ref_spp": 1024, "ref_rotations": 8, "spp": [64], "presets": PRESETS,
+            "lights": None}
 
 
 class Usage(Exception):
@@ -118,6 +127,9 @@ def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
     ap.add_argument("--spp", nargs="+", help="samples per pixel of the tested renders (default 64)")
     ap.add_argument("--seeds", type=int, help="seeds per render (Cycles seeds 1..N; default 1)")
     ap.add_argument("--ref-spp", type=int, help="samples per pixel of the references (default 1024)")
+    ap.add_argument("--ref-rotations", type=int,
+                    help="orientations of the explicit ply about its axis that a reference averages, sharing "
+                         "its samples (default 8)")
     ap.add_argument("--width", type=int, help="image width (default 160)")
     ap.add_argument("--height", type=int, help="image height (default 80)")
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1, help="Cycles threads (default: all cores)")
@@ -140,13 +152,17 @@ def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
     a.width = a.width if a.width is not None else base["width"]
     a.height = a.height if a.height is not None else base["height"]
     a.ref_spp = a.ref_spp if a.ref_spp is not None else base["ref_spp"]
+    a.ref_rotations = a.ref_rotations if a.ref_rotations is not None else base["ref_rotations"]
     a.seeds = a.seeds if a.seeds is not None else 1
-    for flag, v in (("--spp", min(a.spp)), ("--ref-spp", a.ref_spp), ("--seeds", a.seeds), ("--width", a.width),
+    for flag, v in (("--spp", min(a.spp)), ("--ref-spp", a.ref_spp), ("--ref-rotations", a.ref_rotations),
+                    ("--seeds", a.seeds), ("--width", a.width),
                     ("--height", a.height), ("--threads", a.threads)):
         if v < 1:
             raise Usage(f"{flag} must be at least 1, got {v}")
     if not a.timeout > 0:
         raise Usage(f"--timeout must be positive, got {a.timeout}")
+    if a.ref_spp % a.ref_rotations:
+        raise Usage(f"--ref-spp ({a.ref_spp}) must be a multiple of --ref-rotations ({a.ref_rotations})")
     if "native" in a.methods:
         for p in a.presets:
             if not os.path.isfile(model_path(p)):
@@ -182,12 +198,16 @@ def light_rigs() -> dict[str, str]:
     return rigs
 
 
-def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int) -> str:
-    """The scene file of one render (the closeup: `neuralyarn cycles-scene`)."""
+def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, rotation: float = 0.0) -> str:
+    """The scene file of one render (the closeup: `neuralyarn cycles-scene`); `rotation` turns the explicit
+    ply about its axis (degrees)."""
     assert scene == "closeup"
-    path = os.path.join(a.out, "scenes", f"{scene}_{preset}_{light}_{method}_seed{seed}.xml")
+    turned = f"_rot{rotation:g}" if rotation else ""
+    path = os.path.join(a.out, "scenes", f"{scene}_{preset}_{light}_{method}_seed{seed}{turned}.xml")
     args = ["cycles-scene", "--preset", preset, "--lights", light, "--seed", str(seed), "--width", str(a.width),
             "--height", str(a.height), "--ply-length", f"{CLOSEUP_PLY_LENGTH:g}", "--out", path]
+    if rotation:
+        args += ["--ply-rotation", f"{rotation:g}"]
     if method == "native":
         args += ["--model", model_path(preset)]
     run_cli(args)
@@ -340,22 +360,36 @@ class Progress:
 
 
 def reference(a, scene: str, preset: str, light: str, which: str, what: str) -> dict:
-    """Reference `which` (A or B) of (scene, preset, light): rendered, or reused from DIR/refs when the
-    scene file and the samples are the same."""
-    seed = REFERENCE_SEEDS[which]
-    xml = write_scene(a, scene, REFERENCE_METHOD, preset, light, seed)
+    """Reference `which` (A or B) of (scene, preset, light): the mean of a.ref_rotations renders of the
+    explicit ply turned about its axis (REFERENCE_SEEDS), or reused from DIR/refs when the scene files and the
+    samples are the same."""
+    k_count, spp = a.ref_rotations, a.ref_spp // a.ref_rotations
+    offset = 0.0 if which == "A" else 0.5
+    parts = [(REFERENCE_SEEDS[which] + 2 * k, (k + offset) * 360.0 / k_count) for k in range(k_count)]
+    xmls = [write_scene(a, scene, REFERENCE_METHOD, preset, light, seed, rot) for seed, rot in parts]
     name = f"{scene}_{preset}_{light}_{which}"
     exr = os.path.join(a.out, "refs", name + ".exr")
     meta_path = os.path.join(a.out, "refs", name + ".json")
-    key = {"scene_sha256": sha256(xml), "spp": a.ref_spp, "width": a.width, "height": a.height}
+    key = {"scene_sha256": hashlib.sha256("".join(sha256(x) for x in xmls).encode()).hexdigest(),
+           "spp": a.ref_spp, "rotations": k_count, "width": a.width, "height": a.height}
     if os.path.isfile(exr) and os.path.isfile(meta_path):
         with open(meta_path) as f:
             meta = json.load(f)
         if all(meta.get(k) == v for k, v in key.items()):
             log(f"{what}: cached")
             return {**meta, "image": os.path.relpath(exr, a.out), "cached": True}
-    cost = render(a, xml, a.ref_spp, exr, what)
-    meta = {**key, "seed": seed, "seconds": cost["seconds"], "peak_rss_mb": cost["peak_rss_mb"]}
+    total, seconds, peak = None, 0.0, 0.0
+    for k, ((seed, rot), xml) in enumerate(zip(parts, xmls)):
+        part = os.path.join(a.out, "refs", f"{name}_part.exr")
+        cost = render(a, xml, spp, part, f"{what} [{k + 1}/{k_count}: {rot:g} deg, {spp} spp]")
+        img = read_exr(part)
+        total = img if total is None else total + img
+        seconds += cost["seconds"]
+        peak = max(peak, cost["peak_rss_mb"] or 0.0)
+        os.remove(part)
+    write_exr(exr, total / k_count)
+    meta = {**key, "seeds": [s for s, _ in parts], "rotations_deg": [r for _, r in parts], "seconds": seconds,
+            "peak_rss_mb": peak or None}
     with open(meta_path, "w") as f:
         json.dump(meta, f, indent=1)
     return {**meta, "image": os.path.relpath(exr, a.out), "cached": False}
@@ -388,7 +422,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                 failed[which] = f"reference {which} failed: {e}"
                 failures += 1
                 log(f"{what}: FAILED, {e}")
-        references.append({**group, "spp": a.ref_spp, "seeds": REFERENCE_SEEDS,
+        references.append({**group, "spp": a.ref_spp, "rotations": a.ref_rotations, "seeds": REFERENCE_SEEDS,
                            "failed": "; ".join(failed.values()) or False,
                            **{f"image_{w}": r["image"] for w, r in refs.items()},
                            **{f"seconds_{w}": r["seconds"] for w, r in refs.items()}})
@@ -462,7 +496,8 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "git": git_revision(),
         "machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "system": platform.platform()},
-        "settings": {"width": a.width, "height": a.height, "ref_spp": a.ref_spp, "spp": a.spp, "seeds": a.seeds,
+        "settings": {"width": a.width, "height": a.height, "ref_spp": a.ref_spp,
+                     "ref_rotations": a.ref_rotations, "spp": a.spp, "seeds": a.seeds,
                      "threads": a.threads, "timeout_s": a.timeout, "reference_method": REFERENCE_METHOD,
                      "reference_seeds": REFERENCE_SEEDS, "flip_ppd": FLIP_PPD, "relmse_eps": RELMSE_EPS,
                      "relmse_discard": RELMSE_DISCARD, "quick": a.quick},
@@ -495,7 +530,8 @@ def write_strip(a, scene: str, preset: str, light: str, images: dict) -> None:
 
 def summary(results: dict) -> str:
     s = results["settings"]
-    lines = [f"# Evaluation: {s['width']}x{s['height']}, reference explicit fibers at {s['ref_spp']} spp",
+    lines = [f"# Evaluation: {s['width']}x{s['height']}, reference explicit fibers at {s['ref_spp']} spp "
+             f"over {s.get('ref_rotations', 1)} orientations",
              "",
              f"`{' '.join(results['command'])}`; {results['date']}; git {results['git']['revision']}"
              f"{' (dirty)' if results['git']['dirty'] else ''}; {results['machine']['cpu']}, "

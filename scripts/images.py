@@ -21,6 +21,17 @@ def read_exr(path: str) -> np.ndarray:
     return np.asarray(img, dtype=np.float64)
 
 
+def write_exr(path: str, img: np.ndarray) -> None:
+    """An (H, W, 3) image as a float32 RGB EXR, written to a temporary name and moved into place."""
+    import os
+    import OpenEXR
+    tmp = path + ".tmp.exr"
+    with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
+                      {"RGB": np.ascontiguousarray(img[..., :3], dtype=np.float32)}) as f:
+        f.write(tmp)
+    os.replace(tmp, path)
+
+
 def exposure_of(ref: np.ndarray) -> float:
     """The exposure that maps the reference's 99.5th percentile to 1."""
     level = float(np.percentile(ref, 99.5))
