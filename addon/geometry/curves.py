@@ -315,12 +315,21 @@ def resample(curve: YarnCurve, max_segment_length: float) -> YarnCurve:
     return YarnCurve(pts, rad, curve.cyclic)
 
 
+#: Renderable scale, in scene units: coordinates beyond MAX_COORDINATE, or a radius below MIN_RADIUS or
+#: below MIN_RADIUS_RELATIVE of the largest coordinate (single precision resolves ~6e-8 of it), import and
+#: render nothing, with no error (a file of coordinates +-3e38 or 1e-30, or a wrong import scale).
+MAX_COORDINATE = 1e7
+MIN_RADIUS = 1e-7
+MIN_RADIUS_RELATIVE = 1e-6
+
+
 def validate(curves: Iterable[YarnCurve], *, source: str | None = None) -> None:
     """Raises GeometryError for a curve no renderer can use; returns nothing if all are fine.
 
-    Rejected: non-finite coordinates or radii, radius <= 0, and zero-length curves (fewer than two distinct
-    points), which would otherwise reach Cycles as invisible or NaN-producing primitives. The message names
-    the curve index (and `source`, e.g. the file name, when given).
+    Rejected: non-finite coordinates or radii, radius <= 0, zero-length curves (fewer than two distinct
+    points), which would otherwise reach Cycles as invisible or NaN-producing primitives, and geometry
+    outside the renderable scale (MAX_COORDINATE, MIN_RADIUS, MIN_RADIUS_RELATIVE). The message names the
+    curve index (and `source`, e.g. the file name, when given).
     """
     prefix = f"{source}: " if source else ""
     for i, c in enumerate(curves):
@@ -342,6 +351,14 @@ def validate(curves: Iterable[YarnCurve], *, source: str | None = None) -> None:
         if len(P) < 2 or not np.any(P != P[0]):
             what = "1 point" if len(P) == 1 else ("no points" if len(P) == 0 else "all points equal")
             raise GeometryError(f"{prefix}curve {i} has zero length ({what}): fewer than 2 distinct points")
+        extent = float(np.abs(P).max())
+        if extent > MAX_COORDINATE:
+            raise GeometryError(f"{prefix}curve {i}: a coordinate of {extent:.3g} is beyond the renderable "
+                                f"{MAX_COORDINATE:g} scene units; check the file's units and the import scale")
+        floor = max(MIN_RADIUS, MIN_RADIUS_RELATIVE * extent)
+        if R.min() < floor:
+            raise GeometryError(f"{prefix}curve {i}: radius {R.min():.3g} is below the renderable {floor:.3g} "
+                                f"scene units at coordinates up to {extent:.3g}; check the import scale")
 
 
 def bounding_box(curves: Sequence[YarnCurve], *, include_radius: bool = True) -> tuple[np.ndarray, np.ndarray]:

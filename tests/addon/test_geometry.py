@@ -666,3 +666,23 @@ def test_twist_plies_rejects_bad_input_and_fiber_warning():
     assert geo.explicit_fiber_warning(300, 300) is None
     msg = geo.explicit_fiber_warning(1200, 300, points_per_fiber=500)
     assert "360,000 curves" in msg and "GiB" in msg
+
+
+@pytest.mark.parametrize("coordinate, radius, message", [
+    (3e38, 1.0, "beyond the renderable"),          # coordinates near float32's limit
+    (1e-30, 1e-31, "below the renderable 1e-07"),   # a whole file of 1e-30 (issue 20, A4)
+    (1e3, 1e-4, "below the renderable 0.001"),      # radius below single precision at that coordinate
+])
+def test_validate_rejects_geometry_outside_the_renderable_scale(coordinate, radius, message):
+    pts = np.array([[0.0, 0.0, 0.0], [coordinate, coordinate, 0.0]])
+    with pytest.raises(GeometryError, match=message):
+        geo.validate([YarnCurve(pts, np.full(2, radius))], source="f.bcc")
+    # The same shapes at a renderable scale pass: 10 um fibers at 1 m, and a 1 km scene of 1 m yarn.
+    geo.validate([YarnCurve(np.array([[0.0, 0, 0], [1.0, 1.0, 0]]), np.full(2, 5e-6))])
+    geo.validate([YarnCurve(np.array([[0.0, 0, 0], [1e3, 1e3, 0]]), np.full(2, 1.0))])
+
+
+def test_bcc_of_tiny_coordinates_is_refused_with_the_scale():
+    blob = geo.bcc_bytes([np.array([[0.0, 0, 0], [1e-30, 0, 0], [2e-30, 1e-30, 0], [3e-30, 0, 0]])])
+    with pytest.raises(GeometryError, match="import scale"):
+        geo.read_bcc(blob, scale=0.001)
