@@ -21,6 +21,7 @@ a patched Cycles replaces the whole group (cycles_patch/).
 from __future__ import annotations
 
 import glob
+import hashlib
 import math
 import os
 import sys
@@ -60,8 +61,9 @@ def ensure_interface(tree) -> None:
 
 
 def _key(model: model_io.YarnModel) -> str:
-    digest = str(model.data.get("fallback", {}).get("kernel_flat_fnv1a64", "model"))
-    return f"NY {model.preset_name} {digest[:8]}"
+    """The name stem of a model's images and OSL texts: a hash of the whole model file, so that two models
+    share data blocks only when everything they are made of (fallback tables included) is the same."""
+    return f"NY {model.preset_name} {hashlib.sha1(model.text.encode('utf-8')).hexdigest()[:12]}"
 
 
 def table_image(name: str, values: list, theta_bins: int, phi_bins: int, channels: int):

@@ -97,7 +97,9 @@ def _fallback_tables(data: dict, where: str) -> FallbackTables:
         raise _fail(where, f"fallback bins must be integers in [2, 1024] (got {tb!r} x {pb!r})")
     cells = tb * pb
     try:
-        lobes = resources.osl_generator().parse_lobes(fb)  # one validation, shared with the OSL generator
+        gen = resources.osl_generator()
+        lobes = gen.parse_lobes(fb)  # one validation, shared with the OSL generator
+        gen.check_kernel_flat_digest(data)
     except ValueError as e:
         raise _fail(where, str(e)) from None
     scalars = {k: v for k, v in fb.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
@@ -117,12 +119,82 @@ def _fallback_tables(data: dict, where: str) -> FallbackTables:
     )
 
 
+# The kernel array's layout (cpp_core/include/neuralyarn/kernel/yarn_bsdf.h, YarnFlatField; mlp.h).
+_FLAT_HEADER = 24
+_MLP_MAX_LAYERS, _MLP_MAX_WIDTH = 8, 64
+_HEAD_SIGMOID, _HEAD_EXP = 1, 2
+_CAL_STRIDE = 7
+
+
+def _network_ok(f: list, offset: int, end: int, inputs: int, outputs: int, head: int) -> bool:
+    """yarn_flat_network_ok: the header of one network at `offset` and its size within [offset, end)."""
+    if offset < _FLAT_HEADER or offset + 3 > end:
+        return False
+    L = f[offset]
+    if not (1 <= L <= _MLP_MAX_LAYERS and L == int(L)) or offset + int(L) + 3 > end:
+        return False
+    L = int(L)
+    widths = f[offset + 1: offset + L + 2]
+    if not all(1 <= w <= _MLP_MAX_WIDTH and w == int(w) for w in widths):
+        return False
+    widths = [int(w) for w in widths]
+    count = L + 3 + sum(widths[l + 1] * widths[l] + widths[l + 1] + (widths[l + 1] if l < L - 1 else 0)
+                        for l in range(L))
+    return widths[0] == inputs and widths[L] == outputs and f[offset + L + 2] == head and offset + count <= end
+
+
+def kernel_flat_problem(f: list) -> str | None:
+    """What is wrong with a layout 3 kernel array (the native closure's input), or None: the same checks as
+    the C++ loader's yarn_flat_check, so that the add-on packs no model the patched Cycles would refuse."""
+    n = len(f)
+    if n < _FLAT_HEADER:
+        return "shorter than the header"
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in f):
+        return "holds a non-finite number or a non-number"
+    if f[0] != 3.0:
+        return "has another layout version than this add-on reads"
+    if f[1] != n:
+        return "its size field disagrees with its length"
+    if not (0.0 <= f[7] <= 1.0 and 0.0 <= f[10] <= 1.0 and f[6] > 0.0 and f[8] > 0.0 and f[9] > 0.0):
+        return "has sampling parameters out of range"
+    oT, oR, oM, oC, oA = f[14], f[15], f[16], f[17], f[20]
+    if not (0.0 <= oT <= oR <= oM <= oC <= oA <= n) or oA != int(oA):
+        return "has network offsets out of order"
+    if not _network_ok(f, int(oT), int(oR), 3, 1, _HEAD_SIGMOID):
+        return "has a malformed T network (3 -> 1, sigmoid head)"
+    if not _network_ok(f, int(oR), int(oM), 3, 1, _HEAD_EXP):
+        return "has a malformed R network (3 -> 1, exp head)"
+    if not _network_ok(f, int(oM), int(oC), 6, 3, _HEAD_EXP):
+        return "has a malformed M network (6 -> 3, exp head)"
+    nt, np_ = f[18], f[19]
+    if not (0 <= nt <= 4096 and 0 <= np_ <= 4096) or nt != int(nt) or np_ != int(np_) or \
+            int(oC) + int(nt) * int(np_) * _CAL_STRIDE != int(oA):
+        return "has a calibration table of the wrong size"
+    at, ap, ab = f[21], f[22], f[23]
+    no_table = at == 0 and ap == 0 and ab == 0
+    if not no_table and (not (1 <= at <= 1024 and 1 <= ap <= 1024 and 2 <= ab <= 1024) or
+                         at != int(at) or ap != int(ap) or ab != int(ab)):
+        return "has an R azimuth table of the wrong shape"
+    if int(oA) + (0 if no_table else int(at) * int(ap) * int(ab)) != n:
+        return "has an R azimuth table of the wrong size"
+    if any(v < 0.0 for v in f[int(oA):]):
+        return "has a negative R azimuth density"
+    return None
+
+
+def _refuse_constant(name: str):
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
 def parse_model(text: str, source: str) -> YarnModel:
     """Parses and checks a model's JSON text. `source` names it in error messages."""
     try:
-        data = json.loads(text)
+        # NaN and Infinity: Python's json takes them, the C++ loader (nlohmann) does not.
+        data = json.loads(text, parse_constant=_refuse_constant)
     except json.JSONDecodeError as e:
         raise _fail(source, f"not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
+    except ValueError as e:
+        raise _fail(source, f"not valid JSON ({e})") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise _fail(source, f"not a neural yarn model file (expected \"format\": \"{FORMAT}\")")
     version = data.get("version")
@@ -136,8 +208,17 @@ def parse_model(text: str, source: str) -> YarnModel:
     if not isinstance(alpha, (int, float)) or not math.isfinite(alpha) or alpha < 0:
         raise _fail(source, f"preset 'alpha' must be a finite number >= 0 (got {alpha!r})")
     flat = data.get("kernel_flat")
-    if not isinstance(flat, list) or len(flat) < 20:
+    if not isinstance(flat, list):
         raise _fail(source, "missing 'kernel_flat' (the array the native closure uploads)")
+    if version == 2:
+        # Layout 2: the C++ loader only checks its version and numbers (it rebuilds the array).
+        if len(flat) < 20 or flat[0] != 2.0 or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in flat):
+            raise _fail(source, "'kernel_flat' is not a layout 2 array of finite numbers")
+    else:
+        problem = kernel_flat_problem(flat)
+        if problem:
+            raise _fail(source, f"'kernel_flat' {problem}")
     model = YarnModel(source=source, text=text, data=data, preset_name=preset["name"], alpha=float(alpha))
     model.fallback  # validates the tables now, so a bad file is reported when it is loaded, not at render time
     return model

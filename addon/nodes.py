@@ -90,7 +90,21 @@ def _update(self, context):
     self.refresh(getattr(context, "scene", None))
 
 
-def _update_preset(self, context):
+def _rename_material(node) -> None:
+    """A material the add-on named after a preset ("Neural Yarn fleece", or ".001" of it) follows its node's
+    new preset; a name the artist chose stays."""
+    tree = node.id_data
+    mat = next((m for m in bpy.data.materials if m.node_tree is not None and m.node_tree == tree), None)
+    if mat is None:
+        return
+    stem = mat.name.split(".")[0]
+    if stem.startswith("Neural Yarn ") and stem[len("Neural Yarn "):] in resources.PRESETS:
+        new = f"Neural Yarn {node.preset}" if node.preset != "CUSTOM" else "Neural Yarn custom"
+        if stem != new:
+            mat.name = new
+
+
+def _apply_preset(self, context):
     if self.preset != "CUSTOM":
         try:
             self["model"] = pack_preset(self.preset)  # item access: no nested update
@@ -98,6 +112,11 @@ def _update_preset(self, context):
             self.show_error(str(e))
             return
     self.refresh(getattr(context, "scene", None))
+
+
+def _update_preset(self, context):
+    _rename_material(self)
+    _apply_preset(self, context)
 
 
 class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
@@ -129,7 +148,7 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
         fallback_nodes.ensure_interface(self.node_tree)
         # The node's socket does not take the interface's default.
         self.inputs[fallback_nodes.GROUP_INPUT_TINT].default_value = (1.0, 1.0, 1.0, 1.0)
-        _update_preset(self, context)
+        _apply_preset(self, context)
 
     def copy(self, node):
         if node.node_tree is not None:

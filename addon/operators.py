@@ -23,12 +23,15 @@ KNIT_SCALE = 0.002
 
 
 def preset_material(preset: str):
-    """The material "Neural Yarn <preset>" (reused if it exists and still holds our node)."""
+    """A material "Neural Yarn <preset>" whose Neural Yarn nodes all still hold that preset (reused), else a
+    new one: the name alone says nothing once an artist has switched the node to another preset."""
     name = f"Neural Yarn {preset}"
-    mat = bpy.data.materials.get(name)
-    if mat is not None and mat.node_tree is not None and any(
-            n.bl_idname == nodes.NODE_IDNAME for n in mat.node_tree.nodes):
-        return mat
+    for mat in bpy.data.materials:
+        if mat.name != name and not mat.name.startswith(name + "."):
+            continue
+        ours = [n for n in mat.node_tree.nodes if n.bl_idname == nodes.NODE_IDNAME] if mat.node_tree else []
+        if ours and all(n.preset == preset for n in ours):
+            return mat
     mat, _node = nodes.make_material(name, preset=preset)
     return mat
 

@@ -131,6 +131,26 @@ def _format_list(values: list[float], per_line: int) -> str:
     return ",\n    ".join(lines)
 
 
+def check_kernel_flat_digest(model: dict) -> None:
+    """Raises ValueError when the fallback tables were computed for another kernel array than the model's
+    (tables left stale by a later change of the model: the C++ loader refuses them too)."""
+    fb = model.get("fallback") if isinstance(model.get("fallback"), dict) else {}
+    digest = fb.get("kernel_flat_fnv1a64")
+    if not isinstance(digest, str):
+        raise ValueError("fallback: missing string 'kernel_flat_fnv1a64'")
+    flat = model.get("kernel_flat")
+    if isinstance(flat, list):
+        if not all(_is_number(x) and math.isfinite(x) for x in flat):
+            raise ValueError("'kernel_flat' holds a non-finite number or a non-number")
+        try:
+            actual = _fnv1a64_hex(flat)
+        except (struct.error, OverflowError) as e:
+            raise ValueError(f"'kernel_flat' holds a value that is not a float ({e})") from None
+        if actual != digest:
+            raise ValueError(f"fallback: the tables were computed for another model (kernel_flat_fnv1a64 "
+                             f"{digest}, the model's is {actual}); re-run `neuralyarn fallback MODEL`")
+
+
 def generate_osl(model: dict, *, shader_name: str | None = None) -> str:
     """The OSL source of the fallback shader for `model` (a parsed model file). Raises ValueError if the
     model has no valid, current "fallback" object."""
@@ -163,21 +183,8 @@ def generate_osl(model: dict, *, shader_name: str | None = None) -> str:
     w = _table(fb, "W", 3 * len(lobes) * n, 0.0, MAX_WEIGHT)
     tilt = _scalar(fb, "twist_tilt_rad", -0.5 * math.pi, 0.5 * math.pi)
 
-    # Tables left stale by a later change of the model (the C++ loader refuses them too).
-    digest = fb.get("kernel_flat_fnv1a64")
-    if not isinstance(digest, str):
-        raise ValueError("fallback: missing string 'kernel_flat_fnv1a64'")
-    flat = model.get("kernel_flat")
-    if isinstance(flat, list):
-        if not all(_is_number(x) and math.isfinite(x) for x in flat):
-            raise ValueError("'kernel_flat' holds a non-finite number or a non-number")
-        try:
-            actual = _fnv1a64_hex(flat)
-        except (struct.error, OverflowError) as e:
-            raise ValueError(f"'kernel_flat' holds a value that is not a float ({e})") from None
-        if actual != digest:
-            raise ValueError(f"fallback: the tables were computed for another model (kernel_flat_fnv1a64 "
-                             f"{digest}, the model's is {actual}); re-run `neuralyarn fallback MODEL`")
+    check_kernel_flat_digest(model)
+    digest = fb["kernel_flat_fnv1a64"]
 
     preset = model.get("preset") if isinstance(model.get("preset"), dict) else {}
     preset_name = str(preset.get("name", "model"))

@@ -13,6 +13,7 @@ failed shader gives (exactly 0) and far below what any preset gives (0.02-0.2, p
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 import struct
@@ -469,3 +470,124 @@ def test_batch_errors(bpy, addon, empty, tmp_path, argv, message):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     with pytest.raises(batch.BatchError, match=message):
         batch.run(argv)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# data blocks shared between materials (issue 20, A1)
+
+
+def _model_text_with(bpy, addon, preset, name, edit):
+    data = json.loads(open(os.path.join(addon.resources.resource_dir("models"), f"{preset}.json")).read())
+    edit(data)
+    text = bpy.data.texts.new(name)
+    text.from_string(json.dumps(data))
+    return text
+
+
+def _table_pixels(bpy, node, suffix):
+    img = next(n.image for n in node.node_tree.nodes
+               if n.bl_idname == "ShaderNodeTexImage" and n.image.name.endswith(suffix))
+    px = np.empty(len(img.pixels), dtype=np.float32)
+    img.pixels.foreach_get(px)
+    return img, px.reshape(-1, 4)[:, :3]
+
+
+def test_a_custom_model_renders_with_its_own_fallback_tables(bpy, addon, empty):
+    """Same kernel, other fallback tables (a transparency table of 1): its own images and OSL text, and
+    the first material's are left alone."""
+    _mat1, fleece = addon.nodes.make_material("a", preset="fleece")
+
+    def clear(data):
+        data["fallback"]["P_T"] = [1.0] * len(data["fallback"]["P_T"])
+
+    _mat2, custom = addon.nodes.make_material("b", model_text=_model_text_with(bpy, addon, "fleece", "clear.json",
+                                                                                 clear))
+    assert fleece.built == custom.built == "NODES"
+    img1, px1 = _table_pixels(bpy, fleece, " P_T")
+    img2, px2 = _table_pixels(bpy, custom, " P_T")
+    assert img1 != img2
+    assert np.all(px2 == 1.0)
+    assert px1.min() < 0.9  # fleece's own table, untouched
+    fleece.fallback = "OSL"
+    script1 = next(n for n in fleece.node_tree.nodes if n.bl_idname == "ShaderNodeScript").script
+    source1 = script1.as_string()
+    custom.fallback = "OSL"
+    script2 = next(n for n in custom.node_tree.nodes if n.bl_idname == "ShaderNodeScript").script
+    assert script2 != script1
+    assert script1.as_string() == source1
+
+
+def test_a_material_switched_to_another_preset_is_not_reused_for_its_old_one(bpy, addon, empty):
+    """Issue 20, A2: "Neural Yarn fleece" switched to silk in the node is renamed after silk, and asking for
+    fleece again gives a fleece material."""
+    fleece = addon.operators.preset_material("fleece")
+    node = next(n for n in fleece.node_tree.nodes if n.bl_idname == addon.nodes.NODE_IDNAME)
+    node.preset = "silk"
+    assert fleece.name == "Neural Yarn silk"
+    again = addon.operators.preset_material("fleece")
+    assert again != fleece
+    assert [n.preset for n in again.node_tree.nodes if n.bl_idname == addon.nodes.NODE_IDNAME] == ["fleece"]
+    assert addon.operators.preset_material("silk") == fleece  # the switched one serves silk now
+    # A name the artist chose is kept.
+    fleece.name = "My scarf"
+    node.preset = "cotton"
+    assert fleece.name == "My scarf"
+
+
+# ---------------------------------------------------------------------------------------------------------
+# model files: the add-on refuses what the C++ loader refuses (issue 20, A3)
+
+_CLI = os.environ.get("NY_CLI") or os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "build",
+                                                 "cpp_core", "neuralyarn")
+
+
+def _corruptions():
+    """(name, edit of the JSON text) pairs; each leaves a model the C++ loader refuses."""
+    def flat(edit):
+        def apply(data):
+            edit(data["kernel_flat"])
+            return json.dumps(data)
+        return apply
+
+    def raw(edit):
+        return lambda data: edit(json.dumps(data))
+
+    def swap_offsets(f):
+        f[14], f[15] = f[15], f[14]
+
+    def stale_tables(data):
+        data["fallback"]["kernel_flat_fnv1a64"] = "0123456789abcdef"
+        return json.dumps(data)
+
+    return [
+        ("NaN in the kernel", raw(lambda t: t.replace('"kernel_flat": [3.0,', '"kernel_flat": [NaN,', 1))),
+        ("Infinity in the kernel", flat(lambda f: f.__setitem__(40, 1e999))),
+        ("short kernel", flat(lambda f: f.__delitem__(slice(-5, None)))),
+        ("kernel layout 2 in a version 3 file", flat(lambda f: f.__setitem__(0, 2.0))),
+        ("size field", flat(lambda f: f.__setitem__(1, f[1] + 1))),
+        ("kappa_R 1.5", flat(lambda f: f.__setitem__(7, 1.5))),
+        ("offsets out of order", flat(swap_offsets)),
+        ("negative R azimuth density", flat(lambda f: f.__setitem__(len(f) - 1, -0.5))),
+        ("a kernel weight changed", flat(lambda f: f.__setitem__(60, f[60] + 0.25))),
+        ("stale fallback tables", stale_tables),
+    ]
+
+
+@pytest.mark.parametrize("case", [c[0] for c in _corruptions()] + ["the shipped model"])
+def test_model_files_the_core_refuses_are_refused(bpy, addon, tmp_path, case):
+    if not os.path.isfile(_CLI):
+        pytest.skip(f"the core's CLI is not built at {_CLI}")
+    import subprocess
+    data = json.loads(open(os.path.join(addon.resources.resource_dir("models"), "cotton.json")).read())
+    text = dict(_corruptions())[case](data) if case != "the shipped model" else json.dumps(data)
+    path = tmp_path / "model.json"
+    path.write_text(text)
+    core = subprocess.run([_CLI, "cycles-scene", "--preset", "cotton", "--model", str(path), "--out",
+                           str(tmp_path / "scene.xml")], capture_output=True, text=True)
+    if case == "the shipped model":
+        assert core.returncode == 0, core.stderr
+        addon.model_io.parse_model(text, "model.json")
+        return
+    assert core.returncode != 0, f"the core accepts '{case}': the corruption tests nothing"
+    with pytest.raises(addon.model_io.ModelFileError):
+        addon.model_io.parse_model(text, "model.json")
