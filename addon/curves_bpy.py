@@ -91,8 +91,9 @@ def _new_curves_data_by_conversion(name: str, sizes: list[int], positions: np.nd
     finally:
         converted = obj.data if obj.type == "CURVES" else None
         bpy.data.objects.remove(obj)
-        if legacy.users == 0:
-            bpy.data.curves.remove(legacy)
+        # Removed whatever its user count: Blender 3.4's conversion leaves a user on it, and it was saved
+        # with every object made this way.
+        bpy.data.curves.remove(legacy)
         if not ok and converted is not None and converted.users == 0:
             bpy.data.hair_curves.remove(converted)
         view_layer.update()  # re-sync the view layer's bases after the removal (3.x leaves stale ones)
@@ -130,6 +131,14 @@ def create_curves_object(context, name: str, curves: list[YarnCurve], *, materia
         obj.select_set(True)
         context.view_layer.objects.active = obj
     return obj
+
+
+def remove_curves_object(obj) -> None:
+    """Removes an object made by create_curves_object and its Curves data."""
+    data = obj.data
+    bpy.data.objects.remove(obj)
+    if data is not None and data.users == 0:
+        bpy.data.hair_curves.remove(data)
 
 
 def read_curves_object(obj) -> list[YarnCurve]:

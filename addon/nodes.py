@@ -244,9 +244,36 @@ def sync(scene) -> int:
     return count
 
 
+def purge_unused() -> int:
+    """Removes the add-on's Texts (packed models "NY model ...", OSL fallbacks "NY ... .osl") and table
+    images ("NY ...") that nothing uses any more: every preset an artist tried would otherwise stay packed
+    in the .blend (Texts are saved whether used or not). Returns how many were removed."""
+    used = {n.model for n in iter_nodes() if n.model is not None}
+    trees = [m.node_tree for m in bpy.data.materials if m.node_tree is not None] + list(bpy.data.node_groups)
+    for tree in trees:
+        for n in tree.nodes:
+            if n.bl_idname == "ShaderNodeScript" and n.script is not None:
+                used.add(n.script)
+    removed = 0
+    for text in list(bpy.data.texts):
+        if text.name.startswith("NY ") and text not in used:
+            bpy.data.texts.remove(text)
+            removed += 1
+    for img in list(bpy.data.images):
+        if img.name.startswith("NY ") and img.users == 0:
+            bpy.data.images.remove(img)
+            removed += 1
+    return removed
+
+
 @persistent
 def _render_pre(scene, *_args):
     sync(scene)
+
+
+@persistent
+def _save_pre(*_args):
+    purge_unused()
 
 
 def make_material(name: str, *, preset: str | None = None, model_text=None):
@@ -280,9 +307,13 @@ def register():
     bpy.types.NODE_MT_add.append(_menu)
     if _render_pre not in bpy.app.handlers.render_pre:
         bpy.app.handlers.render_pre.append(_render_pre)
+    if _save_pre not in bpy.app.handlers.save_pre:
+        bpy.app.handlers.save_pre.append(_save_pre)
 
 
 def unregister():
+    if _save_pre in bpy.app.handlers.save_pre:
+        bpy.app.handlers.save_pre.remove(_save_pre)
     if _render_pre in bpy.app.handlers.render_pre:
         bpy.app.handlers.render_pre.remove(_render_pre)
     bpy.types.NODE_MT_add.remove(_menu)

@@ -69,8 +69,15 @@ class _MakesYarn:
     def execute(self, context):
         try:
             name, curves = self.compute(context)
-            material = None if self.preset == "NONE" else preset_material(self.preset)
-            obj = curves_bpy.create_curves_object(context, name, curves, material=material)
+            # The object first: a refusal there must not leave a material (and its texts, images and node
+            # group) behind in the artist's file.
+            obj = curves_bpy.create_curves_object(context, name, curves)
+            if self.preset != "NONE":
+                try:
+                    obj.data.materials.append(preset_material(self.preset))
+                except BaseException:
+                    curves_bpy.remove_curves_object(obj)
+                    raise
         except (geometry.GeometryError, model_io.ModelFileError, OSError, ValueError, MemoryError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -212,11 +219,14 @@ class NEURALYARN_OT_make_plies(bpy.types.Operator):
                     plies += geometry.twist_plies(yarn, self.plies, alpha_yarn=self.ply_twist,
                                                   samples_per_turn=self.samples_per_turn)
                     progress.update(k + 1)
+            obj = curves_bpy.create_curves_object(context, f"{src.name} plies", plies,
+                                                  material=src.active_material if self.preset == "NONE" else None)
             if self.preset != "NONE":
-                material = preset_material(self.preset)
-            else:
-                material = src.active_material
-            obj = curves_bpy.create_curves_object(context, f"{src.name} plies", plies, material=material)
+                try:
+                    obj.data.materials.append(preset_material(self.preset))
+                except BaseException:
+                    curves_bpy.remove_curves_object(obj)
+                    raise
         except (geometry.GeometryError, model_io.ModelFileError, OSError, ValueError, MemoryError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}

@@ -591,3 +591,58 @@ def test_model_files_the_core_refuses_are_refused(bpy, addon, tmp_path, case):
     assert core.returncode != 0, f"the core accepts '{case}': the corruption tests nothing"
     with pytest.raises(addon.model_io.ModelFileError):
         addon.model_io.parse_model(text, "model.json")
+
+
+@pytest.mark.parametrize("op", ["knit", "plies"])
+def test_a_refused_object_leaves_no_material_behind(bpy, addon, empty, monkeypatch, op):
+    """Issue 20, B6: the curves are refused at creation (here: Blender cannot make the Curves data); the
+    preset's material, texts, images and node group must not stay in the file."""
+    if op == "plies":
+        bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="NONE")
+    before = snapshot(bpy)
+
+    def refuse(name, *args, **kw):
+        raise addon.geometry.GeometryError(f"{name}: refused for the test")
+
+    monkeypatch.setattr(addon.curves_bpy, "_new_curves_data", refuse)
+    with pytest.raises(RuntimeError, match="refused for the test"):
+        if op == "knit":
+            bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="cotton")
+        else:
+            bpy.ops.neural_yarn.make_plies(preset="cotton")
+    assert snapshot(bpy) == before
+
+
+def test_presets_tried_do_not_stay_in_the_saved_file(bpy, addon, empty, tmp_path):
+    """Issue 20, B7: switching a node through every preset packed every model; the saved file keeps only the
+    model (and fallback data) in use, and the reopened file renders the last one."""
+    bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="NONE")
+    mat, node = addon.nodes.make_material("m", preset="fleece")
+    bpy.context.active_object.data.materials.append(mat)
+    for preset in PRESETS[1:]:
+        node.preset = preset
+        node.fallback = "OSL"
+        node.fallback = "NODES"
+    path = str(tmp_path / "tried.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    models = sorted(t.name for t in bpy.data.texts if t.name.startswith("NY model"))
+    assert models == [f"NY model {PRESETS[-1]}.json"]
+    assert not [t.name for t in bpy.data.texts if t.name.endswith(".osl")]  # NODES in use: no OSL text
+    node = next(n for n in bpy.data.materials["m"].node_tree.nodes if n.bl_idname == addon.nodes.NODE_IDNAME)
+    assert node.model is not None and node.model.name == models[0]
+    # The file holds the tables of the model in use only.
+    assert len({i.name.rsplit(" ", 1)[0] for i in bpy.data.images if i.name.startswith("NY ")}) == 1
+
+
+def test_no_legacy_curve_is_left_in_the_file(bpy, addon, empty, tmp_path):
+    """Issue 20, B5: Blender 3.4 makes Curves objects by converting a temporary legacy Curve, which kept a
+    user and was saved with every object (a glove .blend 26.7 MB instead of 7.9 MB). Blender 4 makes them
+    directly: there this checks that nothing else leaves one either."""
+    bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="NONE")
+    bpy.ops.neural_yarn.add_weave(warps=2, wefts=2, preset="NONE")
+    path = str(tmp_path / "clean.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    assert [c.name for c in bpy.data.curves] == []
+    assert len(bpy.data.hair_curves) == 2
