@@ -3,8 +3,8 @@
 
 A Blender extension (blender_manifest.toml, 4.2+) that also loads as a legacy add-on (bl_info, 3.4+).
 Modules: geometry/ (importers and generators, no bpy), model_io (model files, no bpy), resources (shipped
-files), curves_bpy (Curves objects), fallback_nodes + nodes (the Neural Yarn BSDF node), operators, ui,
-batch (command-line renders).
+files), curves_bpy (Curves objects), fallback_nodes + nodes (the Neural Yarn BSDF node), scene_setup
+(camera, lights, render settings), operators, ui, batch (command-line renders).
 """
 
 bl_info = {
@@ -20,12 +20,12 @@ bl_info = {
 if "bpy" in locals():  # script reload (F8 / Reload Scripts)
     import importlib
 
-    for _m in (model_io, resources, curves_bpy, fallback_nodes, nodes, operators, ui):  # noqa: F821
+    for _m in (model_io, resources, curves_bpy, fallback_nodes, nodes, scene_setup, operators, ui):  # noqa: F821
         importlib.reload(_m)
 
 import bpy  # noqa: E402
 
-from . import curves_bpy, fallback_nodes, model_io, nodes, operators, resources, ui  # noqa: E402,F401
+from . import curves_bpy, fallback_nodes, model_io, nodes, operators, resources, scene_setup, ui  # noqa: E402,F401
 
 _MODULES = (nodes, operators, ui)
 

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import math
 import os
 import sys
 
@@ -100,41 +99,6 @@ def _make_demo_geometry(kind: str):
     return [ctx.active_object]
 
 
-def _frame(scene, objects) -> None:
-    """A camera looking down at 50 degrees at the objects' bounding box, a key and a rim light."""
-    import mathutils
-
-    lo = mathutils.Vector((math.inf,) * 3)
-    hi = -lo
-    for obj in objects:
-        for corner in obj.bound_box:
-            w = obj.matrix_world @ mathutils.Vector(corner)
-            lo = mathutils.Vector(map(min, lo, w))
-            hi = mathutils.Vector(map(max, hi, w))
-    center, size = (lo + hi) / 2, max((hi - lo).length, 1e-6)
-    cam = bpy.data.objects.new("NY camera", bpy.data.cameras.new("NY camera"))
-    cam.data.lens = 50.0
-    cam.data.clip_start = size * 1e-3
-    cam.data.clip_end = size * 100.0
-    direction = mathutils.Vector((0.0, -math.cos(math.radians(50)), math.sin(math.radians(50))))
-    cam.location = center + direction * size * 1.6
-    cam.rotation_euler = (-direction).to_track_quat("-Z", "Y").to_euler()
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    for name, energy, d in (("NY key", 4.0, (0.4, -0.6, 0.7)), ("NY rim", 2.0, (-0.2, 0.7, -0.3))):
-        light = bpy.data.objects.new(name, bpy.data.lights.new(name, "SUN"))
-        light.data.energy = energy
-        light.data.angle = math.radians(5.0)
-        light.rotation_euler = (-mathutils.Vector(d)).to_track_quat("-Z", "Y").to_euler()
-        scene.collection.objects.link(light)
-    if scene.world is None:
-        scene.world = bpy.data.worlds.new("NY world")
-    scene.world.use_nodes = True
-    bg = scene.world.node_tree.nodes.get("Background")
-    if bg is not None:
-        bg.inputs["Color"].default_value = (0.05, 0.05, 0.05, 1.0)
-
-
 def run(argv: list[str]) -> str:
     args = parse_args(argv)
     _check(args)
@@ -171,7 +135,7 @@ def run(argv: list[str]) -> str:
         obj.data.materials.clear()
         obj.data.materials.append(mat)
     if demo or scene.camera is None:
-        _frame(scene, yarns)
+        ny.scene_setup.frame(scene, yarns)
     if args.resolution:
         scene.render.resolution_x = args.resolution[0]
         scene.render.resolution_y = args.resolution[-1]
@@ -180,7 +144,8 @@ def run(argv: list[str]) -> str:
         scene.cycles.samples = args.samples
         scene.cycles.use_adaptive_sampling = False
     scene.cycles.seed = args.seed
-    scene.cycles.use_denoising = False  # Debian's Blender and custom builds may lack OpenImageDenoise
+    ny.scene_setup.render_settings(scene)
+    scene.cycles.use_denoising = False  # batch renders are measured, not denoised
     scene.render.threads_mode = "FIXED" if args.threads > 0 else "AUTO"
     if args.threads > 0:
         scene.render.threads = args.threads

@@ -8,7 +8,7 @@ from __future__ import annotations
 import bpy
 from bpy_extras.io_utils import ImportHelper
 
-from . import curves_bpy, geometry, model_io, nodes, resources
+from . import curves_bpy, geometry, model_io, nodes, resources, scene_setup
 
 PRESET_OR_NONE = [("NONE", "None", "Do not assign a material")] + [
     (p, p.title(), f"Assign the '{p}' neural yarn material") for p in resources.PRESETS]
@@ -63,6 +63,10 @@ class _MakesYarn:
 
     preset: bpy.props.EnumProperty(name="Material", items=PRESET_OR_NONE, default="fleece")
 
+    #: Generated swatches are placed at the 3D cursor, as Blender's Add menu does; imports keep the file's
+    #: coordinates.
+    at_cursor = False
+
     def compute(self, context) -> tuple[str, list]:
         raise NotImplementedError
 
@@ -71,7 +75,9 @@ class _MakesYarn:
             name, curves = self.compute(context)
             # The object first: a refusal there must not leave a material (and its texts, images and node
             # group) behind in the artist's file.
-            obj = curves_bpy.create_curves_object(context, name, curves)
+            cursor = getattr(getattr(context, "scene", None), "cursor", None)
+            location = tuple(cursor.location) if self.at_cursor and cursor is not None else None
+            obj = curves_bpy.create_curves_object(context, name, curves, location=location)
             if self.preset != "NONE":
                 try:
                     obj.data.materials.append(preset_material(self.preset))
@@ -144,6 +150,7 @@ class NEURALYARN_OT_add_knit(_MakesYarn, bpy.types.Operator):
     bl_idname = "neural_yarn.add_knit"
     bl_label = "Knitted Swatch"
     bl_options = {"REGISTER", "UNDO"}
+    at_cursor = True
 
     rows: bpy.props.IntProperty(name="Rows", default=8, min=1, max=2000)
     stitches: bpy.props.IntProperty(name="Stitches", default=8, min=1, max=2000)
@@ -164,6 +171,7 @@ class NEURALYARN_OT_add_weave(_MakesYarn, bpy.types.Operator):
     bl_idname = "neural_yarn.add_weave"
     bl_label = "Woven Swatch"
     bl_options = {"REGISTER", "UNDO"}
+    at_cursor = True
 
     weave: bpy.props.EnumProperty(name="Weave", items=WEAVES, default="plain")
     warps: bpy.props.IntProperty(name="Warps", default=16, min=1, max=5000)
@@ -300,6 +308,28 @@ class NEURALYARN_OT_load_model(bpy.types.Operator, ImportHelper):
         return {"FINISHED"}
 
 
+class NEURALYARN_OT_frame_render(bpy.types.Operator):
+    """Add a camera that frames the selected yarns (all Curves objects if none is selected), a key and a rim
+    light, and render settings that work in this Blender (no denoiser where it has none; transparent
+    bounces for stacked cloth)"""
+
+    bl_idname = "neural_yarn.frame_render"
+    bl_label = "Frame for Render"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        yarns = [o for o in context.selected_objects if o.type == "CURVES"] or \
+            [o for o in context.scene.objects if o.type == "CURVES"]
+        if not yarns:
+            self.report({"ERROR"}, "no yarn curves to frame: add a swatch or import yarns first")
+            return {"CANCELLED"}
+        scene_setup.frame(context.scene, yarns)
+        changed = scene_setup.render_settings(context.scene)
+        self.report({"INFO"}, f"camera and lights around {len(yarns)} object(s)" +
+                    (f"; {', '.join(changed)}" if changed else ""))
+        return {"FINISHED"}
+
+
 CLASSES = (
     NEURALYARN_OT_import_bcc,
     NEURALYARN_OT_import_leaf,
@@ -308,6 +338,7 @@ CLASSES = (
     NEURALYARN_OT_make_plies,
     NEURALYARN_OT_assign_preset,
     NEURALYARN_OT_load_model,
+    NEURALYARN_OT_frame_render,
 )
 
 

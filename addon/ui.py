@@ -27,6 +27,9 @@ class VIEW3D_PT_neural_yarn(bpy.types.Panel):
         col.label(text="Plies and Material")
         col.operator("neural_yarn.make_plies", icon="MOD_SCREW")
         col.operator_menu_enum("neural_yarn.assign_preset", "preset", icon="MATERIAL")
+        col = layout.column(align=True)
+        col.label(text="Render")
+        col.operator("neural_yarn.frame_render", icon="CAMERA_DATA")
         obj = context.active_object
         mat = obj.active_material if obj is not None else None
         if mat is not None and mat.node_tree is not None:

@@ -32,12 +32,8 @@ def main(zip_path: str, out: str) -> None:
         raise SystemExit(f"install_smoke: models found outside the installed package: {models}")
     assert bpy.ops.neural_yarn.add_knit(rows=3, stitches=3, preset="fleece") == {"FINISHED"}
     obj = bpy.context.active_object
-    batch = sys.modules[module + ".batch"] if module + ".batch" in sys.modules else None
-    if batch is None:
-        import importlib
-        batch = importlib.import_module(module + ".batch")
     scene = bpy.context.scene
-    batch._frame(scene, [obj])
+    ny.scene_setup.frame(scene, [obj])
     scene.render.engine = "CYCLES"
     scene.cycles.samples = 2
     scene.cycles.use_denoising = False

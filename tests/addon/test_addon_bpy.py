@@ -386,10 +386,9 @@ def test_fallback_follows_the_shading_system(bpy, addon, empty, needs_osl):
 
 
 def addon_batch_frame(bpy, obj):
-    """The batch script's demo camera and lights around `obj`."""
+    """The add-on's camera and lights around `obj` (scene_setup.frame, as batch.py's demo scenes)."""
     import importlib
-    batch = importlib.import_module("neural_yarn.batch")
-    batch._frame(bpy.context.scene, [obj])
+    importlib.import_module("neural_yarn.scene_setup").frame(bpy.context.scene, [obj])
 
 
 @pytest.mark.parametrize("osl", [False, True], ids=["svm", "osl"])
@@ -646,3 +645,45 @@ def test_no_legacy_curve_is_left_in_the_file(bpy, addon, empty, tmp_path):
     bpy.ops.wm.open_mainfile(filepath=path)
     assert [c.name for c in bpy.data.curves] == []
     assert len(bpy.data.hair_curves) == 2
+
+
+# ---------------------------------------------------------------------------------------------------------
+# what the artist sees (issue 20, C10, C13)
+
+
+def test_swatches_are_added_at_the_3d_cursor_and_imports_keep_their_coordinates(bpy, addon, empty, tmp_path):
+    bpy.context.scene.cursor.location = (1.0, -2.0, 3.0)
+    bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="NONE")
+    assert tuple(bpy.context.active_object.location) == pytest.approx((1.0, -2.0, 3.0))
+    bpy.ops.neural_yarn.add_weave(warps=2, wefts=2, preset="NONE")
+    assert tuple(bpy.context.active_object.location) == pytest.approx((1.0, -2.0, 3.0))
+    path = tmp_path / "h.bcc"
+    write_bcc(addon, path, [helix()], curve_type="PL")
+    bpy.ops.neural_yarn.import_bcc(filepath=str(path), preset="NONE")
+    assert tuple(bpy.context.active_object.location) == pytest.approx((0.0, 0.0, 0.0))
+
+
+def test_frame_for_render_renders_with_this_blenders_defaults(bpy, addon, empty, tmp_path):
+    """A swatch, Frame for Render, F12 with the scene's own settings (denoiser included): an image in which
+    the yarn shows. Debian's Blender 3.4 has no OpenImageDenoise: F12 failed there until Denoise was off."""
+    with pytest.raises(RuntimeError, match="no yarn curves"):
+        bpy.ops.neural_yarn.frame_render()
+    bpy.ops.neural_yarn.add_knit(rows=3, stitches=3, preset="fleece")
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.use_denoising = True  # what a new file has
+    assert bpy.ops.neural_yarn.frame_render() == {"FINISHED"}
+    assert scene.camera is not None and scene.cycles.transparent_max_bounces >= 64
+    if not addon.scene_setup.has_denoiser():
+        assert not scene.cycles.use_denoising
+    scene.cycles.samples = 2
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 48, 32, 100
+    scene.render.film_transparent = True
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(tmp_path / "framed.exr")
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(tmp_path / "framed.exr"))
+    px = np.empty(len(img.pixels), dtype=np.float32)
+    img.pixels.foreach_get(px)
+    alpha = px.reshape(-1, 4)[:, 3]
+    assert (alpha > 0.5).mean() > 0.2  # the camera sees the swatch: a fifth of the frame or more
