@@ -51,6 +51,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--out", required=True, help="image to write (format from the extension: .png, .exr, .jpg)")
     p.add_argument("--scene", default="auto",
                    help="auto (the file's Curves objects, else a knit), knit, weave, bcc:FILE, leaf:FILE")
+    p.add_argument("--plies", type=int, default=1,
+                   help="demo scenes: twist each yarn into this many plies (Twist Plies), 1: one curve per yarn")
     p.add_argument("--keep-materials", action="store_true",
                    help="only give the material to Curves objects without a Neural Yarn material")
     p.add_argument("--fallback", default="auto", choices=("auto", "osl", "nodes"))
@@ -68,6 +70,8 @@ def _check(args) -> None:
     if args.resolution is not None and not (1 <= len(args.resolution) <= 2 and
                                             all(1 <= r <= 16384 for r in args.resolution)):
         raise BatchError("--resolution takes one or two sizes between 1 and 16384")
+    if not 1 <= args.plies <= 16:
+        raise BatchError("--plies must be between 1 and 16")
     if args.samples is not None and not 1 <= args.samples <= 1 << 20:
         raise BatchError("--samples must be between 1 and 1048576")
     out_dir = os.path.dirname(os.path.abspath(args.out)) or "."
@@ -115,6 +119,11 @@ def run(argv: list[str]) -> str:
     demo = args.scene != "auto" or not yarns
     if demo:
         yarns = _demo_geometry("knit" if args.scene == "auto" else args.scene)
+        if args.plies > 1:
+            r = bpy.ops.neural_yarn.make_plies(plies=args.plies, preset="NONE")
+            if "FINISHED" not in r:
+                raise BatchError("--plies: the plies could not be made (see the error above)")
+            yarns = [bpy.context.active_object]
     if args.model:
         try:
             text = ny.nodes.pack_model_file(args.model)
@@ -176,5 +185,10 @@ def main() -> int:
 
 if __name__ == "__main__":
     code = main()
+    if not bpy.app.binary_path:
+        # The bpy wheel (Blender as a Python module: `python batch.py -- ...`) can hang at interpreter exit.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
     if code:
         sys.exit(code)

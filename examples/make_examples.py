@@ -198,6 +198,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "examples"))
     ap.add_argument("--presets", nargs="+", default=PRESETS, choices=PRESETS)
+    ap.add_argument("--scenes", nargs="+", default=["closeup", "knit", "weave"], choices=["closeup", "knit", "weave"],
+                    help="which scenes to write (default all)")
     ap.add_argument("--render", action="store_true", help="render every scene with build/cycles/bin/cycles")
     ap.add_argument("--samples", type=int, default=64)
     ap.add_argument("--width", type=int, default=320)
@@ -241,9 +243,10 @@ def main() -> int:
                 patch_scene(name, f"{kind} of 3-ply {p} yarns, explicit fibers", plies, rel, args.width, args.width,
                             fibers=layout)
                 scenes.append((name, args.width, args.width))
-        scenes += [(fibers, args.width, args.height), (yarn, args.width, args.height),
-                   (os.path.join(args.out, f"knit_{p}.xml"), args.width, args.width),
-                   (os.path.join(args.out, f"weave_{p}.xml"), args.width, args.width)]
+        if "closeup" in args.scenes:
+            scenes += [(fibers, args.width, args.height), (yarn, args.width, args.height)]
+        scenes += [(os.path.join(args.out, f"{kind}_{p}.xml"), args.width, args.width)
+                   for kind in ("knit", "weave") if kind in args.scenes]
     print(f"make_examples: wrote {len(scenes)} scenes to {args.out}")
 
     if args.render:

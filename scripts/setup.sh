@@ -2,19 +2,25 @@
 # One-shot setup for a fresh Debian 12 (bookworm) machine, idempotent:
 #   1. installs the Debian packages the project builds against (only those missing),
 #   2. configures and builds everything in Release into build/,
-#   3. runs the main job on the built-in default (unless --no-run).
+#   3. runs the main job (unless --no-run): a knitted piece of 3-ply yarns in the five presets, rendered with
+#      the native closure (patched Cycles) and the stock-Blender fallback, and a contact sheet, in out/showcase/
+#      (scripts/showcase.py, ~1.5 min on 2 cores); with --with-maps also the fleece fiber's albedo table and
+#      lobe picture, fresh radiance distribution maps and the shipped model checked against them.
 #
-#   bash scripts/setup.sh            # set up and run the main job
-#   bash scripts/setup.sh --no-run   # set up only (used by scripts/test.sh)
+#   bash scripts/setup.sh              # set up and run the main job
+#   bash scripts/setup.sh --with-maps  # ... and the maps/model check
+#   bash scripts/setup.sh --no-run     # set up only (used by scripts/test.sh)
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD="${NY_BUILD_DIR:-$ROOT/build}"
 RUN_MAIN=1
+WITH_MAPS=0
 for arg in "$@"; do
   case "$arg" in
     --no-run) RUN_MAIN=0 ;;
-    -h|--help) sed -n '2,9p' "$0"; exit 0 ;;
+    --with-maps) WITH_MAPS=1 ;;
+    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
     *) echo "setup.sh: unknown argument '$arg'" >&2; exit 2 ;;
   esac
 done
@@ -89,6 +95,9 @@ PYEOF
 # --- 3. Main job -------------------------------------------------------------------------------------
 if ((RUN_MAIN)); then
   mkdir -p "$ROOT/out"
+  "$VENV/bin/python" "$ROOT/scripts/showcase.py" --out "$ROOT/out/showcase"
+fi
+if ((RUN_MAIN && WITH_MAPS)); then
   "$BUILD/cpp_core/neuralyarn" fiber --preset fleece --out "$ROOT/out/fleece_fiber_lobe.png"
   # The radiance distribution maps of the default preset at the paper's resolution, from a short run
   # (the paper uses 50-100 M paths; pass --paths 1e8 for that, ~3.5 min on 2 cores).

@@ -461,6 +461,7 @@ def test_batch_run_writes_an_image(bpy, addon, empty, tmp_path):
     (["--out", "x.bmp2"], "unknown image extension"),
     (["--model", "/nonexistent/m.json", "--out", "x.png"], "m.json"),
     (["--scene", "bcc:/nonexistent/y.bcc", "--out", "x.png"], "could not be made"),
+    (["--plies", "0", "--out", "x.png"], "--plies must be between 1 and 16"),
 ])
 def test_batch_errors(bpy, addon, empty, tmp_path, argv, message):
     import importlib
@@ -687,3 +688,16 @@ def test_frame_for_render_renders_with_this_blenders_defaults(bpy, addon, empty,
     img.pixels.foreach_get(px)
     alpha = px.reshape(-1, 4)[:, 3]
     assert (alpha > 0.5).mean() > 0.2  # the camera sees the swatch: a fifth of the frame or more
+
+
+def test_batch_plies_twists_the_demo_yarns(bpy, addon, empty, tmp_path):
+    """--plies 3: the knit demo's yarns become 3 plies each (the main job's knit, scripts/showcase.py)."""
+    import importlib
+    batch = importlib.import_module("neural_yarn.batch")
+    out = tmp_path / "knit.png"
+    batch.run(["--scene", "knit", "--out", str(out), "--resolution", "32", "--samples", "1"])
+    single = len(bpy.context.active_object.data.curves)
+    batch.run(["--scene", "knit", "--plies", "3", "--out", str(out), "--resolution", "32", "--samples", "1"])
+    plied = bpy.context.active_object
+    assert len(plied.data.curves) == 3 * single
+    assert plied.active_material is not None and plied.active_material.name.startswith("Neural Yarn fleece")
