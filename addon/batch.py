@@ -120,7 +120,7 @@ def run(argv: list[str]) -> str:
     if demo:
         yarns = _demo_geometry("knit" if args.scene == "auto" else args.scene)
         if args.plies > 1:
-            r = bpy.ops.neural_yarn.make_plies(plies=args.plies, preset="NONE")
+            r = bpy.ops.neural_yarn.make_plies(plies=args.plies, preset="KEEP")
             if "FINISHED" not in r:
                 raise BatchError("--plies: the plies could not be made (see the error above)")
             yarns = [bpy.context.active_object]

@@ -126,7 +126,8 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
     bl_label = "Neural Yarn BSDF"
     bl_width_default = 220
 
-    preset: bpy.props.EnumProperty(name="Preset", items=PRESET_ITEMS, default="fleece", update=_update_preset)
+    preset: bpy.props.EnumProperty(name="Preset", items=PRESET_ITEMS, default="fleece", update=_update_preset,
+                                   description="The yarn material: a shipped preset, or a model file of your own")
     model: bpy.props.PointerProperty(
         name="Model", type=bpy.types.Text, update=_update,
         description="The model file's JSON, packed into the .blend")
@@ -137,9 +138,10 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
     twist: bpy.props.FloatProperty(
         name="Twist alpha", default=0.24, min=0.0, max=4.0, update=_update,
         description="Fiber twist factor alpha: the surface fibers are tilted by atan(pi alpha) from the ply axis")
-    fallback: bpy.props.EnumProperty(name="Fallback", items=FALLBACK_ITEMS, default="AUTO", update=_update)
+    fallback: bpy.props.EnumProperty(name="Fallback", items=FALLBACK_ITEMS, default="AUTO", update=_update,
+                                     description="What renders the yarn in stock Blender (a patched Cycles uses the native closure)")
     built: bpy.props.StringProperty(name="Built", description="What the group holds now: OSL, NODES or ERROR")
-    error: bpy.props.StringProperty(name="Error")
+    error: bpy.props.StringProperty(name="Error", description="Why the node renders the error colour")
 
     # -- node life cycle --------------------------------------------------------------------------------
 
@@ -181,6 +183,8 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
             return
         try:
             model = parse_text(self.model)
+            if not self.twist_override:
+                self["twist"] = model.alpha  # shown greyed: the model's own twist (item access: no update)
             mode = self.resolved_mode(scene)
             fallback_nodes.build(self.node_tree, model, mode, self.tilt(model))
         except (model_io.ModelFileError, ValueError, KeyError, RuntimeError) as e:
@@ -212,11 +216,13 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
             row.prop(self, "model", text="")
             row.operator("neural_yarn.load_model", text="", icon="FILEBROWSER")
         row = layout.row(align=True)
-        row.prop(self, "twist_override", text="")
+        row.prop(self, "twist_override", text="Own Twist")
         sub = row.row()
         sub.active = self.twist_override
-        sub.prop(self, "twist")
-        layout.prop(self, "fallback")
+        sub.prop(self, "twist", text="alpha")
+        split = layout.split(factor=0.4)
+        split.label(text="Fallback")
+        split.prop(self, "fallback", text="")
         if self.error:
             layout.label(text=self.error, icon="ERROR")
 

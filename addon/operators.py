@@ -14,6 +14,7 @@ PRESET_OR_NONE = [("NONE", "None", "Do not assign a material")] + [
     (p, p.title(), f"Assign the '{p}' neural yarn material") for p in resources.PRESETS]
 WEAVES = [("plain", "Plain", "1 up 1 down"), ("twill", "Twill", "u up d down, shifted by one per row"),
           ("satin", "Satin", "K-harness satin with move m"), ("basket", "Basket", "n x n plain")]
+KEEP_OR_PRESET = [("KEEP", "Keep", "The yarn's own material")] + PRESET_OR_NONE[1:]
 UP_AXES = [("auto", "From File", "The BCC header's up axis"), ("Y", "Y Up", "File is Y-up (converted to Z-up)"),
            ("Z", "Z Up", "File is Z-up")]
 
@@ -61,7 +62,8 @@ class _Progress:
 class _MakesYarn:
     """Mix-in: create the object from computed curves, with the optional preset; errors -> report."""
 
-    preset: bpy.props.EnumProperty(name="Material", items=PRESET_OR_NONE, default="fleece")
+    preset: bpy.props.EnumProperty(name="Material", items=PRESET_OR_NONE, default="fleece",
+                                   description="The neural yarn material the new yarns get")
 
     #: Generated swatches are placed at the 3D cursor, as Blender's Add menu does; imports keep the file's
     #: coordinates.
@@ -101,13 +103,15 @@ class NEURALYARN_OT_import_bcc(_MakesYarn, bpy.types.Operator, ImportHelper):
 
     filename_ext = ".bcc"
     filter_glob: bpy.props.StringProperty(default="*.bcc;*.bccx", options={"HIDDEN"})
-    scale: bpy.props.FloatProperty(name="Scale", default=0.001, min=1e-9, max=1e6, soft_max=10.0,
+    scale: bpy.props.FloatProperty(name="Scale", default=0.001, min=1e-9, max=1e6, soft_max=10.0, precision=6,
                                    description="File units to scene units (BCC stores no unit)")
     yarn_radius: bpy.props.FloatProperty(
         name="Yarn Radius", default=0.0, min=0.0, description="In file units; 0: the BCCX radius, else half the "
         "median control-point spacing")
-    up_axis: bpy.props.EnumProperty(name="Up Axis", items=UP_AXES, default="auto")
-    samples_per_segment: bpy.props.IntProperty(name="Samples per Segment", default=8, min=1, max=64)
+    up_axis: bpy.props.EnumProperty(name="Up Axis", items=UP_AXES, default="auto",
+                                    description="Which file axis points up (converted to Blender's Z-up)")
+    samples_per_segment: bpy.props.IntProperty(name="Samples per Segment", default=8, min=1, max=64,
+                                               description="Curve points per control-point segment of the spline")
 
     def compute(self, context):
         curves = geometry.read_bcc(self.filepath, scale=self.scale, yarn_radius=self.yarn_radius or None,
@@ -123,15 +127,20 @@ class NEURALYARN_OT_import_leaf(_MakesYarn, bpy.types.Operator, ImportHelper):
     bl_options = {"REGISTER", "UNDO", "PRESET"}
 
     filter_glob: bpy.props.StringProperty(default="*.txt;*.bcc;*.bccx", options={"HIDDEN"})
-    tiles_x: bpy.props.IntProperty(name="Tiles X", default=4, min=1, max=1000)
-    tiles_y: bpy.props.IntProperty(name="Tiles Y", default=4, min=1, max=1000)
+    tiles_x: bpy.props.IntProperty(name="Tiles X", default=4, min=1, max=1000,
+                                   description="Repetitions of the pattern along its first axis")
+    tiles_y: bpy.props.IntProperty(name="Tiles Y", default=4, min=1, max=1000,
+                                   description="Repetitions of the pattern along its second axis")
     period_x: bpy.props.FloatProperty(name="Period X", default=0.0, min=0.0,
                                       description="Tile period in pattern units; 0: from the sidecar, else estimated")
-    period_y: bpy.props.FloatProperty(name="Period Y", default=0.0, min=0.0)
+    period_y: bpy.props.FloatProperty(name="Period Y", default=0.0, min=0.0,
+                                      description="Tile period along the second axis in pattern units; 0: from the sidecar, else estimated")
     yarn_radius: bpy.props.FloatProperty(name="Yarn Radius", default=0.0, min=0.0,
                                          description="In pattern units; 0: sidecar, BCCX, else estimated")
-    scale: bpy.props.FloatProperty(name="Scale", default=0.001, min=1e-9, max=1e6, soft_max=10.0)
-    up_axis: bpy.props.EnumProperty(name="Up Axis", items=UP_AXES, default="auto")
+    scale: bpy.props.FloatProperty(name="Scale", default=0.001, min=1e-9, max=1e6, soft_max=10.0, precision=6,
+                                   description="Pattern units to scene units")
+    up_axis: bpy.props.EnumProperty(name="Up Axis", items=UP_AXES, default="auto",
+                                    description="Which file axis points up (converted to Blender's Z-up)")
 
     def compute(self, context):
         period = None
@@ -152,13 +161,15 @@ class NEURALYARN_OT_add_knit(_MakesYarn, bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
     at_cursor = True
 
-    rows: bpy.props.IntProperty(name="Rows", default=8, min=1, max=2000)
-    stitches: bpy.props.IntProperty(name="Stitches", default=8, min=1, max=2000)
+    rows: bpy.props.IntProperty(name="Rows", default=8, min=1, max=2000, description="Courses of stitches (one yarn each)")
+    stitches: bpy.props.IntProperty(name="Stitches", default=8, min=1, max=2000, description="Stitches per row (wales)")
     yarn_radius: bpy.props.FloatProperty(name="Yarn Radius", default=0.5, min=0.01, max=2.0,
-                                         description="In Crane's units (a stitch is 2 pi wide)")
-    scale: bpy.props.FloatProperty(name="Scale", default=KNIT_SCALE, min=1e-6, max=100.0, precision=4)
-    purl: bpy.props.BoolProperty(name="Purl Side", default=False)
-    samples_per_loop: bpy.props.IntProperty(name="Samples per Loop", default=64, min=8, max=512)
+                                         description="In knit units, where a stitch is 2 pi wide (Crane's loop curve)")
+    scale: bpy.props.FloatProperty(name="Scale", default=KNIT_SCALE, min=1e-6, max=100.0, precision=4,
+                                   description="Knit units to scene units (default: 1 mm yarn radius, 12.6 mm stitches)")
+    purl: bpy.props.BoolProperty(name="Purl Side", default=False, description="Show the back (purl) face of the knit")
+    samples_per_loop: bpy.props.IntProperty(name="Samples per Loop", default=64, min=8, max=512,
+                                            description="Curve points per stitch loop")
 
     def compute(self, context):
         return "knit", geometry.plain_knit(self.rows, self.stitches, yarn_radius=self.yarn_radius, scale=self.scale,
@@ -173,17 +184,31 @@ class NEURALYARN_OT_add_weave(_MakesYarn, bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
     at_cursor = True
 
-    weave: bpy.props.EnumProperty(name="Weave", items=WEAVES, default="plain")
-    warps: bpy.props.IntProperty(name="Warps", default=16, min=1, max=5000)
-    wefts: bpy.props.IntProperty(name="Wefts", default=16, min=1, max=5000)
+    weave: bpy.props.EnumProperty(name="Weave", items=WEAVES, default="plain", description="The interlacing pattern")
+    warps: bpy.props.IntProperty(name="Warps", default=16, min=1, max=5000, description="Lengthwise yarns")
+    wefts: bpy.props.IntProperty(name="Wefts", default=16, min=1, max=5000, description="Crosswise yarns")
     spacing: bpy.props.FloatProperty(name="Spacing", default=2.5, min=0.01, description="Yarn pitch (pattern units)")
-    yarn_radius: bpy.props.FloatProperty(name="Yarn Radius", default=0.5, min=0.001)
-    scale: bpy.props.FloatProperty(name="Scale", default=KNIT_SCALE, min=1e-6, max=100.0, precision=4)
-    twill_up: bpy.props.IntProperty(name="Twill Up", default=2, min=1, max=64)
-    twill_down: bpy.props.IntProperty(name="Twill Down", default=2, min=1, max=64)
-    satin_harness: bpy.props.IntProperty(name="Satin K", default=5, min=5, max=128)
-    satin_move: bpy.props.IntProperty(name="Satin Move", default=2, min=2, max=126)
-    basket_n: bpy.props.IntProperty(name="Basket n", default=2, min=1, max=64)
+    yarn_radius: bpy.props.FloatProperty(name="Yarn Radius", default=0.5, min=0.001, description="In pattern units")
+    scale: bpy.props.FloatProperty(name="Scale", default=KNIT_SCALE, min=1e-6, max=100.0, precision=4,
+                                   description="Pattern units to scene units")
+    twill_up: bpy.props.IntProperty(name="Twill Up", default=2, min=1, max=64, description="Twill: wefts a warp floats over")
+    twill_down: bpy.props.IntProperty(name="Twill Down", default=2, min=1, max=64, description="Twill: wefts a warp passes under")
+    satin_harness: bpy.props.IntProperty(name="Satin Harnesses", default=5, min=5, max=128,
+                                         description="Satin: the repeat K (a warp floats over K - 1 wefts)")
+    satin_move: bpy.props.IntProperty(name="Satin Move", default=2, min=2, max=126,
+                                      description="Satin: the shift m between neighbouring warps (coprime with K)")
+    basket_n: bpy.props.IntProperty(name="Basket Size", default=2, min=1, max=64,
+                                    description="Basket: yarns woven together as one (n x n)")
+
+    #: The settings of each weave beyond the common ones (the redo panel shows only these).
+    WEAVE_SETTINGS = {"plain": (), "twill": ("twill_up", "twill_down"), "satin": ("satin_harness", "satin_move"),
+                      "basket": ("basket_n",)}
+
+    def draw(self, context):
+        layout = self.layout
+        for name in ("weave", *self.WEAVE_SETTINGS[self.weave], "warps", "wefts", "spacing", "yarn_radius", "scale",
+                     "preset"):
+            layout.prop(self, name)
 
     def compute(self, context):
         params = {"plain": {}, "twill": {"u": self.twill_up, "d": self.twill_down},
@@ -205,17 +230,22 @@ class NEURALYARN_OT_make_plies(bpy.types.Operator):
     bl_label = "Twist Plies"
     bl_options = {"REGISTER", "UNDO"}
 
-    plies: bpy.props.IntProperty(name="Plies", default=3, min=1, max=16)
+    plies: bpy.props.IntProperty(name="Plies", default=3, min=1, max=16, description="Plies twisted into each yarn")
     ply_twist: bpy.props.FloatProperty(name="Ply Twist alpha", default=0.5, min=0.0, max=8.0,
                                        description="2 R_yarn x plies turns per unit length")
-    samples_per_turn: bpy.props.IntProperty(name="Samples per Turn", default=24, min=4, max=256)
-    preset: bpy.props.EnumProperty(name="Material", items=PRESET_OR_NONE, default="NONE",
-                                   description="None: keep the yarn's material")
+    samples_per_turn: bpy.props.IntProperty(name="Samples per Turn", default=24, min=4, max=256,
+                                            description="Curve points per turn of each ply's helix")
+    preset: bpy.props.EnumProperty(name="Material", items=KEEP_OR_PRESET, default="KEEP",
+                                   description="The plies' material: the yarn's own, or a preset")
 
     @classmethod
     def poll(cls, context):
         obj = context.active_object
-        return obj is not None and obj.type == "CURVES"
+        if obj is not None and obj.type == "CURVES":
+            return True
+        if hasattr(cls, "poll_message_set"):
+            cls.poll_message_set("Select a Curves object: yarns added or imported with Neural Yarn")
+        return False
 
     def execute(self, context):
         src = context.active_object
@@ -228,8 +258,8 @@ class NEURALYARN_OT_make_plies(bpy.types.Operator):
                                                   samples_per_turn=self.samples_per_turn)
                     progress.update(k + 1)
             obj = curves_bpy.create_curves_object(context, f"{src.name} plies", plies,
-                                                  material=src.active_material if self.preset == "NONE" else None)
-            if self.preset != "NONE":
+                                                  material=src.active_material if self.preset == "KEEP" else None)
+            if self.preset != "KEEP":
                 try:
                     obj.data.materials.append(preset_material(self.preset))
                 except BaseException:
@@ -251,7 +281,8 @@ class NEURALYARN_OT_assign_preset(bpy.types.Operator):
     bl_label = "Assign Yarn Material"
     bl_options = {"REGISTER", "UNDO"}
 
-    preset: bpy.props.EnumProperty(name="Preset", items=[i for i in PRESET_OR_NONE if i[0] != "NONE"])
+    preset: bpy.props.EnumProperty(name="Preset", items=[i for i in PRESET_OR_NONE if i[0] != "NONE"],
+                                   description="The neural yarn material to give the selected Curves objects")
 
     def execute(self, context):
         targets = [o for o in context.selected_objects if o.type == "CURVES"]

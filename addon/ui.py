@@ -36,7 +36,8 @@ class VIEW3D_PT_neural_yarn(bpy.types.Panel):
             for node in mat.node_tree.nodes:
                 if node.bl_idname == nodes.NODE_IDNAME:
                     box = layout.box()
-                    box.label(text=f"{mat.name}: {node.built.lower() or 'not built'}")
+                    shown = {"NODES": "stock nodes", "OSL": "OSL script", "ERROR": "error"}.get(node.built, "not built")
+                    box.label(text=f"Material '{mat.name}' (in stock Blender: {shown})")
                     box.context_pointer_set("node", node)
                     node.draw_buttons(context, box)
                     break

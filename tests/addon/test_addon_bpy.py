@@ -701,3 +701,60 @@ def test_batch_plies_twists_the_demo_yarns(bpy, addon, empty, tmp_path):
     plied = bpy.context.active_object
     assert len(plied.data.curves) == 3 * single
     assert plied.active_material is not None and plied.active_material.name.startswith("Neural Yarn fleece")
+
+
+# ---------------------------------------------------------------------------------------------------------
+# labels and tooltips (issue 20, C12)
+
+
+def test_every_setting_has_a_tooltip(bpy, addon):
+    missing = []
+    for cls in addon.operators.CLASSES:
+        op = getattr(bpy.ops.neural_yarn, cls.bl_idname.split(".")[1])
+        missing += [f"{cls.bl_idname}.{p.identifier}" for p in op.get_rna_type().properties
+                    if p.identifier != "rna_type" and not p.is_hidden and not p.description]
+    node = addon.nodes.NeuralYarnBsdfNode
+    missing += [f"node.{p.identifier}" for p in node.bl_rna.properties
+                if p.identifier in node.__annotations__ and not p.description]
+    assert missing == []
+
+
+def test_import_scales_show_their_default(bpy, addon):
+    for op in (bpy.ops.neural_yarn.import_bcc, bpy.ops.neural_yarn.import_leaf):
+        scale = op.get_rna_type().properties["scale"]
+        assert f"{scale.default:.{scale.precision}f}" != "0.00" and scale.precision >= 3
+
+
+def test_the_node_shows_its_models_twist(bpy, addon, empty):
+    """'Twist alpha' showed 0.24 for every preset; it shows the model's own alpha unless overridden."""
+    _mat, node = addon.nodes.make_material("m", preset="silk")
+    assert node.twist == pytest.approx(0.0)
+    node.preset = "cotton"
+    assert node.twist == pytest.approx(0.06, abs=1e-6)
+    node.twist_override = True
+    node.twist = 0.4
+    node.preset = "fleece"
+    assert node.twist == pytest.approx(0.4)
+
+
+class _Layout:
+    def __init__(self):
+        self.props = []
+
+    def prop(self, data, name, **kw):
+        self.props.append(name)
+
+
+@pytest.mark.parametrize("weave, shown, hidden", [
+    ("plain", [], ["twill_up", "satin_harness", "basket_n"]),
+    ("twill", ["twill_up", "twill_down"], ["satin_harness", "basket_n"]),
+    ("satin", ["satin_harness", "satin_move"], ["twill_up", "basket_n"]),
+    ("basket", ["basket_n"], ["twill_up", "satin_move"]),
+])
+def test_the_weave_panel_shows_the_settings_of_its_weave(bpy, addon, weave, shown, hidden):
+    import types
+    fake = types.SimpleNamespace(layout=_Layout(), weave=weave,
+                                 WEAVE_SETTINGS=addon.operators.NEURALYARN_OT_add_weave.WEAVE_SETTINGS)
+    addon.operators.NEURALYARN_OT_add_weave.draw(fake, None)
+    assert all(n in fake.layout.props for n in shown + ["warps", "preset"])
+    assert not any(n in fake.layout.props for n in hidden)
