@@ -44,8 +44,17 @@ def addon_module():
     return module
 
 
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse's own errors: one line and exit code 1, as every other error
+        raise BatchError(message)
+
+
+IMAGE_FORMATS = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
+DEMO_SCENES = ("auto", "knit", "weave")
+
+
 def parse_args(argv: list[str]) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="batch.py", description="Render yarns with the Neural Yarn add-on.")
+    p = _Parser(prog="batch.py", description="Render yarns with the Neural Yarn add-on.")
     p.add_argument("--preset", default="fleece", help="fleece, silk, polyester, cotton or gabardine")
     p.add_argument("--model", help="a model file from `neuralyarn bake` instead of a preset")
     p.add_argument("--out", required=True, help="image to write (format from the extension: .png, .exr, .jpg)")
@@ -77,6 +86,11 @@ def _check(args) -> None:
     out_dir = os.path.dirname(os.path.abspath(args.out)) or "."
     if not os.path.isdir(out_dir):
         raise BatchError(f"--out: the directory '{out_dir}' does not exist")
+    ext = os.path.splitext(args.out)[1].lower()
+    if ext not in IMAGE_FORMATS:
+        raise BatchError(f"--out: unknown image extension '{ext}' ({', '.join(IMAGE_FORMATS)})")
+    if args.scene not in DEMO_SCENES and not args.scene.startswith(("bcc:", "leaf:")):
+        raise BatchError(f"--scene: unknown scene '{args.scene}' (auto, knit, weave, bcc:FILE, leaf:FILE)")
 
 
 def _demo_geometry(kind: str):
@@ -96,8 +110,8 @@ def _make_demo_geometry(kind: str):
         r = bpy.ops.neural_yarn.import_bcc(filepath=os.path.abspath(kind[4:]), preset="NONE")
     elif kind.startswith("leaf:"):
         r = bpy.ops.neural_yarn.import_leaf(filepath=os.path.abspath(kind[5:]), preset="NONE")
-    else:
-        raise BatchError(f"--scene: unknown scene '{kind}' (auto, knit, weave, bcc:FILE, leaf:FILE)")
+    else:  # (_check refused other names before anything was built)
+        raise BatchError(f"--scene: unknown scene '{kind}'")
     if "FINISHED" not in r:
         raise BatchError(f"--scene {kind}: the yarns could not be made (see the error above)")
     return [ctx.active_object]
@@ -159,11 +173,7 @@ def run(argv: list[str]) -> str:
     if args.threads > 0:
         scene.render.threads = args.threads
     out = os.path.abspath(args.out)
-    ext = os.path.splitext(out)[1].lower()
-    formats = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
-    if ext not in formats:
-        raise BatchError(f"--out: unknown image extension '{ext}' ({', '.join(formats)})")
-    scene.render.image_settings.file_format = formats[ext]
+    scene.render.image_settings.file_format = IMAGE_FORMATS[os.path.splitext(out)[1].lower()]
     scene.render.filepath = out
     bpy.ops.render.render(write_still=True)
     if not os.path.isfile(out):

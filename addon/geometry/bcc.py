@@ -34,6 +34,7 @@ from .curves import (
     control_point_problem,
     evaluate_spline,
     evaluated_point_count,
+    file_name,
     median_control_point_spacing,
     validate,
 )
@@ -67,7 +68,7 @@ class BCCData:
 def _load(path_or_bytes: PathOrBytes) -> tuple[bytes, str]:
     if isinstance(path_or_bytes, (bytes, bytearray, memoryview)):
         return bytes(path_or_bytes), "<BCC data>"
-    name = os.fspath(path_or_bytes)
+    name = file_name(path_or_bytes)
     try:
         with open(name, "rb") as f:
             return f.read(), str(name)

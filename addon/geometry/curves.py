@@ -12,6 +12,7 @@ Only the standard library and numpy are used (no bpy), so that the module runs i
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from typing import Iterable, Sequence
 
@@ -71,6 +72,14 @@ class YarnCurve:
 
 # ---------------------------------------------------------------------------------------------------------
 # Parameter checks shared by the modules of this package (private).
+
+
+def file_name(path) -> str:
+    """The path as a string; GeometryError for an empty one (an importer run without a file chosen)."""
+    name = os.fspath(path)
+    if not name:
+        raise GeometryError("no file given: choose a file to import")
+    return name
 
 
 def _check_int(name: str, value: object, lo: int, hi: int) -> int:

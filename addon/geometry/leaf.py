@@ -40,6 +40,7 @@ from .curves import (
     control_point_problem,
     evaluate_spline,
     evaluated_point_count,
+    file_name,
     median_control_point_spacing,
     validate,
 )
@@ -58,7 +59,7 @@ def read_leaf_text(path: str | os.PathLike[str]) -> list[np.ndarray]:
     Errors name the file and the line: a missing or non-integer count, a non-numeric or non-finite
     coordinate, fewer points than declared, fewer yarns than declared, or content after the last yarn.
     """
-    name = os.fspath(path)
+    name = file_name(path)
     try:
         with open(name, "rb") as f:
             raw = f.read()
@@ -124,7 +125,7 @@ def read_leaf_text(path: str | os.PathLike[str]) -> list[np.ndarray]:
 
 def sidecar_path(path: str | os.PathLike[str]) -> str | None:
     """The JSON sidecar of a pattern file: `<file>.json`, else `<stem>.json`; None if neither exists."""
-    name = os.fspath(path)
+    name = file_name(path)
     for cand in (name + ".json", os.path.splitext(name)[0] + ".json"):
         if cand != name and os.path.isfile(cand):
             return cand
@@ -373,7 +374,7 @@ def read_leaf(
     takes period and radius from the arguments, else the sidecar, else the BCCX trailer, else estimates,
     and tiles it nx x ny (see `tile_pattern`). curve_type defaults to the BCC header's, or 'C0' for text.
     BCC tiles are converted to Z-up first, so periods always refer to Blender's X and Y."""
-    name = os.fspath(path)
+    name = file_name(path)
     try:
         with open(name, "rb") as f:
             magic = f.read(3)

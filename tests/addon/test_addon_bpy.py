@@ -462,6 +462,9 @@ def test_batch_run_writes_an_image(bpy, addon, empty, tmp_path):
     (["--model", "/nonexistent/m.json", "--out", "x.png"], "m.json"),
     (["--scene", "bcc:/nonexistent/y.bcc", "--out", "x.png"], "could not be made"),
     (["--plies", "0", "--out", "x.png"], "--plies must be between 1 and 16"),
+    (["--scene", "sock", "--out", "x.png"], r"^--scene: unknown scene 'sock' \(auto, knit"),
+    (["--samples", "many", "--out", "x.png"], "argument --samples: invalid int value"),
+    (["--out"], "argument --out: expected one argument"),
 ])
 def test_batch_errors(bpy, addon, empty, tmp_path, argv, message):
     import importlib
@@ -758,3 +761,18 @@ def test_the_weave_panel_shows_the_settings_of_its_weave(bpy, addon, weave, show
     addon.operators.NEURALYARN_OT_add_weave.draw(fake, None)
     assert all(n in fake.layout.props for n in shown + ["warps", "preset"])
     assert not any(n in fake.layout.props for n in hidden)
+
+
+def test_batch_refuses_a_bad_extension_before_building_anything(bpy, addon, empty, tmp_path):
+    import importlib
+    batch = importlib.import_module("neural_yarn.batch")
+    before = snapshot(bpy)
+    with pytest.raises(batch.BatchError, match="unknown image extension '.bmp2'"):
+        batch.run(["--scene", "knit", "--out", str(tmp_path / "x.bmp2")])
+    assert snapshot(bpy) == before
+
+
+@pytest.mark.parametrize("op", ["import_bcc", "import_leaf"])
+def test_import_without_a_file_says_so(bpy, addon, empty, op):
+    with pytest.raises(RuntimeError, match="no file given: choose a file to import"):
+        getattr(bpy.ops.neural_yarn, op)(filepath="")
