@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
 """BCC (Binary Curve Collection, Cem Yuksel) reader and writer, with the BCCX trailer.
 
-Layout (yarn_geometry.md §1.1-1.2, §1.7), little-endian, no padding:
+Layout (Cem Yuksel's BCC format, cyCodeBase; the BCCX trailer as his yarn-level cloth models use it),
+little-endian, no padding:
 
     header, 64 bytes: char[3] "BCC" | uint8 byteCount = 0x44 | char[2] curveType (C0, PL, BS, BZ) |
                       uint8 dimensions = 3 | uint8 upDimension (1 = Y-up, 2 = Z-up) |
@@ -85,7 +86,7 @@ def read_bcc_control_points(path_or_bytes: PathOrBytes) -> BCCData:
 
     Checks everything about the *format* (signature, header fields, counts against the file size, truncation,
     non-finite coordinates, zero-point curves, trailing bytes) but nothing about the *geometry*, so the
-    1-point minimal test vector of yarn_geometry.md §1.6 parses here while `read_bcc` rejects it.
+    1-point minimal file (one curve of one control point) parses here while `read_bcc` rejects it.
     """
     data, src = _load(path_or_bytes)
     size = len(data)
@@ -225,7 +226,7 @@ def read_bcc(
     scale multiplies coordinates and radii (file units -> scene units). up_axis 'auto' follows the header;
     'Y' or 'Z' overrides a wrong header. yarn_radius is in file units; when None, the BCCX trailer's radius
     is used, else 0.5 x the median control-point spacing: relaxed yarn models place control points about a
-    yarn diameter apart, and BCC stores no radius (yarn_geometry.md §1.5, §2: units are not stored either).
+    yarn diameter apart, and BCC stores no radius (nor units).
     Raises GeometryError for malformed files and for curves too short or degenerate to render.
     """
     scale = _check_positive("scale", scale)

@@ -22,7 +22,7 @@ import numpy as np
 # a malformed file or a typo in a UI field must fail with a message, not exhaust the memory.
 MAX_POINTS = 20_000_000
 
-# Curve types of the BCC format (yarn_geometry.md §1.1), also used by the pattern loader.
+# Curve types of the BCC format, also used by the pattern loader.
 CURVE_TYPES = {
     "C0": "uniform Catmull-Rom",
     "PL": "polyline",
@@ -199,7 +199,7 @@ def catmull_rom(control_points: np.ndarray, cyclic: bool, samples_per_segment: i
     """Uniform Catmull-Rom (BCC 'C0'): passes through every control point it spans.
 
     Open curves treat the first and last control points as phantoms that only set the end tangents, so n
-    points give n-3 segments from P1 to P(n-2) (yarn_geometry.md §1.3); closed curves take indices mod n.
+    points give n-3 segments from P1 to P(n-2), as BCC's 'C0' defines them; closed curves take indices mod n.
     """
     return _four_point_spline(control_points, cyclic, "C0", _CATMULL_ROM, samples_per_segment)
 
@@ -271,8 +271,8 @@ def median_control_point_spacing(control_curves: Sequence[np.ndarray], closed: S
     """Median distance between consecutive control points over all curves (0 if every spacing is 0).
 
     Used as the length scale for default radii and weld tolerances when a file stores no yarn radius:
-    control points of relaxed yarn models are spaced about one yarn diameter apart (yarn_geometry.md §1.5
-    measures 0.12-0.26 units spacing on Yuksel's files).
+    control points of relaxed yarn models are spaced about one yarn diameter apart (0.12-0.26 file units on
+    Yuksel's files).
     """
     gaps = []
     for c, P in enumerate(control_curves):

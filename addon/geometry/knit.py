@@ -1,8 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
 """Plain knit (stockinette / jersey) centrelines: Keenan Crane's closed-form yarn curve.
 
-Crane, "A Simple Parametric Model of Plain-Knit Yarns" (code: keenancrane/plain-knit-yarn), yarn_geometry.md
-§5.1. One course (row) is
+Crane, "A Simple Parametric Model of Plain-Knit Yarns" (code: keenancrane/plain-knit-yarn). One course (row)
+is
 
     gamma(t) = (t + a sin 2t,  h cos t,  d cos 2t),     one stitch per 2 pi of t,
 

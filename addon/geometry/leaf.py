@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Periodic yarn patterns (Leaf et al. 2018 style): read one tile, repeat it, weld the yarns across tiles.
 
-The official file format of the Leaf et al. corpus could not be confirmed (yarn_geometry.md §3). Supported:
+The official file format of the Leaf et al. corpus is not published with it. Supported:
 
 * the "Num Yarns" text layout of the smallest periodic patch files seen in the wild:
 

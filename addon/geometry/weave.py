@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Woven fabrics: a weave pattern matrix plus crimped, cosine-eased warp and weft centrelines.
 
-Standard textile geometry (yarn_geometry.md §5.3). P[i][j] = 1 means warp i passes over weft j; the matrix
+Standard textile geometry (a weave's interlacing matrix, as in textile design). P[i][j] = 1 means warp i passes over weft j; the matrix
 is one repeat and is applied periodically. Warp i runs along y at x = i s_x, weft j along x at y = j s_y.
 At a crossing the yarn on top sits at z = +c and the other at -c; between neighbouring crossings z is eased
 by (1 - cos pi u)/2, so floats (the same state at consecutive crossings) stay flat and the curve has a

@@ -5,6 +5,7 @@ Plain Python + numpy, no Blender. Every file is written by the test itself into 
 """
 import json
 import math
+import os
 import struct
 import time
 import tracemalloc
@@ -686,3 +687,31 @@ def test_bcc_of_tiny_coordinates_is_refused_with_the_scale():
     blob = geo.bcc_bytes([np.array([[0.0, 0, 0], [1e-30, 0, 0], [2e-30, 1e-30, 0], [3e-30, 0, 0]])])
     with pytest.raises(GeometryError, match="import scale"):
         geo.read_bcc(blob, scale=0.001)
+
+
+SAMPLES = os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "addon", "samples")
+
+
+def test_shipped_samples_are_what_make_samples_writes(tmp_path):
+    """addon/samples/ (the files to try the importers with) are reproducible from scripts/make_samples.py."""
+    import subprocess
+    root = os.path.join(os.path.dirname(__file__), os.pardir, os.pardir)
+    python = os.path.join(root, ".venv", "bin", "python")
+    if not os.path.isfile(python):
+        pytest.skip(".venv is not set up (scripts/setup.sh)")
+    subprocess.run([python, os.path.join(root, "scripts", "make_samples.py"), "--out", str(tmp_path)], check=True,
+                   capture_output=True)
+    names = sorted(os.listdir(tmp_path))
+    assert names == sorted(os.listdir(SAMPLES))
+    for name in names:
+        with open(os.path.join(SAMPLES, name), "rb") as a, open(tmp_path / name, "rb") as b:
+            assert a.read() == b.read(), f"addon/samples/{name} differs from what make_samples.py writes"
+
+
+def test_shipped_samples_import_at_garment_scale():
+    knit = geo.read_bcc(os.path.join(SAMPLES, "knit_6x4.bccx"), scale=0.001)
+    lo, hi = geo.bounding_box(knit)
+    assert len(knit) == 4 and knit[0].radius[0] == pytest.approx(0.001)
+    assert 0.03 < hi[0] - lo[0] < 0.2  # centimetres wide, in metres
+    weave = geo.read_leaf(os.path.join(SAMPLES, "plain_weave_tile.txt"), nx=3, ny=3, scale=0.001)
+    assert len(weave) == 12 and weave[0].radius[0] == pytest.approx(0.0005)
