@@ -37,6 +37,16 @@ def preset_material(preset: str):
     return mat
 
 
+def _give_preset_material(obj, preset: str) -> None:
+    """Gives a just-made object the preset's material; if that fails, the object goes too, so that a
+    refused operation leaves nothing half-made in the file."""
+    try:
+        obj.data.materials.append(preset_material(preset))
+    except BaseException:
+        curves_bpy.remove_curves_object(obj)
+        raise
+
+
 class _Progress:
     """window_manager.progress_* around a long operation (a no-op without a window manager)."""
 
@@ -81,11 +91,7 @@ class _MakesYarn:
             location = tuple(cursor.location) if self.at_cursor and cursor is not None else None
             obj = curves_bpy.create_curves_object(context, name, curves, location=location)
             if self.preset != "NONE":
-                try:
-                    obj.data.materials.append(preset_material(self.preset))
-                except BaseException:
-                    curves_bpy.remove_curves_object(obj)
-                    raise
+                _give_preset_material(obj, self.preset)
         except (geometry.GeometryError, model_io.ModelFileError, OSError, ValueError, MemoryError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -260,11 +266,7 @@ class NEURALYARN_OT_make_plies(bpy.types.Operator):
             obj = curves_bpy.create_curves_object(context, f"{src.name} plies", plies,
                                                   material=src.active_material if self.preset == "KEEP" else None)
             if self.preset != "KEEP":
-                try:
-                    obj.data.materials.append(preset_material(self.preset))
-                except BaseException:
-                    curves_bpy.remove_curves_object(obj)
-                    raise
+                _give_preset_material(obj, self.preset)
         except (geometry.GeometryError, model_io.ModelFileError, OSError, ValueError, MemoryError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
