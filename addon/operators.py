@@ -63,6 +63,9 @@ class _Progress:
         if self.wm is not None:
             self.wm.progress_update(k)
 
+    def fraction(self, f: float) -> None:
+        self.update(round(f * self.steps))
+
     def __exit__(self, *exc):
         if self.wm is not None:
             self.wm.progress_end()
@@ -120,8 +123,10 @@ class NEURALYARN_OT_import_bcc(_MakesYarn, bpy.types.Operator, ImportHelper):
                                                description="Curve points per control-point segment of the spline")
 
     def compute(self, context):
-        curves = geometry.read_bcc(self.filepath, scale=self.scale, yarn_radius=self.yarn_radius or None,
-                                   samples_per_segment=self.samples_per_segment, up_axis=self.up_axis)
+        with _Progress(context, 100) as progress:
+            curves = geometry.read_bcc(self.filepath, scale=self.scale, yarn_radius=self.yarn_radius or None,
+                                       samples_per_segment=self.samples_per_segment, up_axis=self.up_axis,
+                                       progress=progress.fraction)
         return bpy.path.display_name_from_filepath(self.filepath) or "yarns", curves
 
 
