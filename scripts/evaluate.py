@@ -528,6 +528,34 @@ def write_strip(a, scene: str, preset: str, light: str, images: dict) -> None:
                             np.repeat(np.repeat(strip, k, axis=0), k, axis=1))
 
 
+def contact_sheet(out: str, results: dict) -> str:
+    """DIR/strips.png: every (scene, preset, light) strip in one picture, a row per preset and a column per
+    light, each titled. Returns its path."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.image
+    import matplotlib.pyplot as plt
+    presets, lights = results["presets"], list(results["lights"])
+    scenes = sorted({r["scene"] for r in results["references"]})
+    cells = [(sc, p, l) for sc in scenes for p in presets for l in lights]
+    fig, axes = plt.subplots(len(scenes) * len(presets), len(lights), squeeze=False,
+                             figsize=(3.2 * len(lights), 0.9 * len(scenes) * len(presets) + 0.4))
+    for k, (sc, p, l) in enumerate(cells):
+        ax = axes[k // len(lights)][k % len(lights)]
+        path = os.path.join(out, "strips", f"{sc}_{p}_{l}.png")
+        if os.path.isfile(path):
+            ax.imshow(matplotlib.image.imread(path))
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_title(f"{p}, {l}", fontsize=8)
+    fig.suptitle("reference | native | explicit (one exposure per strip: the reference's)", fontsize=9)
+    fig.tight_layout()
+    path = os.path.join(out, "strips.png")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def summary(results: dict) -> str:
     s = results["settings"]
     lines = [f"# Evaluation: {s['width']}x{s['height']}, reference explicit fibers at {s['ref_spp']} spp "
@@ -590,8 +618,9 @@ def main(argv: list[str]) -> int:
     table = summary(results)
     with open(os.path.join(a.out, "summary.md"), "w") as f:
         f.write(table)
+    contact_sheet(a.out, results)
     print(table, end="")
-    log(f"wrote {os.path.join(a.out, 'results.json')}, summary.md, strips/ in {time.monotonic() - t0:.0f} s"
+    log(f"wrote {os.path.join(a.out, 'results.json')}, summary.md, strips/, strips.png in {time.monotonic() - t0:.0f} s"
         + (f"; {failures} render(s) FAILED" if failures else ""))
     return 2 if failures else 0
 

@@ -1,0 +1,114 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Splits the native closure's error against explicit fibers into fitting and aggregation (issue 17), per
+preset and light, for a finished `scripts/evaluate.sh` run:
+
+    .venv/bin/python scripts/bench_split.py --eval build/eval_fidelity --maps DIR [--json OUT.json]
+
+For each (preset, light) of the run whose light is the environment or a distant-light rig, over the run's
+central region (evaluate.py's):
+  model      the model's image mean predicted without a renderer (`neuralyarn cycles-scene --predict-region`),
+  maps A, B  the same with two independent radiance distribution maps as the ply's scattering
+             (DIR/<preset>_A.nyrdm and DIR/<preset>_B.nyrdm, e.g. links to two gathers of other seeds):
+             the tabulated far field, the best any far-field model of this ply can do,
+  reference  the explicit-fiber reference A of the run (and B, its noise floor),
+  native     the run's native render at its first spp and seed.
+Columns (Rec. 709 luminance, relative): fitting = model / maps - 1 (maps noise: A / B - 1), aggregation =
+reference / maps - 1 (reference noise: B / A - 1), total = native / reference - 1, and integration = native /
+model - 1 (Cycles against the prediction of what it renders: ~0 unless the closure's integration is wrong).
+The worst channel of fitting and aggregation is printed next to each. A benchmark: prints a table, writes
+JSON; never a test.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+from evaluate import CLI, CLOSEUP_PLY_LENGTH, LUMINANCE, MODELS, central_region
+from images import read_exr
+
+#: The rigs the prediction covers (sphere lights are near-field: not predicted).
+PREDICTED = ("environment", "front", "grazing", "back", "axis")
+
+
+def predict(preset: str, light: str, size: tuple[int, int], region, maps: list[str]) -> dict:
+    rows, cols = region
+    args = [CLI, "cycles-scene", "--preset", preset, "--lights", light, "--model", os.path.join(MODELS, f"{preset}.json"),
+            "--width", str(size[0]), "--height", str(size[1]), "--ply-length", f"{CLOSEUP_PLY_LENGTH:g}",
+            "--predict-region", str(cols.start), str(rows.start), str(cols.stop - cols.start),
+            str(rows.stop - rows.start), "--out", os.path.join(tempfile.gettempdir(), f"ny_split_{os.getpid()}.xml")]
+    for m in maps:
+        args += ["--predict-maps", m]
+    r = subprocess.run(args, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"bench_split: {' '.join(args)} failed: {r.stderr.strip()}")
+    out = {}
+    for m in re.finditer(r"predicted (model|maps) (\S+) (\S+) (\S+)(?: (\S+))?", r.stdout):
+        key = "model" if m.group(1) == "model" else ("maps_A" if m.group(5) == maps[0] else "maps_B")
+        out[key] = np.array([float(m.group(k)) for k in (2, 3, 4)])
+    return out
+
+
+def rel(a, b) -> float:
+    return float(a @ LUMINANCE / (b @ LUMINANCE) - 1.0)
+
+
+def worst(a, b) -> float:
+    r = a / np.where(b > 0, b, np.nan) - 1.0
+    return float(r[np.nanargmax(np.abs(r))])
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--eval", required=True, help="output directory of scripts/evaluate.sh (results.json)")
+    ap.add_argument("--maps", required=True, help="directory with <preset>_A.nyrdm and <preset>_B.nyrdm")
+    ap.add_argument("--json", help="write the rows here too")
+    a = ap.parse_args()
+    with open(os.path.join(a.eval, "results.json")) as f:
+        res = json.load(f)
+    s = res["settings"]
+    size = (s["width"], s["height"])
+    cam = res["scenes"]["closeup"]
+    region = central_region(cam["distance"], cam["fov"], *size)
+    refs = {(r["preset"], r["light"]): r for r in res["references"] if not r["failed"]}
+    natives = {(r["preset"], r["light"]): r for r in res["runs"]
+               if r["method"] == "native" and not r["failed"] and r["seed"] == 1 and r["spp"] == s["spp"][0]}
+    rows = []
+    print("| preset | light | fitting % (worst ch.) | maps A/B % | aggregation % (worst ch.) | ref B/A % | "
+          "total % | integration % |")
+    print("|---|---|---|---|---|---|---|---|")
+    for (preset, light), ref in refs.items():
+        if light not in PREDICTED or (preset, light) not in natives:
+            continue
+        maps = [os.path.join(a.maps, f"{preset}_{w}.nyrdm") for w in "AB"]
+        p = predict(preset, light, size, region, maps)
+        mean = lambda path: read_exr(os.path.join(a.eval, path))[region].mean(axis=(0, 1))  # noqa: E731
+        ref_a, ref_b, nat = mean(ref["image_A"]), mean(ref["image_B"]), mean(natives[(preset, light)]["image"])
+        maps_mean = 0.5 * (p["maps_A"] + p["maps_B"])
+        row = {"preset": preset, "light": light, "model": p["model"].tolist(), "maps_A": p["maps_A"].tolist(),
+               "maps_B": p["maps_B"].tolist(), "reference_A": ref_a.tolist(), "reference_B": ref_b.tolist(),
+               "native": nat.tolist(),
+               "fitting": rel(p["model"], maps_mean), "fitting_worst_channel": worst(p["model"], maps_mean),
+               "maps_noise": rel(p["maps_A"], p["maps_B"]),
+               "aggregation": rel(ref_a, maps_mean), "aggregation_worst_channel": worst(ref_a, maps_mean),
+               "reference_noise": rel(ref_b, ref_a), "total": rel(nat, ref_a), "integration": rel(nat, p["model"])}
+        rows.append(row)
+        print(f"| {preset} | {light} | {100 * row['fitting']:+.1f} ({100 * row['fitting_worst_channel']:+.0f}) | "
+              f"{100 * row['maps_noise']:+.1f} | {100 * row['aggregation']:+.1f} "
+              f"({100 * row['aggregation_worst_channel']:+.0f}) | {100 * row['reference_noise']:+.1f} | "
+              f"{100 * row['total']:+.1f} | {100 * row['integration']:+.1f} |", flush=True)
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump({"command": ["scripts/bench_split.py", *sys.argv[1:]], "eval": res["command"],
+                       "settings": s, "rows": rows}, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
