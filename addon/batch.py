@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import os
+import re
 import sys
 
 import bpy
@@ -70,7 +71,40 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--samples", type=int, default=None)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=0, help="0: all cores")
+    p.add_argument("--blend", help="open this .blend first (the bpy wheel has no file argument)")
+    p.add_argument("--frame", type=int, help="render this frame of the scene")
+    p.add_argument("--frames", help="farm mode: render these frames (1-240, 1,5,9-12) as Dask tasks, one image "
+                                    "each; '#' in --out is the zero-padded frame number")
+    p.add_argument("--scheduler", help="farm mode: a Dask scheduler's address (default: a local cluster)")
+    p.add_argument("--workers", type=int, default=2, help="farm mode: local cluster workers (default 2)")
+    p.add_argument("--farm-python", help="farm mode inside Blender: a Python with Dask to drive the farm")
     return p.parse_args(argv)
+
+
+def parse_frames(spec: str) -> list[int]:
+    """'1-240', '1,5,9-12' -> the frame numbers, in order, without repeats."""
+    frames: list[int] = []
+    for part in spec.split(","):
+        m = re.fullmatch(r"\s*(-?\d+)\s*(?:-\s*(-?\d+)\s*)?", part)
+        if not m:
+            raise BatchError(f"--frames: '{part}' is not a frame or a range (1-240, 1,5,9-12)")
+        a, b = int(m.group(1)), int(m.group(2) or m.group(1))
+        if b < a or b - a > 100000:
+            raise BatchError(f"--frames: bad range '{part}'")
+        frames += [f for f in range(a, b + 1) if f not in frames]
+    return frames
+
+
+def frame_path(out: str, frame: int) -> str:
+    """--out for one frame: its run of '#' becomes the zero-padded frame number (as Blender's output path),
+    else _NNNN goes before the extension."""
+    m = re.search(r"#+", os.path.basename(out))
+    if m:
+        head = out[: len(out) - len(os.path.basename(out))]
+        name = os.path.basename(out)
+        return head + name[: m.start()] + f"{frame:0{len(m.group(0))}d}" + name[m.end():]
+    stem, ext = os.path.splitext(out)
+    return f"{stem}_{frame:04d}{ext}"
 
 
 def _check(args) -> None:
@@ -79,6 +113,16 @@ def _check(args) -> None:
     if args.resolution is not None and not (1 <= len(args.resolution) <= 2 and
                                             all(1 <= r <= 16384 for r in args.resolution)):
         raise BatchError("--resolution takes one or two sizes between 1 and 16384")
+    if args.blend is not None and not os.path.isfile(args.blend):
+        raise BatchError(f"--blend: '{args.blend}' does not exist")
+    if args.frames is not None:
+        parse_frames(args.frames)
+        if args.frame is not None:
+            raise BatchError("--frame renders one frame, --frames many: give one of them")
+        if not 1 <= args.workers <= 1024:
+            raise BatchError("--workers must be between 1 and 1024")
+    elif args.scheduler is not None:
+        raise BatchError("--scheduler needs --frames (farm mode)")
     if not 1 <= args.plies <= 16:
         raise BatchError("--plies must be between 1 and 16")
     if args.samples is not None and not 1 <= args.samples <= 1 << 20:
@@ -117,9 +161,74 @@ def _make_demo_geometry(kind: str):
     return [ctx.active_object]
 
 
+def _frame_argv(argv: list[str]) -> list[str]:
+    """The arguments of one frame's render: the farm's own options dropped (their values too)."""
+    out, skip = [], False
+    for a in argv:
+        if skip:
+            skip = False
+            continue
+        name = a.split("=", 1)[0]
+        if name in ("--frames", "--scheduler", "--workers", "--farm-python", "--out"):
+            skip = "=" not in a
+            continue
+        out.append(a)
+    return out
+
+
+def _farm_python(args) -> str:
+    """The Python that drives the farm: --farm-python, else this one if it has Dask (the bpy wheel's)."""
+    if args.farm_python:
+        return args.farm_python
+    if not bpy.app.binary_path:
+        return sys.executable
+    raise BatchError("--frames inside Blender needs a Python with Dask to drive the farm: --farm-python PATH "
+                     "(e.g. the repository's .venv/bin/python; scripts/setup.sh installs Dask there)")
+
+
+def run_farm(argv: list[str], args) -> list[str]:
+    """Farm mode: one Dask task per frame (addon/farm.py, driven by a Python of its own), each a render of
+    this script in a process of its own (this Blender, or this Python with the bpy wheel) writing one image
+    atomically; frames already rendered are skipped."""
+    import json
+    import subprocess
+    import tempfile
+    blend = args.blend or bpy.data.filepath or None
+    base = _frame_argv(argv) + (["--blend", os.path.abspath(blend)] if blend and not args.blend else [])
+    if bpy.app.binary_path:  # a Blender executable: the frame runs in another Blender
+        command = [bpy.app.binary_path, "-b", "--factory-startup", "--python-exit-code", "1", "-P",
+                   os.path.abspath(__file__), "--"]
+    else:  # the bpy wheel
+        command = [sys.executable, os.path.abspath(__file__), "--"]
+    frames = parse_frames(args.frames)
+    jobs = [{"name": f"frame {f}", "argv": command + base + ["--frame", str(f), "--out", "{out}"],
+             "out": os.path.abspath(frame_path(args.out, f))} for f in frames]
+    farm = os.path.join(os.path.dirname(os.path.abspath(__file__)), "farm.py")
+    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
+        json.dump(jobs, f)
+    try:
+        cmd = [_farm_python(args), farm, f.name, "--workers", str(args.workers)] + \
+            (["--scheduler", args.scheduler] if args.scheduler else [])
+        r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    except OSError as e:
+        raise BatchError(f"cannot run the farm driver: {e}") from None
+    finally:
+        os.remove(f.name)
+    for line in r.stdout.splitlines():
+        print(f"neural_yarn batch: {line}", flush=True)
+    if r.returncode != 0:
+        errors = [ln[len("farm: error: "):] for ln in r.stderr.splitlines() if ln.startswith("farm: error: ")]
+        raise BatchError(errors[0] if errors else " ".join(r.stderr.strip().splitlines()[-2:]) or "the farm failed")
+    return [j["out"] for j in jobs]
+
+
 def run(argv: list[str]) -> str:
     args = parse_args(argv)
     _check(args)
+    if args.frames is not None:
+        return ";".join(run_farm(argv, args))
+    if args.blend:
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(args.blend))
     if not bpy.data.filepath:
         # No .blend given: a demo scene from an empty file, not the startup file's cube.
         bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -174,6 +283,8 @@ def run(argv: list[str]) -> str:
         scene.render.threads = args.threads
     out = os.path.abspath(args.out)
     scene.render.image_settings.file_format = IMAGE_FORMATS[os.path.splitext(out)[1].lower()]
+    if args.frame is not None:
+        scene.frame_set(args.frame)
     scene.render.filepath = out
     bpy.ops.render.render(write_still=True)
     if not os.path.isfile(out):

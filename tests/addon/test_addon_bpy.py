@@ -790,3 +790,30 @@ def test_a_model_file_on_one_line_packs_quickly(bpy, addon, empty, tmp_path):
     assert max(len(line.body) for line in text.lines) <= addon.nodes.MAX_PACKED_LINE
     packed = addon.nodes.parse_text(text)
     assert packed.data["kernel_flat"] == data["kernel_flat"] and packed.data["fallback"] == data["fallback"]
+
+
+# ---------------------------------------------------------------------------------------------------------
+# frame farms (issue 20; the farm itself: test_farm.py)
+
+
+def test_batch_renders_frames_on_the_farm(bpy, addon, empty, tmp_path):
+    import importlib
+    batch = importlib.import_module("neural_yarn.batch")
+    argv = ["--scene", "knit", "--frames", "1-3", "--resolution", "24", "--samples", "1", "--out",
+            str(tmp_path / "knit_##.png")]
+    if bpy.app.binary_path:  # a Blender executable: its Python has no Dask, so the driver must be named
+        with pytest.raises(batch.BatchError, match="--farm-python"):
+            batch.run(argv)
+        return
+    pytest.importorskip("distributed")
+    outs = batch.run(argv).split(";")
+    assert [os.path.basename(o) for o in outs] == ["knit_01.png", "knit_02.png", "knit_03.png"]
+    for o in outs:
+        img = bpy.data.images.load(o)
+        assert tuple(img.size) == (24, 24)
+        bpy.data.images.remove(img)
+    mtimes = [os.path.getmtime(o) for o in outs]
+    batch.run(argv)  # everything done: nothing rendered again
+    assert [os.path.getmtime(o) for o in outs] == mtimes
+    with pytest.raises(batch.BatchError, match="--frames: 'x' is not a frame"):
+        batch.run(argv[:3] + ["x"] + argv[4:])
