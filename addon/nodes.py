@@ -117,6 +117,43 @@ def _rename_material(node) -> None:
             mat.name = new
 
 
+EEVEE_OUTPUT = "NY EEVEE output"
+EEVEE_PREVIEW = "NY EEVEE preview"
+
+
+def _eevee_output(node, needed: bool) -> None:
+    """While the node holds OSL, its material gets a Material Output for EEVEE (Material Preview, EEVEE
+    renders: they would draw the yarn black) fed by the stock-node fallback, and its own output serves
+    Cycles; otherwise both go again. Only in a material's own tree."""
+    tree = node.id_data
+    mat = next((m for m in bpy.data.materials if m.node_tree is not None and m.node_tree == tree), None)
+    if mat is None:
+        return
+    ours = [n for n in tree.nodes if n.name.startswith((EEVEE_OUTPUT, EEVEE_PREVIEW))]
+    main = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial" and n not in ours]
+    if not needed:
+        for n in ours:
+            tree.nodes.remove(n)
+        for n in main:
+            if n.target == "CYCLES":
+                n.target = "ALL"
+        return
+    if ours or node.preview_tree is None:
+        return
+    for n in main:
+        if n.target == "ALL":
+            n.target = "CYCLES"
+    group = tree.nodes.new("ShaderNodeGroup")
+    group.name = EEVEE_PREVIEW
+    group.node_tree = node.preview_tree
+    group.location = (node.location.x, node.location.y - 300.0)
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.name = EEVEE_OUTPUT
+    out.target = "EEVEE"
+    out.location = (group.location.x + 300.0, group.location.y)
+    tree.links.new(group.outputs[fallback_nodes.GROUP_OUTPUT], out.inputs["Surface"])
+
+
 def _apply_preset(self, context):
     if self.preset != "CUSTOM":
         try:
@@ -154,6 +191,9 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
     fallback: bpy.props.EnumProperty(name="Fallback", items=FALLBACK_ITEMS, default="AUTO", update=_update,
                                      description="What renders the yarn in stock Blender (a patched Cycles uses the native closure)")
     built: bpy.props.StringProperty(name="Built", description="What the group holds now: OSL, NODES or ERROR")
+    preview_tree: bpy.props.PointerProperty(
+        name="EEVEE Preview", type=bpy.types.ShaderNodeTree,
+        description="The stock-node fallback that EEVEE and Material Preview show while the group holds OSL")
     error: bpy.props.StringProperty(name="Error", description="Why the node renders the error colour")
 
     # -- node life cycle --------------------------------------------------------------------------------
@@ -170,9 +210,9 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
             self.node_tree = node.node_tree.copy()
 
     def free(self):
-        tree = self.node_tree
-        if tree is not None and tree.users <= 1:
-            bpy.data.node_groups.remove(tree)
+        for tree in (self.node_tree, self.preview_tree):
+            if tree is not None and tree.users <= 1:
+                bpy.data.node_groups.remove(tree)
 
     # -- state ------------------------------------------------------------------------------------------
 
@@ -200,11 +240,16 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
                 self["twist"] = model.alpha  # shown greyed: the model's own twist (item access: no update)
             mode = self.resolved_mode(scene)
             fallback_nodes.build(self.node_tree, model, mode, self.tilt(model))
+            if mode == "OSL":  # EEVEE cannot run OSL: it gets the stock nodes through an output of its own
+                if self.preview_tree is None:
+                    self.preview_tree = bpy.data.node_groups.new(".NeuralYarnBSDF preview", "ShaderNodeTree")
+                fallback_nodes.build(self.preview_tree, model, "NODES", self.tilt(model))
         except (model_io.ModelFileError, ValueError, KeyError, RuntimeError) as e:
             self.show_error(str(e))
             return
         self.built = mode
         self.error = ""
+        _eevee_output(self, mode == "OSL")
 
     def show_error(self, message: str) -> None:
         tree = self.node_tree

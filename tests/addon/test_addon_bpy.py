@@ -817,3 +817,24 @@ def test_batch_renders_frames_on_the_farm(bpy, addon, empty, tmp_path):
     assert [os.path.getmtime(o) for o in outs] == mtimes
     with pytest.raises(batch.BatchError, match="--frames: 'x' is not a frame"):
         batch.run(argv[:3] + ["x"] + argv[4:])
+
+
+def test_eevee_sees_stock_nodes_while_the_node_holds_osl(bpy, addon, empty):
+    """Issue 20, C8: with OSL inside, EEVEE and Material Preview drew the yarn black. The material then
+    has an EEVEE output fed by the stock-node fallback, Cycles keeps the node; back to nodes, it goes."""
+    mat, node = addon.nodes.make_material("m", preset="silk")
+    tree = mat.node_tree
+    outputs = lambda: sorted(n.target for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")  # noqa
+    assert outputs() == ["ALL"]
+    node.fallback = "OSL"
+    assert node.built == "OSL" and outputs() == ["CYCLES", "EEVEE"]
+    eevee = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial" and n.target == "EEVEE")
+    preview = eevee.inputs["Surface"].links[0].from_node
+    kinds = {n.bl_idname for n in preview.node_tree.nodes}
+    assert "ShaderNodeScript" not in kinds and any(k.startswith("ShaderNodeBsdf") for k in kinds)
+    assert any(n.bl_idname == "ShaderNodeScript" for n in node.node_tree.nodes)
+    node.preset = "cotton"  # the preview follows the model
+    images = {n.image.name for n in preview.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"}
+    assert images and all(name.startswith("NY cotton") for name in images)
+    node.fallback = "NODES"
+    assert outputs() == ["ALL"]
