@@ -112,11 +112,13 @@ class NEURALYARN_OT_import_bcc(_MakesYarn, bpy.types.Operator, ImportHelper):
 
     filename_ext = ".bcc"
     filter_glob: bpy.props.StringProperty(default="*.bcc;*.bccx", options={"HIDDEN"})
-    scale: bpy.props.FloatProperty(name="Scale", default=0.001, min=1e-9, max=1e6, soft_max=10.0, precision=6,
-                                   description="File units to scene units (BCC stores no unit)")
+    scale: bpy.props.FloatProperty(name="Scale", default=0.01, min=1e-9, max=1e6, soft_max=10.0, precision=6,
+                                   description="File units to scene units. BCC stores no unit; Yuksel's yarn-level "
+                                               "models are in centimetres (his sweater is 52 units wide): 0.01 "
+                                               "gives metres")
     yarn_radius: bpy.props.FloatProperty(
-        name="Yarn Radius", default=0.0, min=0.0, description="In file units; 0: the BCCX radius, else half the "
-        "median control-point spacing")
+        name="Yarn Radius", default=0.0, min=0.0, description="In file units; 0: the BCCX radius, else where "
+        "neighbouring yarn passes touch (estimated from the curves)")
     up_axis: bpy.props.EnumProperty(name="Up Axis", items=UP_AXES, default="auto",
                                     description="Which file axis points up (converted to Blender's Z-up)")
     samples_per_segment: bpy.props.IntProperty(name="Samples per Segment", default=8, min=1, max=64,
@@ -148,8 +150,8 @@ class NEURALYARN_OT_import_leaf(_MakesYarn, bpy.types.Operator, ImportHelper):
                                       description="Tile period along the second axis in pattern units; 0: from the sidecar, else estimated")
     yarn_radius: bpy.props.FloatProperty(name="Yarn Radius", default=0.0, min=0.0,
                                          description="In pattern units; 0: sidecar, BCCX, else estimated")
-    scale: bpy.props.FloatProperty(name="Scale", default=0.001, min=1e-9, max=1e6, soft_max=10.0, precision=6,
-                                   description="Pattern units to scene units")
+    scale: bpy.props.FloatProperty(name="Scale", default=0.01, min=1e-9, max=1e6, soft_max=10.0, precision=6,
+                                   description="Pattern units to scene units (0.01: centimetres to metres)")
     up_axis: bpy.props.EnumProperty(name="Up Axis", items=UP_AXES, default="auto",
                                     description="Which file axis points up (converted to Blender's Z-up)")
 

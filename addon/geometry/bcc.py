@@ -38,6 +38,7 @@ from .curves import (
     file_name,
     median_control_point_spacing,
     validate,
+    yarn_radius_from_passes,
 )
 
 HEADER_SIZE = 64
@@ -239,8 +240,9 @@ def read_bcc(
 
     scale multiplies coordinates and radii (file units -> scene units). up_axis 'auto' follows the header;
     'Y' or 'Z' overrides a wrong header. yarn_radius is in file units; when None, the BCCX trailer's radius
-    is used, else 0.5 x the median control-point spacing: relaxed yarn models place control points about a
-    yarn diameter apart, and BCC stores no radius (nor units).
+    is used, else the radius at which neighbouring yarn passes touch (yarn_radius_from_passes: relaxed
+    yarn-level models are simulated with yarn contact), else 0.5 x the median control-point spacing. BCC stores
+    no radius (nor units).
     Raises GeometryError for malformed files and for curves too short or degenerate to render. `progress`,
     if given, is called with the fraction done (0 to 1) after each stage (parse, evaluate, curves, checks).
     """
@@ -268,17 +270,19 @@ def read_bcc(
             f"(now {samples_per_segment})"
         )
 
+    evaluated = evaluate_splines([to_z_up(P, up) for P in raw.control_points], raw.curve_type, raw.closed,
+                                 samples_per_segment)
+    report(0.4)
     if yarn_radius is not None:
         radius = yarn_radius
     elif raw.bccx_radius is not None:
         radius = raw.bccx_radius
     else:
-        # 0 only if every curve's control points coincide; `validate` below then names the first curve.
-        radius = 0.5 * median_control_point_spacing(raw.control_points, raw.closed) or 1.0
+        # Where neighbouring passes touch; else half the control-point spacing (0 only if every curve's points
+        # coincide: `validate` below then names the first curve).
+        radius = (yarn_radius_from_passes(evaluated) or
+                  0.5 * median_control_point_spacing(raw.control_points, raw.closed) or 1.0)
     radius *= scale
-
-    evaluated = evaluate_splines([to_z_up(P, up) for P in raw.control_points], raw.curve_type, raw.closed,
-                                 samples_per_segment)
     report(0.5)
     curves = [YarnCurve(pts * scale, np.full(len(pts), radius), cyc) for pts, cyc in zip(evaluated, raw.closed)]
     report(0.75)

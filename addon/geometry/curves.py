@@ -335,6 +335,54 @@ def median_control_point_spacing(control_curves: Sequence[np.ndarray], closed: S
     return float(np.median(g)) if len(g) else 0.0
 
 
+#: yarn_radius_from_passes: the most points compared with one query (a relaxed garment has ~150 within its
+#: neighbour cells; only curves piled up in one place have more).
+MAX_CANDIDATES = 5000
+
+
+def yarn_radius_from_passes(curve_points: Sequence[np.ndarray], *, queries: int = 1000, seed: int = 0,
+                            percentile: float = 10.0) -> float:
+    """The yarn radius at which the yarns of a relaxed yarn-level model touch: half the distance from points
+    of the yarns to the nearest point of *another pass* (another curve, or the same curve coming back: arc
+    length along it more than 3x the straight distance), at its `percentile` over `queries` sampled points.
+    Yarn-level models are relaxed with yarn contact, so most passes touch a neighbour somewhere; the low
+    percentile takes those contacts and not the gaps between them. 0 if no two passes come near each other
+    (within 8 point spacings). Deterministic for a seed; a grid of 8-spacing cells keeps it near-linear."""
+    curves = [np.asarray(p, dtype=np.float64) for p in curve_points if len(p) >= 2]
+    if len(curves) == 0:
+        return 0.0
+    P = np.concatenate(curves)
+    cid = np.repeat(np.arange(len(curves)), [len(p) for p in curves])
+    arc = np.concatenate([np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+                          for p in curves])
+    steps = np.concatenate([np.linalg.norm(np.diff(p, axis=0), axis=1) for p in curves])
+    steps = steps[steps > 0.0]
+    if len(steps) == 0:
+        return 0.0
+    cell = 8.0 * float(np.median(steps))
+    c = np.floor((P - P.min(axis=0)) / cell).astype(np.int64)
+    dims = c.max(axis=0) + 3  # (+1 on each side for the neighbour cells)
+    key = ((c[:, 0] + 1) * dims[1] + (c[:, 1] + 1)) * dims[2] + (c[:, 2] + 1)
+    order = np.argsort(key, kind="stable")
+    sorted_keys = key[order]
+    rng = np.random.default_rng(seed)
+    picked = rng.choice(len(P), size=min(queries, len(P)), replace=False)
+    offsets = np.array([(dx * dims[1] + dy) * dims[2] + dz for dx in (-1, 0, 1) for dy in (-1, 0, 1)
+                        for dz in (-1, 0, 1)])
+    nearest = []
+    for i in picked:
+        lo = np.searchsorted(sorted_keys, key[i] + offsets)
+        hi = np.searchsorted(sorted_keys, key[i] + offsets, side="right")
+        cand = np.concatenate([order[a:b] for a, b in zip(lo, hi)])
+        if len(cand) > MAX_CANDIDATES:  # curves piled up in one place: a fair sample of them is enough
+            cand = rng.choice(cand, size=MAX_CANDIDATES, replace=False)
+        d = np.linalg.norm(P[cand] - P[i], axis=1)
+        other = ((cid[cand] != cid[i]) | (np.abs(arc[cand] - arc[i]) > 3.0 * d)) & (d <= cell)
+        if other.any():
+            nearest.append(d[other].min())
+    return 0.5 * float(np.percentile(nearest, percentile)) if nearest else 0.0
+
+
 def resample(curve: YarnCurve, max_segment_length: float) -> YarnCurve:
     """Subdivides every segment into equal pieces no longer than max_segment_length.
 

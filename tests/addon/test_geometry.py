@@ -709,11 +709,11 @@ def test_shipped_samples_are_what_make_samples_writes(tmp_path):
 
 
 def test_shipped_samples_import_at_garment_scale():
-    knit = geo.read_bcc(os.path.join(SAMPLES, "knit_6x4.bccx"), scale=0.001)
+    knit = geo.read_bcc(os.path.join(SAMPLES, "knit_6x4.bccx"), scale=0.01)
     lo, hi = geo.bounding_box(knit)
     assert len(knit) == 4 and knit[0].radius[0] == pytest.approx(0.001)
     assert 0.03 < hi[0] - lo[0] < 0.2  # centimetres wide, in metres
-    weave = geo.read_leaf(os.path.join(SAMPLES, "plain_weave_tile.txt"), nx=3, ny=3, scale=0.001)
+    weave = geo.read_leaf(os.path.join(SAMPLES, "plain_weave_tile.txt"), nx=3, ny=3, scale=0.01)
     assert len(weave) == 12 and weave[0].radius[0] == pytest.approx(0.0005)
 
 
@@ -743,3 +743,23 @@ def test_evaluate_splines_equals_evaluate_spline(curve_type, n):
     got = geo.evaluate_splines(P, curve_type, closed, 5)
     for k in range(12):
         assert np.allclose(got[k], geo.evaluate_spline(P[k], curve_type, closed[k], 5), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("weave, spacing, radius", [("plain", 2.5, 0.5), ("twill", 2.5, 0.5), ("plain", 3.0, 0.6)])
+def test_bcc_without_a_radius_gets_the_radius_at_which_its_passes_touch(tmp_path, weave, spacing, radius):
+    """Issue 20, D14: the default radius (half the control-point spacing) overlapped neighbouring passes on
+    Yuksel's glove and left gaps on his trellis. A woven swatch whose yarns touch, written as BCC without a
+    radius, reads back with its true radius within 3 %."""
+    pattern = geo.weave_pattern(weave, **({"u": 2, "d": 2} if weave == "twill" else {}))
+    curves = geo.woven_fabric(pattern, 8, 8, spacing=spacing, yarn_radius=radius)
+    path = tmp_path / "w.bcc"
+    geo.write_bcc(str(path), [c.points for c in curves], curve_type="PL")
+    got = geo.read_bcc(str(path))[0].radius[0]
+    assert got == pytest.approx(radius, rel=0.03)
+
+
+def test_passes_that_never_meet_fall_back_to_the_spacing():
+    far = [np.array([[0.0, 10.0 * k, 0.0], [1.0, 10.0 * k, 0.0], [2.0, 10.0 * k, 0.0]]) for k in range(3)]
+    assert geo.yarn_radius_from_passes(far) == 0.0
+    curves = geo.read_bcc(geo.bcc_bytes(far, curve_type="PL"))
+    assert curves[0].radius[0] == pytest.approx(0.5)  # half the control-point spacing
