@@ -241,6 +241,12 @@ class Commands : public ModelCommands {
         ->capture_default_str();
     check_->add_option("--max-albedo-error", max_err_, "Exit 1 if the mean relative albedo error exceeds this")
         ->check(finite_range(0.0, 10.0));
+    check_->add_option("--max-lobe-error", max_lobe_,
+                       "R,M: exit 1 if the worst lobe L1 of the theta_i bins but the grazing one exceeds these "
+                       "(fractions; the noise removed with --maps-b)")
+        ->expected(2)
+        ->delimiter(',')
+        ->check(finite_range(0.0, 100.0));
   }
 
   int run() override
@@ -389,6 +395,12 @@ class Commands : public ModelCommands {
       std::fprintf(stderr, "neuralyarn: albedo error %.4f exceeds --max-albedo-error %.4f\n", r.albedo_mae_rel, max_err_);
       return 1;
     }
+    if (max_lobe_.size() == 2 &&
+        (r.lobes.R.l1_max_but_grazing > max_lobe_[0] || r.lobes.M.l1_max_but_grazing > max_lobe_[1])) {
+      std::fprintf(stderr, "neuralyarn: worst lobe L1 but the grazing bin R %.3f, M %.3f exceeds --max-lobe-error %.3f,%.3f\n",
+                   r.lobes.R.l1_max_but_grazing, r.lobes.M.l1_max_but_grazing, max_lobe_[0], max_lobe_[1]);
+      return 1;
+    }
     return 0;
   }
 
@@ -449,6 +461,7 @@ class Commands : public ModelCommands {
   int threads_ = 0;
   bool no_fit_ = false, quiet_ = false;
   double theta_i_ = 45.0, phi_i_ = 0.0, max_err_ = -1.0;
+  std::vector<double> max_lobe_;
 };
 
 }  // namespace

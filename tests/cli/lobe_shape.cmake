@@ -1,0 +1,21 @@
+# The shipped model's lobe shapes against the explicit ply, in CI (issue 17): two independent small gathers
+# (3e6 paths, seeds 11 and 12) and `neuralyarn check --maps-b`, which removes their noise, must keep the
+# worst R and M L1 of the theta_i bins but the grazing one below MAX ("R,M"). The limits are today's values
+# plus 15 %: repeated with seeds 13/14 they moved by 1 % at most, and the models before the relative M loss and
+# the R azimuth table (model v2) read R 100 %, M 34 % (fleece) and R 85 %, M 47 % (gabardine).
+file(MAKE_DIRECTORY ${OUT})
+foreach(seed 11 12)
+  execute_process(COMMAND ${CLI} gather --preset ${PRESET} --paths 3e6 --seed ${seed} --quiet
+                          --out ${OUT}/${PRESET}_${seed}.nyrdm RESULT_VARIABLE rc ERROR_VARIABLE e OUTPUT_QUIET)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "gather ${PRESET} seed ${seed} failed (${rc}): ${e}")
+  endif()
+endforeach()
+execute_process(COMMAND ${CLI} check ${MODEL} --maps ${OUT}/${PRESET}_11.nyrdm --maps-b ${OUT}/${PRESET}_12.nyrdm
+                        --max-lobe-error ${MAX} RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e)
+string(REGEX MATCH "worst L1 but the grazing bin[^\n]*" worst "${o}")
+message(STATUS "${PRESET}: ${worst} (limits ${MAX})")
+file(REMOVE ${OUT}/${PRESET}_11.nyrdm ${OUT}/${PRESET}_12.nyrdm)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "${PRESET}: ${e}${worst}")
+endif()
