@@ -37,9 +37,11 @@ from images import read_exr
 PREDICTED = ("environment", "front", "grazing", "back", "axis")
 
 
-def predict(preset: str, light: str, size: tuple[int, int], region, maps: list[str]) -> dict:
+def predict(preset: str, light: str, size: tuple[int, int], region, maps: list[str], yarns: dict) -> dict:
     rows, cols = region
-    args = [CLI, "cycles-scene", "--preset", preset, "--lights", light, "--model", os.path.join(MODELS, f"{preset}.json"),
+    source = ["--params", yarns[preset]["params"]] if preset in yarns else ["--preset", preset]
+    model = yarns[preset]["model"] if preset in yarns else os.path.join(MODELS, f"{preset}.json")
+    args = [CLI, "cycles-scene", *source, "--lights", light, "--model", model,
             "--width", str(size[0]), "--height", str(size[1]), "--ply-length", f"{CLOSEUP_PLY_LENGTH:g}",
             "--predict-region", str(cols.start), str(rows.start), str(cols.stop - cols.start),
             str(rows.stop - rows.start), "--out", os.path.join(tempfile.gettempdir(), f"ny_split_{os.getpid()}.xml")]
@@ -87,7 +89,7 @@ def main() -> int:
         if light not in PREDICTED or (preset, light) not in natives:
             continue
         maps = [os.path.join(a.maps, f"{preset}_{w}.nyrdm") for w in "AB"]
-        p = predict(preset, light, size, region, maps)
+        p = predict(preset, light, size, region, maps, res.get("yarns", {}))
         mean = lambda path: read_exr(os.path.join(a.eval, path))[region].mean(axis=(0, 1))  # noqa: E731
         ref_a, ref_b, nat = mean(ref["image_A"]), mean(ref["image_B"]), mean(natives[(preset, light)]["image"])
         maps_mean = 0.5 * (p["maps_A"] + p["maps_B"])

@@ -124,6 +124,9 @@ def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
     ap.add_argument("--methods", nargs="+", help=f"methods ({', '.join(METHODS)}; default all)")
     ap.add_argument("--presets", nargs="+", help=f"presets ({', '.join(PRESETS)}; default all)")
     ap.add_argument("--lights", nargs="+", help=f"light rigs ({', '.join(rigs)}; default all)")
+    ap.add_argument("--yarn", action="append", default=[], metavar="NAME=PARAMS.json,MODEL.json",
+                    help="a yarn beyond the presets: its fiber parameter file and model (repeatable; added to "
+                         "--presets)")
     ap.add_argument("--spp", nargs="+", help="samples per pixel of the tested renders (default 64)")
     ap.add_argument("--seeds", type=int, help="seeds per render (Cycles seeds 1..N; default 1)")
     ap.add_argument("--ref-spp", type=int, help="samples per pixel of the references (default 1024)")
@@ -140,8 +143,18 @@ def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
     a.methods = names(a.methods) or METHODS
     a.presets = names(a.presets) or base["presets"]
     a.lights = names(a.lights) or base["lights"] or list(rigs)
+    a.yarns = {}
+    for spec in a.yarn:
+        name, _, files = spec.partition("=")
+        params, _, model = files.partition(",")
+        if not (name and params and model) or name in PRESETS or not re.fullmatch(r"[A-Za-z0-9_-]+", name):
+            raise Usage(f"--yarn: '{spec}' is not NAME=PARAMS.json,MODEL.json with a new name of letters and digits")
+        for f in (params, model):
+            if not os.path.isfile(f):
+                raise Usage(f"--yarn {name}: '{f}' does not exist")
+        a.yarns[name] = {"params": os.path.abspath(params), "model": os.path.abspath(model)}
     for kind, given, known in (("scene", a.scenes, SCENES), ("method", a.methods, METHODS),
-                               ("preset", a.presets, PRESETS), ("light", a.lights, list(rigs))):
+                               ("preset", a.presets, PRESETS + list(a.yarns)), ("light", a.lights, list(rigs))):
         for n in given:
             if n not in known:
                 raise Usage(f"unknown {kind} '{n}' (known: {', '.join(known)})")
@@ -163,15 +176,21 @@ def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
         raise Usage(f"--timeout must be positive, got {a.timeout}")
     if a.ref_spp % a.ref_rotations:
         raise Usage(f"--ref-spp ({a.ref_spp}) must be a multiple of --ref-rotations ({a.ref_rotations})")
+    a.presets += [y for y in a.yarns if y not in a.presets]
     if "native" in a.methods:
         for p in a.presets:
-            if not os.path.isfile(model_path(p)):
-                raise Usage(f"method native: model '{model_path(p)}' is missing (scripts/bake_models.sh makes it)")
+            if not os.path.isfile(model_path(a, p)):
+                raise Usage(f"method native: model '{model_path(a, p)}' is missing (scripts/bake_models.sh makes it)")
     return a
 
 
-def model_path(preset: str) -> str:
-    return os.path.join(MODELS, f"{preset}.json")
+def model_path(a, preset: str) -> str:
+    return a.yarns[preset]["model"] if preset in getattr(a, "yarns", {}) else os.path.join(MODELS, f"{preset}.json")
+
+
+def yarn_args(a, preset: str) -> list[str]:
+    """cycles-scene's fiber source: a preset's name, or a --yarn's parameter file."""
+    return ["--params", a.yarns[preset]["params"]] if preset in getattr(a, "yarns", {}) else ["--preset", preset]
 
 
 # --- scenes and renders --------------------------------------------------------------------------------
@@ -204,12 +223,12 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
     assert scene == "closeup"
     turned = f"_rot{rotation:g}" if rotation else ""
     path = os.path.join(a.out, "scenes", f"{scene}_{preset}_{light}_{method}_seed{seed}{turned}.xml")
-    args = ["cycles-scene", "--preset", preset, "--lights", light, "--seed", str(seed), "--width", str(a.width),
+    args = ["cycles-scene", *yarn_args(a, preset), "--lights", light, "--seed", str(seed), "--width", str(a.width),
             "--height", str(a.height), "--ply-length", f"{CLOSEUP_PLY_LENGTH:g}", "--out", path]
     if rotation:
         args += ["--ply-rotation", f"{rotation:g}"]
     if method == "native":
-        args += ["--model", model_path(preset)]
+        args += ["--model", model_path(a, preset)]
     run_cli(args)
     return path
 
@@ -505,6 +524,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         "lights": {l: rigs[l] for l in a.lights},
         "methods": a.methods,
         "presets": a.presets,
+        "yarns": a.yarns,
         "references": references,
         "noise_floor": noise_floor,
         "runs": runs,

@@ -104,3 +104,26 @@ def test_unknown_name_exits_1_with_one_line(tmp_path, args, message):
     assert r.returncode == 1
     assert r.stderr.strip().splitlines() == [message]
     assert not (tmp_path / "never").exists()
+
+
+def test_a_yarn_beyond_the_presets(tmp_path):
+    """--yarn NAME=PARAMS,MODEL: a fiber parameter file's explicit ply against a model, in the same tables
+    (issue 17's sweep covers a non-preset yarn). A tiny bake of the parameter file: only the plumbing is
+    tested (the core refuses a model trained for other fibers)."""
+    params = os.path.join(ROOT, "tests", "data", "good_custom.json")
+    model = str(tmp_path / "my_wool.json")
+    bake = subprocess.run([os.path.join(ROOT, "build", "cpp_core", "neuralyarn"), "bake", "--params", params,
+                           "--paths", "2e5", "--bins", "12x48x24x48", "--t-steps", "50", "--r-steps", "50",
+                           "--m-steps", "50", "--t-samples", "2000", "--r-samples", "2000", "--m-samples", "20000",
+                           "--fit-samples", "1000", "--out", model], capture_output=True, text=True, timeout=600)
+    assert bake.returncode == 0, bake.stderr
+    r = evaluate("--quick", "--out", str(tmp_path), "--presets", "my_wool", "--lights", "grazing",
+                 "--methods", "native", "--ref-spp", "8", "--yarn", f"my_wool={params},{model}")
+    assert r.returncode == 0, r.stderr
+    res = json.load(open(tmp_path / "results.json"))
+    assert res["yarns"]["my_wool"]["params"] == params
+    assert [(x["preset"], x["method"]) for x in res["runs"]] == [("my_wool", "native")]
+    scene = open(tmp_path / "scenes" / "closeup_my_wool_grazing_explicit_seed1001.xml").read()
+    assert "my_wool" in scene.splitlines()[1]  # the explicit ply of the parameter file, not a preset
+    bad = evaluate("--quick", "--out", str(tmp_path), "--yarn", "fleece=a.json,b.json")
+    assert bad.returncode == 1 and "--yarn" in bad.stderr
