@@ -132,6 +132,14 @@ def sidecar_path(path: str | os.PathLike[str]) -> str | None:
     return None
 
 
+def _sidecar_number(side: str, key: str, value, allow_zero: bool = False) -> float:
+    """A sidecar's number, checked; the message names the file, then the key (not a key holding a path)."""
+    try:
+        return _check_positive(key, value, allow_zero=allow_zero)
+    except GeometryError as e:
+        raise GeometryError(f"{side}: {e}") from None
+
+
 def read_leaf_sidecar(path: str | os.PathLike[str]) -> dict:
     """Tile metadata from the sidecar of `path`: {"period": (px, py) | None, "yarn_radius": r | None,
     "units": str | None}, all None when there is no sidecar. Unknown keys are errors (catches typos)."""
@@ -153,9 +161,9 @@ def read_leaf_sidecar(path: str | os.PathLike[str]) -> dict:
         p = meta["period"]
         if not (isinstance(p, list) and len(p) == 2):
             raise GeometryError(f"{side}: 'period' must be a list [px, py], got {p!r}")
-        out["period"] = tuple(_check_positive(f"{side}: period", v, allow_zero=True) for v in p)
+        out["period"] = tuple(_sidecar_number(side, "period", v, allow_zero=True) for v in p)
     if meta.get("yarn_radius") is not None:
-        out["yarn_radius"] = _check_positive(f"{side}: yarn_radius", meta["yarn_radius"])
+        out["yarn_radius"] = _sidecar_number(side, "yarn_radius", meta["yarn_radius"])
     if meta.get("units") is not None:
         if not isinstance(meta["units"], str):
             raise GeometryError(f"{side}: 'units' must be a string, got {meta['units']!r}")

@@ -763,3 +763,14 @@ def test_passes_that_never_meet_fall_back_to_the_spacing():
     assert geo.yarn_radius_from_passes(far) == 0.0
     curves = geo.read_bcc(geo.bcc_bytes(far, curve_type="PL"))
     assert curves[0].radius[0] == pytest.approx(0.5)  # half the control-point spacing
+
+
+@pytest.mark.parametrize("meta, key", [({"yarn_radius": -1.0}, "yarn_radius"), ({"period": [2.0, "x"]}, "period")])
+def test_a_bad_sidecar_number_names_the_file_then_the_key(tmp_path, meta, key):
+    """Issue 20, E16: the message put the file's path inside the parameter's name ("parameter '/x.json: ...'")."""
+    (tmp_path / "tile.txt").write_text("Num Yarns: 1\n\n2\n0 0 0\n1 0 0\n")
+    (tmp_path / "tile.txt.json").write_text(json.dumps(meta))
+    with pytest.raises(GeometryError) as e:
+        geo.read_leaf_sidecar(str(tmp_path / "tile.txt"))
+    msg = str(e.value)
+    assert msg.startswith(str(tmp_path / "tile.txt.json") + ": parameter '" + key + "'"), msg
