@@ -171,14 +171,16 @@ def evaluated_point_count(curve_type: str, n: int, cyclic: bool, samples_per_seg
 
 
 def _evaluate_basis(P: np.ndarray, idx: np.ndarray, basis: np.ndarray, samples: int, cyclic: bool) -> np.ndarray:
+    """Points of 4-point segments idx (nseg, 4) of one curve P (n, 3), or of a batch of curves P (m, n, 3)."""
     t = np.arange(samples, dtype=np.float64) / samples
     T = np.stack([np.ones_like(t), t, t * t, t * t * t], axis=1)  # (s, 4)
     W = T @ basis  # (s, 4) weights of the 4 control points
-    seg = P[idx]  # (nseg, 4, 3)
-    out = np.einsum("tk,skd->std", W, seg).reshape(-1, 3)
+    seg = P[..., idx, :]  # ([m,] nseg, 4, 3)
+    out = np.einsum("tk,...skd->...std", W, seg)
+    out = out.reshape(*out.shape[:-3], -1, 3)
     if not cyclic:
-        w1 = np.ones(4) @ basis
-        out = np.concatenate([out, (w1 @ seg[-1])[None, :]], axis=0)
+        end = np.einsum("k,...kd->...d", np.ones(4) @ basis, seg[..., -1, :, :])
+        out = np.concatenate([out, end[..., None, :]], axis=-2)
     return out
 
 
@@ -190,8 +192,7 @@ def _four_point_spline(control_points, cyclic: bool, curve_type: str, basis, sam
     problem = control_point_problem(curve_type, n, cyclic)
     if problem:
         raise GeometryError(problem)
-    i = np.arange(n) if cyclic else np.arange(1, n - 2)
-    idx = np.stack([(i - 1) % n, i % n, (i + 1) % n, (i + 2) % n], axis=1)
+    idx, _ = _spline_indices(curve_type, n, cyclic)
     return _evaluate_basis(P, idx, basis, samples_per_segment, cyclic)
 
 
@@ -216,9 +217,8 @@ def bezier(control_points: np.ndarray, cyclic: bool, samples_per_segment: int = 
     problem = control_point_problem("BZ", n, cyclic)
     if problem:
         raise GeometryError(problem)
-    k = np.arange(n // 3) * 3
-    idx = np.stack([k, k + 1, k + 2, (k + 3) % n], axis=1)
-    return _evaluate_basis(P, idx, _BEZIER, samples_per_segment, cyclic)
+    idx, basis = _spline_indices("BZ", n, cyclic)
+    return _evaluate_basis(P, idx, basis, samples_per_segment, cyclic)
 
 
 def polyline(control_points: np.ndarray, cyclic: bool) -> np.ndarray:
@@ -273,20 +273,11 @@ def evaluate_splines(
             raise GeometryError(f"curve {c}: {problem}")
         groups.setdefault((len(P), bool(cyc)), []).append(c)
     out: list[np.ndarray | None] = [None] * len(control_points)
-    t = np.arange(samples_per_segment, dtype=np.float64) / samples_per_segment
-    T = np.stack([np.ones_like(t), t, t * t, t * t * t], axis=1)
     for (n, cyc), members in groups.items():
-        P = np.stack([np.asarray(control_points[c], dtype=np.float64) for c in members])  # (m, n, 3)
-        if curve_type == "PL":
-            for k, c in enumerate(members):
-                out[c] = P[k]
-            continue
-        idx, basis = _spline_indices(curve_type, n, cyc)
-        seg = P[:, idx]  # (m, nseg, 4, 3)
-        pts = np.einsum("tk,mskd->mstd", T @ basis, seg).reshape(len(members), -1, 3)
-        if not cyc:
-            end = np.einsum("k,mkd->md", np.ones(4) @ basis, seg[:, -1])[:, None, :]
-            pts = np.concatenate([pts, end], axis=1)
+        pts = np.stack([np.asarray(control_points[c], dtype=np.float64) for c in members])  # (m, n, 3)
+        if curve_type != "PL":
+            idx, basis = _spline_indices(curve_type, n, cyc)
+            pts = _evaluate_basis(pts, idx, basis, samples_per_segment, cyc)
         for k, c in enumerate(members):
             out[c] = pts[k]
     return out
