@@ -84,6 +84,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 def parse_frames(spec: str) -> list[int]:
     """'1-240', '1,5,9-12' -> the frame numbers, in order, without repeats."""
     frames: list[int] = []
+    seen: set[int] = set()
     for part in spec.split(","):
         m = re.fullmatch(r"\s*(-?\d+)\s*(?:-\s*(-?\d+)\s*)?", part)
         if not m:
@@ -91,7 +92,8 @@ def parse_frames(spec: str) -> list[int]:
         a, b = int(m.group(1)), int(m.group(2) or m.group(1))
         if b < a or b - a > 100000:
             raise BatchError(f"--frames: bad range '{part}'")
-        frames += [f for f in range(a, b + 1) if f not in frames]
+        frames += [f for f in range(a, b + 1) if f not in seen]
+        seen.update(range(a, b + 1))
     return frames
 
 

@@ -83,11 +83,14 @@ def run_jobs(jobs: list[Job], *, scheduler: str | None = None, workers: int = 2,
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     t0 = time.monotonic()
     todo = [j for j in jobs if not os.path.isfile(j.out)]
-    for j in todo:  # temporary files of runs that were killed outright (the driver too)
+    # Temporary files of runs that were killed outright (the driver too): one listing per folder.
+    pending: dict[str, list[tuple[str, str]]] = {}
+    for j in todo:
         folder, base = os.path.split(os.path.abspath(j.out))
-        stem, ext = os.path.splitext(base)
+        pending.setdefault(folder, []).append(os.path.splitext(base))
+    for folder, names in pending.items():
         for name in os.listdir(folder) if os.path.isdir(folder) else []:
-            if name.startswith(f".{stem}.") and name.endswith(f".tmp{ext}"):
+            if any(name.startswith(f".{stem}.") and name.endswith(f".tmp{ext}") for stem, ext in names):
                 os.remove(os.path.join(folder, name))
     skipped = [j.name for j in jobs if os.path.isfile(j.out)]
     out = {"done": [], "skipped": skipped, "failed": {}, "seconds": 0.0}
