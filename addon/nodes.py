@@ -103,11 +103,16 @@ def _update(self, context):
     self.refresh(getattr(context, "scene", None))
 
 
+def _material_of(node):
+    """The material whose own node tree holds the node, or None (a node group's, a world's)."""
+    tree = node.id_data
+    return next((m for m in bpy.data.materials if m.node_tree is not None and m.node_tree == tree), None)
+
+
 def _rename_material(node) -> None:
     """A material the add-on named after a preset ("Neural Yarn fleece", or ".001" of it) follows its node's
     new preset; a name the artist chose stays."""
-    tree = node.id_data
-    mat = next((m for m in bpy.data.materials if m.node_tree is not None and m.node_tree == tree), None)
+    mat = _material_of(node)
     if mat is None:
         return
     stem = mat.name.split(".")[0]
@@ -126,8 +131,7 @@ def _eevee_output(node, needed: bool) -> None:
     renders: they would draw the yarn black) fed by the stock-node fallback, and its own output serves
     Cycles; otherwise both go again. Only in a material's own tree."""
     tree = node.id_data
-    mat = next((m for m in bpy.data.materials if m.node_tree is not None and m.node_tree == tree), None)
-    if mat is None:
+    if _material_of(node) is None:
         return
     ours = [n for n in tree.nodes if n.name.startswith((EEVEE_OUTPUT, EEVEE_PREVIEW))]
     main = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial" and n not in ours]
