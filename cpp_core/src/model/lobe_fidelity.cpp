@@ -95,8 +95,8 @@ void integrate_r_lobe(const ny::YarnBsdfParams &p, const rdm::MapResolution &b, 
           continue;
         }
         const ny::Vec3 wo = ny::surface_fiber_to_yarn(p.twist, wo_f);
-        const int to = rdm::bin_of(std::acos(std::clamp(double(wo.z), -1.0, 1.0)), 0.0, kPi, b.theta_o);
-        const int po = rdm::bin_of(std::atan2(double(wo.y), double(wo.x)), -kPi, kPi, b.phi_o);
+        int to, po;
+        rdm::outgoing_bin(b, wo.x, wo.y, wo.z, &to, &po);
         add(to, po, ny::yarn_eval_R_fiber(l, wo_f) * (share / pdf));
       }
     }

@@ -316,10 +316,8 @@ void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const Gath
     ls.disp_sum_M += disp_fx;
     ls.disp_count_M++;
   }
-  const double theta_o = std::acos(std::clamp(double(wo.z), -1.0, 1.0));
-  const double phi_o = std::atan2(double(wo.y), double(wo.x));
-  const int to = bin_of(theta_o, 0.0, kPi, b.theta_o);
-  const int po = bin_of(phi_o, -kPi, kPi, b.phi_o);
+  int to, po;
+  outgoing_bin(b, wo.x, wo.y, wo.z, &to, &po);
   const size_t idx = (in_bin * b.outgoing() + size_t(to) * size_t(b.phi_o) + size_t(po)) * 3;
   /* Deferred to the end of the chunk (flush_records), where the random writes into the large maps are
    * issued with prefetching. */
@@ -367,6 +365,18 @@ int bin_of(double value, double lo, double hi, int n)
 }
 
 double bin_center(int index, double lo, double hi, int n) { return lo + (hi - lo) * (index + 0.5) / n; }
+
+void incident_bin(const MapResolution &b, double x, double y, double z, int *ti, int *pi)
+{
+  *ti = bin_of(std::acos(std::clamp(z, -1.0, 1.0)), 0.0, 0.5 * kPi, b.theta_i);
+  *pi = bin_of(std::atan2(y, x), -kPi, kPi, b.phi_i);
+}
+
+void outgoing_bin(const MapResolution &b, double x, double y, double z, int *to, int *po)
+{
+  *to = bin_of(std::acos(std::clamp(z, -1.0, 1.0)), 0.0, kPi, b.theta_o);
+  *po = bin_of(std::atan2(y, x), -kPi, kPi, b.phi_o);
+}
 
 RdmMaps mean_of_maps(const RdmMaps &a, const RdmMaps &b)
 {

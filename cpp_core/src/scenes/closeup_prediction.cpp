@@ -73,24 +73,18 @@ FarField model_far_field(const model::YarnModel &model)
 
 FarField maps_far_field(const rdm::RdmMaps &maps)
 {
-  const rdm::MapResolution b = maps.bins;
-  auto incident = [b](const ny::Vec3 &wi, int *ti, int *pi) {
-    *ti = rdm::bin_of(std::acos(std::clamp(double(wi.z), -1.0, 1.0)), 0.0, 0.5 * kPi, b.theta_i);
-    *pi = rdm::bin_of(std::atan2(double(wi.y), double(wi.x)), -kPi, kPi, b.phi_i);
-  };
   FarField f;
-  f.eval = [&maps, b, incident](const ny::Vec3 &wi, const ny::Vec3 &wo) {
-    int ti, pi;
-    incident(wi, &ti, &pi);
-    const int to = rdm::bin_of(std::acos(std::clamp(double(wo.z), -1.0, 1.0)), 0.0, kPi, b.theta_o);
-    const int po = rdm::bin_of(std::atan2(double(wo.y), double(wo.x)), -kPi, kPi, b.phi_o);
+  f.eval = [&maps](const ny::Vec3 &wi, const ny::Vec3 &wo) {
+    int ti, pi, to, po;
+    rdm::incident_bin(maps.bins, wi.x, wi.y, wi.z, &ti, &pi);
+    rdm::outgoing_bin(maps.bins, wo.x, wo.y, wo.z, &to, &po);
     const size_t k = maps.map_index(ti, pi, to, po);
     return Rgb3{double(maps.r[k]) + maps.m[k], double(maps.r[k + 1]) + maps.m[k + 1],
                 double(maps.r[k + 2]) + maps.m[k + 2]};
   };
-  f.albedo = [&maps, incident](const ny::Vec3 &wi) {
+  f.albedo = [&maps](const ny::Vec3 &wi) {
     int ti, pi;
-    incident(wi, &ti, &pi);
+    rdm::incident_bin(maps.bins, wi.x, wi.y, wi.z, &ti, &pi);
     const size_t k = maps.incident_index(ti, pi) * 3;
     return Rgb3{maps.exit_energy[k], maps.exit_energy[k + 1], maps.exit_energy[k + 2]};
   };

@@ -126,4 +126,9 @@ RdmMaps mean_of_maps(const RdmMaps &a, const RdmMaps &b);
 int bin_of(double value, double lo, double hi, int n);
 double bin_center(int index, double lo, double hi, int n);
 
+/* The bins of a direction (x, y, z) in the entry frame (z = the ply normal; unit length): incident
+ * (theta_i in [0, pi/2], clamped) and outgoing (theta_o in [0, pi]). */
+void incident_bin(const MapResolution &b, double x, double y, double z, int *ti, int *pi);
+void outgoing_bin(const MapResolution &b, double x, double y, double z, int *to, int *po);
+
 }  // namespace neuralyarn::rdm
