@@ -30,30 +30,31 @@ import tempfile
 
 import numpy as np
 
-from evaluate import CLI, CLOSEUP_PLY_LENGTH, LUMINANCE, MODELS, central_region
+from evaluate import CLI, CLOSEUP_PLY_LENGTH, LUMINANCE, central_region, model_path, yarn_args
 from images import read_exr
 
 #: The rigs the prediction covers (sphere lights are near-field: not predicted).
 PREDICTED = ("environment", "front", "grazing", "back", "axis")
 
 
-def predict(preset: str, light: str, size: tuple[int, int], region, maps: list[str], yarns: dict) -> dict:
+def predict(preset: str, lights: list[str], size: tuple[int, int], region, maps: list[str], yarns: dict) -> dict:
+    """{(light, "model" | "maps_A" | "maps_B"): RGB} from one `cycles-scene --predict-region` call (each map
+    file loaded once for all the lights)."""
     rows, cols = region
-    source = ["--params", yarns[preset]["params"]] if preset in yarns else ["--preset", preset]
-    model = yarns[preset]["model"] if preset in yarns else os.path.join(MODELS, f"{preset}.json")
-    args = [CLI, "cycles-scene", *source, "--lights", light, "--model", model,
+    args = [CLI, "cycles-scene", *yarn_args(yarns, preset), "--lights", lights[0], "--model", model_path(yarns, preset),
             "--width", str(size[0]), "--height", str(size[1]), "--ply-length", f"{CLOSEUP_PLY_LENGTH:g}",
             "--predict-region", str(cols.start), str(rows.start), str(cols.stop - cols.start),
-            str(rows.stop - rows.start), "--out", os.path.join(tempfile.gettempdir(), f"ny_split_{os.getpid()}.xml")]
+            str(rows.stop - rows.start), "--predict-lights", ",".join(lights),
+            "--out", os.path.join(tempfile.gettempdir(), f"ny_split_{os.getpid()}.xml")]
     for m in maps:
         args += ["--predict-maps", m]
     r = subprocess.run(args, capture_output=True, text=True)
     if r.returncode != 0:
         raise SystemExit(f"bench_split: {' '.join(args)} failed: {r.stderr.strip()}")
     out = {}
-    for m in re.finditer(r"predicted (model|maps) (\S+) (\S+) (\S+)(?: (\S+))?", r.stdout):
-        key = "model" if m.group(1) == "model" else ("maps_A" if m.group(5) == maps[0] else "maps_B")
-        out[key] = np.array([float(m.group(k)) for k in (2, 3, 4)])
+    for m in re.finditer(r"predicted (model|maps) (\S+) (\S+) (\S+) (\S+)(?: (\S+))?", r.stdout):
+        key = "model" if m.group(1) == "model" else ("maps_A" if m.group(6) == maps[0] else "maps_B")
+        out[(m.group(5), key)] = np.array([float(m.group(k)) for k in (2, 3, 4)])
     return out
 
 
@@ -85,11 +86,15 @@ def main() -> int:
     print("| preset | light | fitting % (worst ch.) | maps A/B % | aggregation % (worst ch.) | ref B/A % | "
           "total % | integration % |")
     print("|---|---|---|---|---|---|---|---|")
-    for (preset, light), ref in refs.items():
-        if light not in PREDICTED or (preset, light) not in natives:
-            continue
+    cells = [(preset, light) for preset, light in refs if light in PREDICTED and (preset, light) in natives]
+    predicted = {}
+    for preset in dict.fromkeys(p for p, _ in cells):
         maps = [os.path.join(a.maps, f"{preset}_{w}.nyrdm") for w in "AB"]
-        p = predict(preset, light, size, region, maps, res.get("yarns", {}))
+        lights = [light for p, light in cells if p == preset]
+        for (light, key), v in predict(preset, lights, size, region, maps, res.get("yarns", {})).items():
+            predicted.setdefault((preset, light), {})[key] = v
+    for preset, light in cells:
+        ref, p = refs[(preset, light)], predicted[(preset, light)]
         mean = lambda path: read_exr(os.path.join(a.eval, path))[region].mean(axis=(0, 1))  # noqa: E731
         ref_a, ref_b, nat = mean(ref["image_A"]), mean(ref["image_B"]), mean(natives[(preset, light)]["image"])
         maps_mean = 0.5 * (p["maps_A"] + p["maps_B"])

@@ -55,7 +55,7 @@ import time
 
 import numpy as np
 
-from images import display, display_ssim, exposure_of, read_exr, write_exr
+from images import LUMINANCE, display, display_ssim, exposure_of, read_exr, write_exr
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
 BUILD = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
@@ -79,7 +79,6 @@ PLY_RADIUS = 1.0  # cycles-scene's unit
 # frame is 23 radii wide at the ply, 2:1) and far enough from the central region that light entering through
 # an end cap does not reach it (the axis rig: with 16, the central region of the explicit ply is 7 % brighter).
 CLOSEUP_PLY_LENGTH = 48.0
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
 FLIP_PPD = 67.0
 RELMSE_EPS = 0.01
 RELMSE_DISCARD = 0.001
@@ -179,18 +178,19 @@ def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
     a.presets += [y for y in a.yarns if y not in a.presets]
     if "native" in a.methods:
         for p in a.presets:
-            if not os.path.isfile(model_path(a, p)):
-                raise Usage(f"method native: model '{model_path(a, p)}' is missing (scripts/bake_models.sh makes it)")
+            if not os.path.isfile(model_path(a.yarns, p)):
+                raise Usage(f"method native: model '{model_path(a.yarns, p)}' is missing (scripts/bake_models.sh makes it)")
     return a
 
 
-def model_path(a, preset: str) -> str:
-    return a.yarns[preset]["model"] if preset in getattr(a, "yarns", {}) else os.path.join(MODELS, f"{preset}.json")
+def model_path(yarns: dict, preset: str) -> str:
+    """The model of a preset (models/), or of a --yarn (`yarns`: name -> {"params", "model"})."""
+    return yarns[preset]["model"] if preset in yarns else os.path.join(MODELS, f"{preset}.json")
 
 
-def yarn_args(a, preset: str) -> list[str]:
+def yarn_args(yarns: dict, preset: str) -> list[str]:
     """cycles-scene's fiber source: a preset's name, or a --yarn's parameter file."""
-    return ["--params", a.yarns[preset]["params"]] if preset in getattr(a, "yarns", {}) else ["--preset", preset]
+    return ["--params", yarns[preset]["params"]] if preset in yarns else ["--preset", preset]
 
 
 # --- scenes and renders --------------------------------------------------------------------------------
@@ -223,12 +223,12 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
     assert scene == "closeup"
     turned = f"_rot{rotation:g}" if rotation else ""
     path = os.path.join(a.out, "scenes", f"{scene}_{preset}_{light}_{method}_seed{seed}{turned}.xml")
-    args = ["cycles-scene", *yarn_args(a, preset), "--lights", light, "--seed", str(seed), "--width", str(a.width),
+    args = ["cycles-scene", *yarn_args(a.yarns, preset), "--lights", light, "--seed", str(seed), "--width", str(a.width),
             "--height", str(a.height), "--ply-length", f"{CLOSEUP_PLY_LENGTH:g}", "--out", path]
     if rotation:
         args += ["--ply-rotation", f"{rotation:g}"]
     if method == "native":
-        args += ["--model", model_path(a, preset)]
+        args += ["--model", model_path(a.yarns, preset)]
     run_cli(args)
     return path
 

@@ -210,12 +210,16 @@ int main(int argc, char **argv)
   scene->add_flag("--embed-model", s_opt.embed_model,
                   "With --model: write the model's JSON into the scene (a self-contained file; cycles_patch 0003)");
   std::vector<int> s_region;
-  std::vector<std::string> s_predict_maps;
+  std::vector<std::string> s_predict_maps, s_predict_lights;
   scene->add_option("--predict-region", s_region,
                     "Print the mean colour the core library predicts over the pixel rectangle X Y W H of a WIDTH x "
                     "HEIGHT render (see --width/--height) under the environment or a distant-light rig: of the "
                     "--model, and of each --predict-maps file")
       ->expected(4);
+  scene->add_option("--predict-lights", s_predict_lights,
+                    "With --predict-region: predict under these rigs (default: the scene's), each map file "
+                    "loaded once for all of them")
+      ->delimiter(',');
   scene->add_option("--predict-maps", s_predict_maps,
                     "With --predict-region: also predict with these radiance distribution maps (.nyrdm) as the "
                     "ply's scattering (the tabulated far field)")
@@ -239,25 +243,40 @@ int main(int argc, char **argv)
     }
     if (scene->parsed()) {
       scenes::find_light_rig(s_opt.lights); /* an unknown rig is named before anything else */
+      for (const std::string &name : s_predict_lights) {
+        scenes::find_light_rig(name);
+      }
       check_writable(s_out);
       scenes::write_ply_scene(resolve_preset(s_preset, s_params), s_opt, s_out);
       std::printf("wrote %s\n", s_out.c_str());
       if (!s_region.empty()) {
-        const scenes::LightRig &rig = scenes::find_light_rig(s_opt.white_furnace ? "environment" : s_opt.lights);
+        std::vector<const scenes::LightRig *> rigs;
+        if (s_predict_lights.empty()) {
+          s_predict_lights.push_back(s_opt.white_furnace ? "environment" : s_opt.lights);
+        }
+        for (const std::string &name : s_predict_lights) {
+          rigs.push_back(&scenes::find_light_rig(name));
+        }
         const scenes::PixelRegion region{s_opt.width, s_opt.height, s_region[0], s_region[1], s_region[2], s_region[3]};
+        /* One line per prediction: "predicted model R G B RIG", "predicted maps R G B RIG PATH". */
         if (!s_opt.model.empty()) {
-          const scenes::Rgb3 a =
-              scenes::predict_closeup(scenes::model_far_field(model::load_model(s_opt.model)), rig, region);
-          std::printf("predicted model %.5f %.5f %.5f\n", a.r, a.g, a.b);
+          const scenes::FarField f = scenes::model_far_field(model::load_model(s_opt.model));
+          for (const scenes::LightRig *rig : rigs) {
+            const scenes::Rgb3 a = scenes::predict_closeup(f, *rig, region);
+            std::printf("predicted model %.5f %.5f %.5f %s\n", a.r, a.g, a.b, rig->name.c_str());
+          }
         }
         for (const std::string &path : s_predict_maps) {
           const rdm::RdmMaps maps = rdm::load_maps(path);
-          const scenes::Rgb3 a = scenes::predict_closeup(scenes::maps_far_field(maps), rig, region);
-          std::printf("predicted maps %.5f %.5f %.5f %s\n", a.r, a.g, a.b, path.c_str());
+          const scenes::FarField f = scenes::maps_far_field(maps);
+          for (const scenes::LightRig *rig : rigs) {
+            const scenes::Rgb3 a = scenes::predict_closeup(f, *rig, region);
+            std::printf("predicted maps %.5f %.5f %.5f %s %s\n", a.r, a.g, a.b, rig->name.c_str(), path.c_str());
+          }
         }
       }
-      else if (!s_predict_maps.empty()) {
-        throw std::runtime_error("--predict-maps needs --predict-region");
+      else if (!s_predict_maps.empty() || !s_predict_lights.empty()) {
+        throw std::runtime_error("--predict-maps and --predict-lights need --predict-region");
       }
       return 0;
     }
