@@ -14,28 +14,18 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
 
 import numpy as np
 
-from images import display, exposure_of, read_exr
-
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
-PY = os.path.join(ROOT, ".venv", "bin", "python")
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+from images import LUMINANCE, display, exposure_of, read_exr
+from showcase import ROOT, fallback_knit, native_knits, run
 
 
 def sparkles(img: np.ndarray) -> int:
     from scipy.ndimage import median_filter
     lum = img @ LUMINANCE
     return int((lum > 10.0 * np.maximum(median_filter(lum, size=3), 1e-4)).sum())
-
-
-def run(cmd: list[str]) -> None:
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    if r.returncode != 0:
-        raise SystemExit(f"bench_sparkle: {' '.join(cmd[:4])} ... failed: {(r.stderr or r.stdout).strip()[-300:]}")
 
 
 def main() -> int:
@@ -48,14 +38,11 @@ def main() -> int:
     panels = []
     for spp in (16, 64):
         native = os.path.join(a.out, f"native{spp}")
-        run([PY, os.path.join(ROOT, "examples", "make_examples.py"), "--out", native, "--presets", a.preset,
-             "--scenes", "knit", "--render", "--samples", str(spp), "--width", "256"])
+        run(native_knits(native, [a.preset], spp, 256), f"native, {spp} spp", "bench_sparkle")
         paths = [("native", os.path.join(native, f"knit_{a.preset}.exr"))]
         for fb in ("nodes", "osl"):
             path = os.path.join(a.out, f"{a.preset}_{fb}_{spp}.exr")
-            run([PY, os.path.join(ROOT, "addon", "batch.py"), "--", "--preset", a.preset, "--scene", "knit",
-                 "--plies", "3", "--fallback", fb, *(["--osl"] if fb == "osl" else []), "--resolution", "256",
-                 "256", "--samples", str(spp), "--out", path])
+            run(fallback_knit(a.preset, fb, spp, 256, path), f"{fb}, {spp} spp", "bench_sparkle")
             paths.append(("stock nodes" if fb == "nodes" else "OSL", path))
         for name, path in paths:
             img = read_exr(path)

@@ -8,6 +8,8 @@ and encoded as sRGB, per channel, data range 1, Gaussian window sigma 1.5 (Wang 
 """
 import numpy as np
 
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
+
 
 def read_exr(path: str) -> np.ndarray:
     """The RGB channels of an EXR as float64 (H, W, 3), top row first."""

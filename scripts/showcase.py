@@ -22,13 +22,28 @@ PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
 PYTHON = os.path.join(ROOT, ".venv", "bin", "python")
 
 
-def run(cmd: list[str], what: str) -> None:
+def run(cmd: list[str], what: str, tool: str = "showcase") -> None:
     t0 = time.monotonic()
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         tail = " ".join((r.stderr or r.stdout).strip().splitlines()[-2:])
-        raise SystemExit(f"showcase: {what} failed ({r.returncode}): {tail}")
-    print(f"showcase: {what}: {time.monotonic() - t0:.1f} s", flush=True)
+        raise SystemExit(f"{tool}: {what} failed ({r.returncode}): {tail}")
+    print(f"{tool}: {what}: {time.monotonic() - t0:.1f} s", flush=True)
+
+
+def native_knits(out: str, presets: list[str], samples: int, size: int) -> list[str]:
+    """The command rendering examples/make_examples.py's knit of 3-ply yarns with the native closure (patched
+    Cycles) for the presets: out/knit_<preset>.exr and .png."""
+    return [PYTHON, os.path.join(ROOT, "examples", "make_examples.py"), "--out", out, "--presets", *presets,
+            "--scenes", "knit", "--render", "--check", "--samples", str(samples), "--width", str(size)]
+
+
+def fallback_knit(preset: str, fallback: str, samples: int, size: int, path: str) -> list[str]:
+    """The command rendering addon/batch.py's knit of 3-ply yarns with a stock-Blender fallback ("nodes" or
+    "osl") to `path`."""
+    return [PYTHON, os.path.join(ROOT, "addon", "batch.py"), "--", "--preset", preset, "--scene", "knit", "--plies",
+            "3", "--fallback", fallback, *(["--osl"] if fallback == "osl" else []), "--resolution", str(size),
+            str(size), "--samples", str(samples), "--out", path]
 
 
 def contact_sheet(rows: list[tuple[str, list[str]]], out: str) -> None:
@@ -64,16 +79,12 @@ def main() -> int:
         raise SystemExit("showcase: --samples must be >= 1 and --size within [16, 4096]")
     os.makedirs(a.out, exist_ok=True)
     t0 = time.monotonic()
-    run([PYTHON, os.path.join(ROOT, "examples", "make_examples.py"), "--out", a.out, "--scenes", "knit",
-         "--render", "--check", "--samples", str(a.samples), "--width", str(a.size)],
-        "native closure (patched Cycles), knit, 5 presets")
+    run(native_knits(a.out, PRESETS, a.samples, a.size), "native closure (patched Cycles), knit, 5 presets")
     native = [os.path.join(a.out, f"knit_{p}.png") for p in PRESETS]
     nodes, blender = [], bpy_version()
     for p in PRESETS:
         path = os.path.join(a.out, f"knit_{p}_stock_nodes.png")
-        run([PYTHON, os.path.join(ROOT, "addon", "batch.py"), "--", "--preset", p, "--scene", "knit", "--plies", "3",
-             "--fallback", "nodes", "--resolution", str(a.size), str(a.size), "--samples", str(a.samples),
-             "--out", path], f"stock-node fallback (Blender {blender}), knit, {p}")
+        run(fallback_knit(p, "nodes", a.samples, a.size, path), f"stock-node fallback (Blender {blender}), knit, {p}")
         nodes.append(path)
     sheet = os.path.join(a.out, "contact_sheet.png")
     contact_sheet([("native closure\n(patched Cycles)", native), ("stock-node fallback\n(stock Blender)", nodes)],
