@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from . import resources
 
 FORMAT = "neuralyarn-model"
-SUPPORTED_VERSIONS = (2, 3)
+SUPPORTED_VERSIONS = (2, 3, 4)
 FALLBACK_VERSION = 2
 FALLBACK_MAX_WEIGHT = 100.0
 PRESETS = ("fleece", "silk", "polyester", "cotton", "gabardine")
@@ -120,15 +120,15 @@ def _fallback_tables(data: dict, where: str) -> FallbackTables:
 
 
 # The kernel array's layout (cpp_core/include/neuralyarn/kernel/yarn_bsdf.h, YarnFlatField; mlp.h).
-_FLAT_HEADER = 24
+_FLAT_HEADERS = {3: 24, 4: 26}  # layout 3: no TT fields, azimuth rows without the TT share
 _MLP_MAX_LAYERS, _MLP_MAX_WIDTH = 8, 64
 _HEAD_SIGMOID, _HEAD_EXP = 1, 2
 _CAL_STRIDE = 7
 
 
-def _network_ok(f: list, offset: int, end: int, inputs: int, outputs: int, head: int) -> bool:
+def _network_ok(f: list, offset: int, end: int, inputs: int, outputs: int, head: int, header: int) -> bool:
     """yarn_flat_network_ok: the header of one network at `offset` and its size within [offset, end)."""
-    if offset < _FLAT_HEADER or offset + 3 > end:
+    if offset < header or offset + 3 > end:
         return False
     L = f[offset]
     if not (1 <= L <= _MLP_MAX_LAYERS and L == int(L)) or offset + int(L) + 3 > end:
@@ -143,28 +143,31 @@ def _network_ok(f: list, offset: int, end: int, inputs: int, outputs: int, head:
     return widths[0] == inputs and widths[L] == outputs and f[offset + L + 2] == head and offset + count <= end
 
 
-def kernel_flat_problem(f: list) -> str | None:
-    """What is wrong with a layout 3 kernel array (the native closure's input), or None: the same checks as
-    the C++ loader's yarn_flat_check, so that the add-on packs no model the patched Cycles would refuse."""
+def kernel_flat_problem(f: list, layout: int = 4) -> str | None:
+    """What is wrong with a layout 4 kernel array (the native closure's input), or None: the same checks as
+    the C++ loader's yarn_flat_check, so that the add-on packs no model the patched Cycles would refuse.
+    Layout 3 (version 3 files, which the C++ loader rebuilds with no TT share) gets the checks it had."""
     n = len(f)
-    if n < _FLAT_HEADER:
+    header = _FLAT_HEADERS[layout]
+    if n < header:
         return "shorter than the header"
     if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in f):
         return "holds a non-finite number or a non-number"
-    if f[0] != 3.0:
+    if f[0] != float(layout):
         return "has another layout version than this add-on reads"
     if f[1] != n:
         return "its size field disagrees with its length"
-    if not (0.0 <= f[7] <= 1.0 and 0.0 <= f[10] <= 1.0 and f[6] > 0.0 and f[8] > 0.0 and f[9] > 0.0):
+    if not (0.0 <= f[7] <= 1.0 and 0.0 <= f[10] <= 1.0 and f[6] > 0.0 and f[8] > 0.0 and f[9] > 0.0 and
+            (layout == 3 or (f[24] > 0.0 and f[25] > 0.0))):
         return "has sampling parameters out of range"
     oT, oR, oM, oC, oA = f[14], f[15], f[16], f[17], f[20]
     if not (0.0 <= oT <= oR <= oM <= oC <= oA <= n) or oA != int(oA):
         return "has network offsets out of order"
-    if not _network_ok(f, int(oT), int(oR), 3, 1, _HEAD_SIGMOID):
+    if not _network_ok(f, int(oT), int(oR), 3, 1, _HEAD_SIGMOID, header):
         return "has a malformed T network (3 -> 1, sigmoid head)"
-    if not _network_ok(f, int(oR), int(oM), 3, 1, _HEAD_EXP):
+    if not _network_ok(f, int(oR), int(oM), 3, 1, _HEAD_EXP, header):
         return "has a malformed R network (3 -> 1, exp head)"
-    if not _network_ok(f, int(oM), int(oC), 6, 3, _HEAD_EXP):
+    if not _network_ok(f, int(oM), int(oC), 6, 3, _HEAD_EXP, header):
         return "has a malformed M network (6 -> 3, exp head)"
     nt, np_ = f[18], f[19]
     if not (0 <= nt <= 4096 and 0 <= np_ <= 4096) or nt != int(nt) or np_ != int(np_) or \
@@ -175,10 +178,13 @@ def kernel_flat_problem(f: list) -> str | None:
     if not no_table and (not (1 <= at <= 1024 and 1 <= ap <= 1024 and 2 <= ab <= 1024) or
                          at != int(at) or ap != int(ap) or ab != int(ab)):
         return "has an R azimuth table of the wrong shape"
-    if int(oA) + (0 if no_table else int(at) * int(ap) * int(ab)) != n:
+    stride = int(ab) + (3 if layout == 4 else 0)  # the densities, then (layout 4) the TT share r, g, b
+    if int(oA) + (0 if no_table else int(at) * int(ap) * stride) != n:
         return "has an R azimuth table of the wrong size"
     if any(v < 0.0 for v in f[int(oA):]):
         return "has a negative R azimuth density"
+    if any(v > 1.0 for i, v in enumerate(f[int(oA):]) if i % stride >= int(ab)):
+        return "has an R TT share above 1"
     return None
 
 
@@ -216,7 +222,7 @@ def parse_model(text: str, source: str) -> YarnModel:
                 isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in flat):
             raise _fail(source, "'kernel_flat' is not a layout 2 array of finite numbers")
     else:
-        problem = kernel_flat_problem(flat)
+        problem = kernel_flat_problem(flat, 3 if version == 3 else 4)
         if problem:
             raise _fail(source, f"'kernel_flat' {problem}")
     model = YarnModel(source=source, text=text, data=data, preset_name=preset["name"], alpha=float(alpha))

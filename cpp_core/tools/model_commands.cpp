@@ -11,7 +11,7 @@
 #include "neuralyarn/model/calibration.h"
 #include "neuralyarn/model/fidelity.h"
 #include "neuralyarn/model/model.h"
-#include "neuralyarn/model/r_azimuth.h"
+#include "neuralyarn/model/r_shape.h"
 #include "neuralyarn/rdm/map_file.h"
 
 namespace neuralyarn::cli {
@@ -303,7 +303,7 @@ class Commands : public ModelCommands {
     const std::string out = out_.empty() ? model_ : out_;
     check_writable(out);
     model::fit_model_proxy(&m, maps, topt_.fit);
-    m.r_azimuth = model::fit_r_azimuth(m, maps);
+    m.r_shape = model::fit_r_shape(m, maps);
     m.calibration = model::calibrate_energy(m, maps, threads_);
     model::FallbackOptions fo;
     fo.threads = threads_;

@@ -563,31 +563,55 @@ def _corruptions():
         return json.dumps(data)
 
     return [
-        ("NaN in the kernel", raw(lambda t: t.replace('"kernel_flat": [3.0,', '"kernel_flat": [NaN,', 1))),
+        ("NaN in the kernel", raw(lambda t: t.replace('"kernel_flat": [4.0,', '"kernel_flat": [NaN,', 1))),
         ("Infinity in the kernel", flat(lambda f: f.__setitem__(40, 1e999))),
         ("short kernel", flat(lambda f: f.__delitem__(slice(-5, None)))),
-        ("kernel layout 2 in a version 3 file", flat(lambda f: f.__setitem__(0, 2.0))),
+        ("kernel layout 2 in a version 4 file", flat(lambda f: f.__setitem__(0, 2.0))),
         ("size field", flat(lambda f: f.__setitem__(1, f[1] + 1))),
         ("kappa_R 1.5", flat(lambda f: f.__setitem__(7, 1.5))),
         ("offsets out of order", flat(swap_offsets)),
-        ("negative R azimuth density", flat(lambda f: f.__setitem__(len(f) - 1, -0.5))),
+        ("negative R azimuth density", flat(lambda f: f.__setitem__(len(f) - 4, -0.5))),
+        ("TT share above 1", flat(lambda f: f.__setitem__(len(f) - 1, 1.5))),
+        ("a layout 3 array in a version 4 file", lambda data: json.dumps(_as_version3(data, version=4))),
         ("a kernel weight changed", flat(lambda f: f.__setitem__(60, f[60] + 0.25))),
         ("stale fallback tables", stale_tables),
     ]
 
 
-@pytest.mark.parametrize("case", [c[0] for c in _corruptions()] + ["the shipped model"])
+def _as_version3(data, version=3, fnv=None):
+    """The model as a version 3 file wrote it: layout 3 (no TT fields in the header, azimuth rows without the
+    TT share, the table under "r_azimuth"), the TT share dropped; its fallback tables name that array by its
+    hash `fnv` (left out without one)."""
+    f = data["kernel_flat"]
+    header, az, bins = 26, int(f[20]), int(f[23])
+    old = f[:24]
+    for k in (14, 15, 16, 17, 20):
+        old[k] -= 2
+    old += f[header:az]
+    for r in range(az, len(f), bins + 3):
+        old += f[r:r + bins]
+    old[0], old[1] = 3.0, float(len(old))
+    out = {k: v for k, v in data.items() if k not in ("fallback", "r_shape")}
+    out.update(version=version, kernel_flat=old, r_azimuth=data["r_shape"])
+    if fnv:
+        out["fallback"] = dict(data["fallback"], kernel_flat_fnv1a64=fnv(old))
+    return out
+
+
+@pytest.mark.parametrize("case", [c[0] for c in _corruptions()] + ["the shipped model", "a version 3 file"])
 def test_model_files_the_core_refuses_are_refused(bpy, addon, tmp_path, case):
     if not os.path.isfile(_CLI):
         pytest.skip(f"the core's CLI is not built at {_CLI}")
     import subprocess
     data = json.loads(open(os.path.join(addon.resources.resource_dir("models"), "cotton.json")).read())
-    text = dict(_corruptions())[case](data) if case != "the shipped model" else json.dumps(data)
+    fnv = addon.resources.osl_generator()._fnv1a64_hex
+    accepted = {"the shipped model": json.dumps(data), "a version 3 file": json.dumps(_as_version3(data, fnv=fnv))}
+    text = accepted[case] if case in accepted else dict(_corruptions())[case](data)
     path = tmp_path / "model.json"
     path.write_text(text)
     core = subprocess.run([_CLI, "cycles-scene", "--preset", "cotton", "--model", str(path), "--out",
                            str(tmp_path / "scene.xml")], capture_output=True, text=True)
-    if case == "the shipped model":
+    if case in accepted:
         assert core.returncode == 0, core.stderr
         addon.model_io.parse_model(text, "model.json")
         return

@@ -20,7 +20,7 @@ if(NOT rc EQUAL 0)
   message(FATAL_ERROR "neuralyarn bake failed (${rc}): ${e}")
 endif()
 # The same model: everything but timings and dates (provenance, seconds).
-execute_process(COMMAND ${PY} -c "import json, sys; a, b = (json.load(open(p)) for p in sys.argv[1:3]); keys = ['kernel_flat', 'fallback', 'calibration', 'r_azimuth', 'sampling', 'albedo_M']; bad = [k for k in keys if a.get(k) != b.get(k)]; print('differs:', bad) if bad else None; sys.exit(1 if bad or 'kernel_flat' not in a else 0)"
+execute_process(COMMAND ${PY} -c "import json, sys; a, b = (json.load(open(p)) for p in sys.argv[1:3]); keys = ['kernel_flat', 'fallback', 'calibration', 'r_shape', 'sampling', 'albedo_M']; bad = [k for k in keys if a.get(k) != b.get(k)]; print('differs:', bad) if bad else None; sys.exit(1 if bad or 'kernel_flat' not in a else 0)"
                         ${OUT}/fleece.json ${OUT}/alone.json RESULT_VARIABLE rc OUTPUT_VARIABLE o)
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "the farm's fleece model differs from the one baked alone: ${o}")

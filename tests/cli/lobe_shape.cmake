@@ -2,7 +2,8 @@
 # (3e6 paths, seeds 11 and 12) and `neuralyarn check --maps-b`, which removes their noise, must keep the
 # worst R and M L1 of the theta_i bins but the grazing one below MAX ("R,M"). The limits are today's values
 # plus 15 %: repeated with seeds 13/14 they moved by 1 % at most, and the models before the relative M loss and
-# the R azimuth table (model v2) read R 100 %, M 34 % (fleece) and R 85 %, M 47 % (gabardine).
+# the R azimuth table (model v2) read R 100 %, M 34 % (fleece) and R 85 %, M 47 % (gabardine); those before
+# the R lobe's TT part (model v3) read R 45 % (silk, limit 17 %) and 59 % (gabardine, limit 31 %).
 file(MAKE_DIRECTORY ${OUT})
 foreach(seed 11 12)
   execute_process(COMMAND ${CLI} gather --preset ${PRESET} --paths 3e6 --seed ${seed} --quiet

@@ -50,11 +50,12 @@ inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, doubl
       m.calibration.values.push_back(1.0f + 0.2f * U(rng));
     }
   }
-  /* A 2 x 4 x 6 R azimuth table, far from uniform (densities 0.1-1.9 times the mean), so every test also
-   * runs through yarn_r_azimuth(): each row normalised, sum nu pi / 6 = 1. */
-  m.r_azimuth.theta_bins = 2;
-  m.r_azimuth.phi_bins = 4;
-  m.r_azimuth.azimuth_bins = 6;
+  /* A 2 x 4 x 6 R shape table, far from uniform (densities 0.1-1.9 times the mean) and with TT shares of
+   * 0.1-0.9, so every test also runs through yarn_r_azimuth() and the TT part: each row normalised,
+   * sum nu pi / 6 = 1. */
+  m.r_shape.theta_bins = 2;
+  m.r_shape.phi_bins = 4;
+  m.r_shape.azimuth_bins = 6;
   for (int row = 0; row < 8; row++) {
     float v[6], sum = 0.0f;
     for (float &x : v) {
@@ -62,7 +63,10 @@ inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, doubl
       sum += x;
     }
     for (float x : v) {
-      m.r_azimuth.values.push_back(x / (sum * 3.14159265f / 6.0f));
+      m.r_shape.values.push_back(x / (sum * 3.14159265f / 6.0f));
+    }
+    for (int c = 0; c < 3; c++) {
+      m.r_shape.values.push_back(0.5f + 0.4f * U(rng));
     }
   }
   return m;

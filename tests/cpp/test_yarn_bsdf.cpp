@@ -52,6 +52,10 @@ TEST(YarnBsdf, ReflectionLobeEnergyIsHalfTheFiberR)
       /* The synthetic model's R azimuth table makes the lobe far from uniform in phi~; its energy must not
        * change (each row of the table integrates to 1). */
       EXPECT_GT(std::abs(std::log(ny::yarn_r_azimuth(l, -1.2f) / ny::yarn_r_azimuth(l, 0.9f))), 0.1);
+      /* Near grazing the forward azimuth reaches the upper half: the TT part carries energy there too. */
+      if (theta_i > 1.4) {
+        EXPECT_GT(l.q_TT, 0.1f) << preset;
+      }
       /* Integrate over the surface-fiber frame's (theta~, phi~): dw = cos theta~ dtheta~ dphi~. */
       const int nt = 6000, np = 512;
       double e = 0.0;
@@ -78,6 +82,9 @@ TEST(YarnBsdf, PdfIntegratesToOneAndSamplerMatchesIt)
   for (double theta_i : {0.2, 0.9, 1.45}) {
     const ny::Vec3 wi = from_polar(theta_i, 0.4);
     const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+    if (theta_i > 1.4) {
+      EXPECT_GT(l.q_TT, 0.1f) << "the sampler's TT part is not exercised";
+    }
     std::vector<double> expected(size_t(nt * np), 0.0);
     double total = 0.0;
     for (int i = 0; i < nt; i++) {
@@ -320,6 +327,36 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
     EXPECT_TRUE(o.calibration.empty());
     EXPECT_EQ(o.kernel_flat()[ny::kYarnFlatCalThetaBins], 0.0f);
   }
+  {
+    /* A version 3 file (layout 3: no TT fields in the header, azimuth rows without the TT share) loads
+     * with its tables and no TT share, so it renders as it did. */
+    model::YarnModel no_tt = m;
+    for (size_t r = 0; r < no_tt.r_shape.values.size(); r += size_t(no_tt.r_shape.stride())) {
+      std::fill_n(no_tt.r_shape.values.begin() + long(r) + no_tt.r_shape.azimuth_bins, 3, 0.0f);
+    }
+    nlohmann::json v3 = model::model_to_json(no_tt);
+    std::vector<float> f = v3["kernel_flat"].get<std::vector<float>>(), f3(f.begin(), f.begin() + 24);
+    for (int k : {ny::kYarnFlatOffset_T, ny::kYarnFlatOffset_R, ny::kYarnFlatOffset_M, ny::kYarnFlatOffset_Cal,
+                  ny::kYarnFlatOffset_Az}) {
+      f3[size_t(k)] -= 2.0f; /* the header was 2 floats shorter */
+    }
+    const size_t az = size_t(f[ny::kYarnFlatOffset_Az]);
+    f3.insert(f3.end(), f.begin() + ny::kYarnFlatHeader, f.begin() + long(az));
+    for (size_t r = az; r < f.size(); r += size_t(no_tt.r_shape.stride())) {
+      f3.insert(f3.end(), f.begin() + long(r), f.begin() + long(r) + no_tt.r_shape.azimuth_bins);
+    }
+    f3[0] = 3.0f;
+    f3[1] = float(f3.size());
+    v3["kernel_flat"] = f3;
+    v3["version"] = 3;
+    v3["r_azimuth"] = v3["r_shape"];
+    v3.erase("r_shape");
+    v3.erase("fallback");
+    const std::string old = (dir / "v3.json").string();
+    std::ofstream(old) << v3.dump();
+    const model::YarnModel o = model::load_model(old);
+    EXPECT_EQ(o.kernel_flat(), no_tt.kernel_flat()) << "a layout 3 file must load as the same model without TT";
+  }
 
   auto expect_error = [&](const std::string &name, const std::string &text, const std::string &needle) {
     const std::string path = (dir / name).string();
@@ -351,7 +388,7 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
   v["kernel_flat"][table + ny::kYarnCalStride] = 1.5; /* a dP_T outside [-1, 1] */
   expect_error("cal_dpt.json", v.dump(), "dP_T in [-1, 1]");
   const size_t az = size_t(j["kernel_flat"][ny::kYarnFlatOffset_Az].get<float>());
-  ASSERT_TRUE(j.contains("r_azimuth"));
+  ASSERT_TRUE(j.contains("r_shape"));
   v = j;
   v["kernel_flat"][az + 2] = v["kernel_flat"][az + 2].get<float>() * 1.2f; /* the row no longer integrates to 1 */
   expect_error("az_norm.json", v.dump(), "integrates to");
@@ -359,7 +396,10 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
   v["kernel_flat"][az + 1] = -0.1;
   expect_error("az_negative.json", v.dump(), "negative R azimuth density");
   v = j;
-  v["r_azimuth"]["azimuth_bins"] = 5;
+  v["kernel_flat"][az + size_t(m.r_shape.azimuth_bins)] = 1.2; /* a TT share above 1 */
+  expect_error("tau.json", v.dump(), "TT share above 1");
+  v = j;
+  v["r_shape"]["azimuth_bins"] = 5;
   expect_error("az_bins.json", v.dump(), "disagree with the kernel array");
   v = j;
   v["kernel_flat"][ny::kYarnFlatKappa_R] = 0.25; /* consistent by itself, but not with "sampling" */

@@ -6,7 +6,7 @@
 #include "neuralyarn/io.h"
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/calibration.h"
-#include "neuralyarn/model/r_azimuth.h"
+#include "neuralyarn/model/r_shape.h"
 #include "neuralyarn/train/dataset.h"
 #include "neuralyarn/version.h"
 
@@ -167,7 +167,7 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
     a /= wsum;
   }
   /* The R lobe's shape (its energy is unchanged by it), then the energies. */
-  m.r_azimuth = fit_r_azimuth(m, maps);
+  m.r_shape = fit_r_shape(m, maps);
   m.calibration = calibrate_energy(m, maps, o.threads);
   m.provenance = {{"maps", maps_provenance(maps)},
                   {"training_seed", o.seed},

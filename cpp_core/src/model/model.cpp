@@ -148,14 +148,14 @@ EnergyCalibration calibration_from(const json &j, const std::vector<float> &flat
   }
   return c;
 }
-/* The R azimuth table's shape from the "r_azimuth" object, its values from the kernel array (checked by
- * ny::yarn_flat_check); every row must integrate to 1. */
-RAzimuthTable r_azimuth_from(const json &j, const std::vector<float> &flat, const std::string &where)
+/* The R shape table's shape from the "r_shape" object, its values from the kernel array (checked by
+ * ny::yarn_flat_check: tau in [0, 1]); every row's azimuth density must integrate to 1. */
+RShapeTable r_shape_from(const json &j, const std::vector<float> &flat, const std::string &where, bool layout3)
 {
   if (!j.is_object()) {
     throw ModelError(where + "must be an object");
   }
-  RAzimuthTable t;
+  RShapeTable t;
   t.theta_bins = int(finite_in(j, "theta_i_bins", 1, 1024, where));
   t.phi_bins = int(finite_in(j, "phi_i_bins", 1, 1024, where));
   t.azimuth_bins = int(finite_in(j, "azimuth_bins", 2, 1024, where));
@@ -164,11 +164,23 @@ RAzimuthTable r_azimuth_from(const json &j, const std::vector<float> &flat, cons
     throw ModelError(where + "its bins disagree with the kernel array's header");
   }
   t.values.assign(flat.begin() + long(flat[ny::kYarnFlatOffset_Az]), flat.end());
+  if (layout3) {
+    /* Layout 3 rows hold the densities only: no TT share (tau = 0), which renders as that model did. */
+    if (t.values.size() != size_t(t.theta_bins) * size_t(t.phi_bins) * size_t(t.azimuth_bins)) {
+      throw ModelError(where + "the kernel array holds a table of another size");
+    }
+    std::vector<float> rows;
+    for (size_t r = 0; r < t.values.size(); r += size_t(t.azimuth_bins)) {
+      rows.insert(rows.end(), t.values.begin() + long(r), t.values.begin() + long(r) + t.azimuth_bins);
+      rows.insert(rows.end(), 3, 0.0f);
+    }
+    t.values = rows;
+  }
   const double d = 3.14159265358979323846 / t.azimuth_bins;
-  for (size_t r = 0; r < t.values.size() / size_t(t.azimuth_bins); r++) {
+  for (size_t r = 0; r < t.values.size() / size_t(t.stride()); r++) {
     double sum = 0;
     for (int k = 0; k < t.azimuth_bins; k++) {
-      sum += t.values[r * size_t(t.azimuth_bins) + size_t(k)] * d;
+      sum += t.values[r * size_t(t.stride()) + size_t(k)] * d;
     }
     if (!(std::abs(sum - 1.0) < 1e-3)) {
       throw ModelError(where + "row " + std::to_string(r) + " integrates to " + std::to_string(sum) + ", not 1");
@@ -198,6 +210,8 @@ std::vector<float> YarnModel::kernel_flat() const
   f[ny::kYarnFlatC_R + 1] = fp.C_R.g;
   f[ny::kYarnFlatC_R + 2] = fp.C_R.b;
   f[ny::kYarnFlatBeta_R] = fp.beta_R;
+  f[ny::kYarnFlatBeta_TT] = fp.beta_TT;
+  f[ny::kYarnFlatGamma_TT] = fp.gamma_TT;
   f[ny::kYarnFlatKappa_R] = float(proxy.kappa_R);
   f[ny::kYarnFlatBeta_M] = float(proxy.beta_M);
   f[ny::kYarnFlatGamma_M] = float(proxy.gamma_M);
@@ -216,10 +230,10 @@ std::vector<float> YarnModel::kernel_flat() const
   f[ny::kYarnFlatCalPhiBins] = float(calibration.phi_bins);
   f.insert(f.end(), calibration.values.begin(), calibration.values.end());
   f[ny::kYarnFlatOffset_Az] = float(f.size());
-  f[ny::kYarnFlatAzThetaBins] = float(r_azimuth.theta_bins);
-  f[ny::kYarnFlatAzPhiBins] = float(r_azimuth.phi_bins);
-  f[ny::kYarnFlatAzBins] = float(r_azimuth.azimuth_bins);
-  f.insert(f.end(), r_azimuth.values.begin(), r_azimuth.values.end());
+  f[ny::kYarnFlatAzThetaBins] = float(r_shape.theta_bins);
+  f[ny::kYarnFlatAzPhiBins] = float(r_shape.phi_bins);
+  f[ny::kYarnFlatAzBins] = float(r_shape.azimuth_bins);
+  f.insert(f.end(), r_shape.values.begin(), r_shape.values.end());
   f[ny::kYarnFlatSize] = float(f.size());
   return f;
 }
@@ -243,11 +257,11 @@ json model_to_json(const YarnModel &m)
                         {"layout", "[theta_i][phi_i][dP_T, c_R.r, c_R.g, c_R.b, c_M.r, c_M.g, c_M.b]"},
                         {"clamped_bins", m.calibration.clamped}};
   }
-  if (!m.r_azimuth.empty()) {
-    j["r_azimuth"] = {{"theta_i_bins", m.r_azimuth.theta_bins},
-                      {"phi_i_bins", m.r_azimuth.phi_bins},
-                      {"azimuth_bins", m.r_azimuth.azimuth_bins},
-                      {"layout", "[theta_i][phi_i][phi~_o in (-90, 90) deg]: density nu of the R lobe's azimuth"}};
+  if (!m.r_shape.empty()) {
+    j["r_shape"] = {{"theta_i_bins", m.r_shape.theta_bins},
+                      {"phi_i_bins", m.r_shape.phi_bins},
+                      {"azimuth_bins", m.r_shape.azimuth_bins},
+                      {"layout", "[theta_i][phi_i][nu over phi~_o in (-90, 90) deg, tau r, g, b]: the R lobe's azimuth density and TT share"}};
   }
   /* What a renderer uploads, ready to use (kernel/yarn_bsdf.h): the calibration table's values are only
    * here; the loader checks that the rest agrees with the parts above. */
@@ -336,7 +350,27 @@ YarnModel model_from_json(const json &j, const std::string &source)
       m.calibration = calibration_from(j["calibration"], flat, flat.size(), where + "calibration: ");
     }
   }
-  else if (version >= 3) {
+  else if (version == 3) {
+    /* Layout 3 (the R azimuth table without the TT share): the tables are taken over, the array rebuilt. */
+    const std::vector<float> flat = float_array(j, "kernel_flat", where);
+    if (flat.size() < 24 || flat[0] != 3.0f || !(flat[ny::kYarnFlatOffset_Az] >= 24.0f) ||
+        !(flat[ny::kYarnFlatOffset_Az] <= float(flat.size()))) {
+      throw ModelError(where + "'kernel_flat' is not a layout 3 array");
+    }
+    for (float v : flat) {
+      if (!std::isfinite(v)) {
+        throw ModelError(where + "'kernel_flat' holds a non-finite number");
+      }
+    }
+    if (j.contains("calibration")) {
+      m.calibration =
+          calibration_from(j["calibration"], flat, size_t(flat[ny::kYarnFlatOffset_Az]), where + "calibration: ");
+    }
+    if (j.contains("r_azimuth")) {
+      m.r_shape = r_shape_from(j["r_azimuth"], flat, where + "r_azimuth: ", true);
+    }
+  }
+  else if (version >= 4) {
     const std::vector<float> flat = float_array(j, "kernel_flat", where);
     if (const char *problem = ny::yarn_flat_check(flat.data(), int(flat.size()))) {
       throw ModelError(where + "'kernel_flat' " + problem);
@@ -345,8 +379,8 @@ YarnModel model_from_json(const json &j, const std::string &source)
       m.calibration =
           calibration_from(j["calibration"], flat, size_t(flat[ny::kYarnFlatOffset_Az]), where + "calibration: ");
     }
-    if (j.contains("r_azimuth")) {
-      m.r_azimuth = r_azimuth_from(j["r_azimuth"], flat, where + "r_azimuth: ");
+    if (j.contains("r_shape")) {
+      m.r_shape = r_shape_from(j["r_shape"], flat, where + "r_shape: ", false);
     }
     if (m.kernel_flat() != flat) {
       throw ModelError(where + "'kernel_flat' disagrees with the networks, preset and sampling parameters");
@@ -354,9 +388,9 @@ YarnModel model_from_json(const json &j, const std::string &source)
   }
   m.provenance = j.value("provenance", json::object());
   m.fidelity = j.value("fidelity", json::object());
-  /* A version 2 file's fallback tables refer to its layout 2 kernel array by hash; they are left out (the
+  /* A version 2 or 3 file's fallback tables refer to its older kernel array by hash; they are left out (the
    * maths is the same: `neuralyarn fallback` recomputes them in the current layout). */
-  if (j.contains("fallback") && version >= 3) {
+  if (j.contains("fallback") && version >= 4) {
     m.fallback = fallback_from_json(j["fallback"], m, where);
   }
   return m;

@@ -4,12 +4,14 @@
 //
 //   S(w_i, w_o) = S_T + S_R + S_M
 //   S_T = P_T(w_i) delta(w_i + w_o)                                  a true delta transmission lobe
-//   S_R = rho_R(w_i) S_f^R(w~_i, w~_o)             if w_i.n > 0 and w_o.n > 0, else 0
+//   S_R = rho_R(w_i) [(1 - tau) S_f^R + tau S_f^TT](w~_i, w~_o)   if w_i.n > 0 and w_o.n > 0, else 0
 //   S_M = c_M(w_i) e(w_i) MLP_M(w_i, w_o),  e = max(1 - P_T(w_i), e_min)   (models S_M |cos theta_o|)
 //
 // in the yarn frame of frames.h (x = yarn tangent, z = normal of the bounding cylinder), w~ = M w the
 // surface-fiber frame rotated by phi~ = atan(pi alpha) about n. S_f^R is the R lobe of the Khungurn
-// fiber BSDF (fiber_bsdf.h with C_TT = 0). The paper weights it by 1 - P_T(w_i); measured against the
+// fiber BSDF (fiber_bsdf.h with C_TT = 0), S_f^TT its TT lobe (the light that passes through one surface
+// fiber and leaves upward: the maps' "R" is any single event, docs/decisions.md D21), both restricted to
+// the upper half of the azimuths and each normalised to half the energy. The paper weights R by 1 - P_T(w_i); measured against the
 // gathered R map that factor is off by 0.6x at normal incidence to 6x at grazing incidence, so rho_R(w_i)
 // is a third tiny network (3-7-7-1, exp head) trained on the map's R energy: the lobe's energy is exactly
 // rho_R F(theta~_i) / 2 (docs/decisions.md D13). The M network learns S_M |cos| / (1 - P_T): the M energy
@@ -28,10 +30,17 @@
 // surface fibers shadow and mask each other, so the maps hold 0.7x the uniform lobe's share near the normal
 // and 1.5-2x less toward grazing exits, and the other way round for grazing light (docs/decisions.md D18).
 // An optional table holds the azimuthal density nu(phi~_o | w_i) over the upper half of phi~_o in
-// [-pi/2, pi/2], fitted to the R map at bake time (model/r_azimuth.h): linear between bin centres and flat
+// [-pi/2, pi/2], fitted to the R map at bake time (model/r_shape.h): linear between bin centres and flat
 // at both ends, each row normalised so that its integral is exactly 1, and bilinear in w_i; the uniform
 // lobe's 1/pi is replaced by nu. The lobe's energy stays exactly rho_R F / 2 (a mixture of normalised rows
 // is normalised), so the calibration and every energy of the model are unchanged by it.
+//
+// The TT share tau (RGB, on the same rows): for grazing light up to 0.7 of the maps' single events pass
+// through a surface fiber (forward, near the horizon, tinted by C_TT) instead of reflecting off it. S_f^TT
+// is the fiber's own: gbar(theta~_o; -theta~_i, beta_TT) longitudinally and a normal of width gamma_TT
+// about the forward azimuth phi~_i + pi, truncated to the upper half and normalised there. Where that
+// azimuth is so far below the horizon that the truncated normal holds no float mass, tau is 0. Both
+// parts hold rho_R F / 2, so the energy identity above holds for any tau.
 //
 // Both arguments point away from the surface. The first is the direction the maps call incident (the
 // light side when the maps were gathered; a path tracer passes the direction toward the previous vertex,
@@ -40,7 +49,9 @@
 //
 // Importance sampling (paper Sec. 3.4), with the fixes of docs/decisions.md D12:
 //   lobe T with p_T = P_T(w_i), R with (1 - p_T) kappa_R, M with (1 - p_T)(1 - kappa_R);
-//   R: theta~_o ~ TN(-theta~_i, beta_R) on [-pi/2, pi/2], phi~_o uniform on the upper half [-pi/2, pi/2];
+//   R: with q_TT (tau's share of the R energy) the TT part: theta~_o ~ TN(-theta~_i, beta_TT), phi~_o ~ the
+//      truncated normal above; otherwise theta~_o ~ TN(-theta~_i, beta_R) on [-pi/2, pi/2], phi~_o uniform
+//      on the upper half [-pi/2, pi/2];
 //   M: with kappa_M, theta~_o ~ TN(-theta~_i, beta_M), phi~_o ~ vonMises(0, gamma_M^-2) (centred on n);
 //      otherwise uniform on the sphere.
 // Every density is in the surface-fiber frame (the rotation about n preserves solid angle), and the fit
@@ -82,11 +93,16 @@ enum YarnFlatField {
   kYarnFlatOffset_Az = 20,    /* offset of the R azimuth table ([theta_i][phi_i][phi~_o] densities)  */
   kYarnFlatAzThetaBins = 21,  /* its bins over theta_i in [0, pi/2] (0: no table, uniform azimuth)  */
   kYarnFlatAzPhiBins = 22,    /* its bins over phi_i in [-pi, pi)                                 */
-  kYarnFlatAzBins = 23,       /* its bins over phi~_o in [-pi/2, pi/2]                            */
-  kYarnFlatHeader = 24
+  kYarnFlatAzBins = 23,       /* its bins over phi~_o in [-pi/2, pi/2]; a row is those densities and tau rgb */
+  kYarnFlatBeta_TT = 24,      /* radians: the surface fibers' TT lobe (R part's TT share)         */
+  kYarnFlatGamma_TT = 25,     /* radians                                                          */
+  kYarnFlatHeader = 26
 };
-constexpr float kYarnFlatFormat = 3.0f;
+constexpr float kYarnFlatFormat = 4.0f;
 constexpr int kYarnCalStride = 7; /* dP_T, c_R.r, c_R.g, c_R.b, c_M.r, c_M.g, c_M.b */
+
+/* Floats per row of the R shape table: az_bins densities nu, then tau r, g, b. */
+NY_KERNEL_FN int yarn_r_shape_stride(int az_bins) { return az_bins + 3; }
 
 struct YarnBsdfParams {
   const float *net_T; /* 3 -> 1, sigmoid head: P_T(w_i)          */
@@ -99,7 +115,7 @@ struct YarnBsdfParams {
   Rgb albedo_M;
   const float *cal; /* energy calibration table, or null */
   int cal_theta_bins, cal_phi_bins;
-  const float *az;  /* R azimuth table, or null (uniform azimuth) */
+  const float *az;  /* R shape table (azimuth densities, TT share), or null (uniform azimuth, no TT) */
   int az_theta_bins, az_phi_bins, az_bins;
 };
 
@@ -147,7 +163,7 @@ NY_KERNEL_FN const char *yarn_flat_check(const float *f, int n)
   }
   if (!(f[kYarnFlatKappa_R] >= 0.0f && f[kYarnFlatKappa_R] <= 1.0f && f[kYarnFlatKappa_M] >= 0.0f &&
         f[kYarnFlatKappa_M] <= 1.0f && f[kYarnFlatBeta_R] > 0.0f && f[kYarnFlatBeta_M] > 0.0f &&
-        f[kYarnFlatGamma_M] > 0.0f))
+        f[kYarnFlatGamma_M] > 0.0f && f[kYarnFlatBeta_TT] > 0.0f && f[kYarnFlatGamma_TT] > 0.0f))
   {
     return "has sampling parameters out of range";
   }
@@ -178,12 +194,16 @@ NY_KERNEL_FN const char *yarn_flat_check(const float *f, int n)
   {
     return "has an R azimuth table of the wrong shape";
   }
-  if ((int)oA + (no_table ? 0 : (int)at * (int)ap * (int)ab) != n) {
+  const int stride = yarn_r_shape_stride((int)ab);
+  if ((int)oA + (no_table ? 0 : (int)at * (int)ap * stride) != n) {
     return "has an R azimuth table of the wrong size";
   }
   for (int i = (int)oA; i < n; i++) {
     if (!(f[i] >= 0.0f)) {
       return "has a negative R azimuth density";
+    }
+    if ((i - (int)oA) % stride >= (int)ab && !(f[i] <= 1.0f)) {
+      return "has an R TT share above 1";
     }
   }
   return nullptr;
@@ -200,8 +220,8 @@ NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(const float *f)
   p.fiber.C_R = make_rgb(f[kYarnFlatC_R], f[kYarnFlatC_R + 1], f[kYarnFlatC_R + 2]);
   p.fiber.C_TT = make_rgb(0.0f);
   p.fiber.beta_R = f[kYarnFlatBeta_R];
-  p.fiber.beta_TT = f[kYarnFlatBeta_R]; /* unused: C_TT = 0 */
-  p.fiber.gamma_TT = 1.0f;              /* unused */
+  p.fiber.beta_TT = f[kYarnFlatBeta_TT];
+  p.fiber.gamma_TT = f[kYarnFlatGamma_TT];
   p.kappa_R = f[kYarnFlatKappa_R];
   p.beta_M = f[kYarnFlatBeta_M];
   p.gamma_M = f[kYarnFlatGamma_M];
@@ -269,6 +289,10 @@ struct YarnLobes {
   const float *az_row[4]; /* the R azimuth table's rows around w_i and their weights (az_bins 0: uniform) */
   float az_w[4];
   int az_bins;
+  Rgb tau;        /* the R part's TT share (0 without a table or where the TT azimuth has no mass) */
+  float q_TT;     /* the TT part's share of the R energy: its selection probability within R */
+  LongitudinalLobe m_TT;
+  TruncatedNormal tn_TT, tn_TT_phi; /* theta~_o and phi~_o (on the upper half) of the TT part */
 };
 
 NY_KERNEL_FN float yarn_transmission(const YarnBsdfParams &p, Vec3 wi)
@@ -322,13 +346,37 @@ NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_ev
   l.tn_M = make_truncated_normal(-theta_i, p.beta_M, -kHalfPi, kHalfPi);
   l.kappa_vm = 1.0f / (p.gamma_M * p.gamma_M);
   l.az_bins = 0;
+  l.tau = make_rgb(0.0f);
   if (p.az && l.valid) {
     int idx[4];
     yarn_incident_bilinear(p.az_theta_bins, p.az_phi_bins, wi, idx, l.az_w);
+    const int stride = yarn_r_shape_stride(p.az_bins);
     for (int k = 0; k < 4; k++) {
-      l.az_row[k] = p.az + idx[k] * p.az_bins;
+      l.az_row[k] = p.az + idx[k] * stride;
+      l.tau = l.tau + make_rgb(l.az_row[k][p.az_bins], l.az_row[k][p.az_bins + 1], l.az_row[k][p.az_bins + 2]) *
+                          l.az_w[k];
     }
     l.az_bins = p.az_bins;
+  }
+  /* The TT part, if it has a share: forward azimuth phi~_i + pi, truncated to the upper half. */
+  l.q_TT = 0.0f;
+  l.tn_TT_phi = make_truncated_normal(0.0f, 1.0f, -kHalfPi, kHalfPi);
+  if (average(l.tau) > 0.0f) {
+    l.tn_TT_phi = make_truncated_normal(wrap_angle(phi_of(l.wi_f) + kPi), p.fiber.gamma_TT, -kHalfPi, kHalfPi);
+    if (!(l.tn_TT_phi.mass > 0.0f)) {
+      l.tau = make_rgb(0.0f);
+    }
+  }
+  const float e_R = average(l.weight_R);
+  if (average(l.tau) > 0.0f && e_R > 0.0f) {
+    l.q_TT = clampf(average(l.weight_R * l.tau) / e_R, 0.0f, 1.0f);
+    l.tn_TT = make_truncated_normal(-theta_i, p.fiber.beta_TT, -kHalfPi, kHalfPi);
+    l.m_TT = with_eval ? make_wide_longitudinal_lobe(-theta_i, p.fiber.beta_TT)
+                       : LongitudinalLobe{-theta_i, p.fiber.beta_TT, 0.0f};
+  }
+  else {
+    l.tn_TT = l.tn_R;
+    l.m_TT = l.m_R;
   }
   return l;
 }
@@ -350,16 +398,29 @@ NY_KERNEL_FN float yarn_r_azimuth(const YarnLobes &l, float phi)
   return kPi * nu;
 }
 
-/* S_R |cos theta~_o|, w_o in the surface-fiber frame. The cosine is the fiber's own (longitudinal), so
- * that the lobe's energy is exactly rho_R F / 2: half of the fiber's R albedo, the half whose
- * azimuth leaves the surface. */
+/* The R lobe's two parts at w_o (surface-fiber frame), each with the lobe's whole weight: the reflection
+ * (its azimuth density nu) and the TT part (0 where it has no share). S_R |cos| = (1 - tau) R + tau TT. The
+ * cosine is the fiber's own (longitudinal), so that each part's energy is exactly rho_R F / 2: half of
+ * the fiber's albedo, the half whose azimuth leaves the surface. */
+NY_KERNEL_FN void yarn_eval_R_parts(const YarnLobes &l, Vec3 wo_f, Rgb *R, Rgb *TT)
+{
+  *R = *TT = make_rgb(0.0f);
+  if (!l.valid || !(wo_f.z > 0.0f)) {
+    return;
+  }
+  const float theta = theta_of(wo_f), phi = phi_of(wo_f), c = cos_theta(wo_f);
+  *R = l.weight_R * (longitudinal_eval(l.m_R, theta) * kInvTwoPi * c * yarn_r_azimuth(l, phi));
+  if (l.q_TT > 0.0f) {
+    *TT = l.weight_R * (longitudinal_eval(l.m_TT, theta) * 0.5f * c * truncated_normal_pdf(l.tn_TT_phi, phi));
+  }
+}
+
+/* S_R |cos theta~_o|, w_o in the surface-fiber frame. */
 NY_KERNEL_FN Rgb yarn_eval_R_fiber(const YarnLobes &l, Vec3 wo_f)
 {
-  if (!l.valid || !(wo_f.z > 0.0f)) {
-    return make_rgb(0.0f);
-  }
-  return l.weight_R * (longitudinal_eval(l.m_R, theta_of(wo_f)) * kInvTwoPi * cos_theta(wo_f) *
-                       yarn_r_azimuth(l, phi_of(wo_f)));
+  Rgb R, TT;
+  yarn_eval_R_parts(l, wo_f, &R, &TT);
+  return (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
 }
 
 NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo)
@@ -376,13 +437,26 @@ NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 w
 /* Smallest cos(theta~_o) used to turn a (theta, phi) density into solid angle (as fiber_bsdf.h). */
 constexpr float kYarnMinCosTheta = 1e-7f;
 
-/* Densities of the R and M proposals in solid angle, w_o in the surface-fiber frame. */
+/* Densities of the R and M proposals in solid angle, w_o in the surface-fiber frame. The R proposal has
+ * two parts (reflection; TT, density 0 when it has no share). */
+NY_KERNEL_FN void yarn_pdf_R_parts(const YarnLobes &l, Vec3 wo_f, float *pdf_R, float *pdf_TT)
+{
+  *pdf_R = *pdf_TT = 0.0f;
+  if (!(wo_f.z > 0.0f)) {
+    return;
+  }
+  const float theta = theta_of(wo_f), inv_cos = 1.0f / fmaxf(cos_theta(wo_f), kYarnMinCosTheta);
+  *pdf_R = truncated_normal_pdf(l.tn_R, theta) * kInvPi * inv_cos;
+  if (l.q_TT > 0.0f) {
+    *pdf_TT = truncated_normal_pdf(l.tn_TT, theta) * truncated_normal_pdf(l.tn_TT_phi, phi_of(wo_f)) * inv_cos;
+  }
+}
+
 NY_KERNEL_FN float yarn_pdf_R_fiber(const YarnLobes &l, Vec3 wo_f)
 {
-  if (!(wo_f.z > 0.0f)) {
-    return 0.0f;
-  }
-  return truncated_normal_pdf(l.tn_R, theta_of(wo_f)) * kInvPi / fmaxf(cos_theta(wo_f), kYarnMinCosTheta);
+  float r, tt;
+  yarn_pdf_R_parts(l, wo_f, &r, &tt);
+  return (1.0f - l.q_TT) * r + l.q_TT * tt;
 }
 
 /* The M proxy alone: kappa_M TN(theta~_o) vM(phi~_o) / cos theta~_o + (1 - kappa_M) / 4 pi. The fit
@@ -471,10 +545,14 @@ NY_KERNEL_FN bool yarn_sample(const YarnBsdfParams &p, Vec3 wi, float u_lobe, fl
   }
   Vec3 wo_f;
   if (u < p.kappa_R) {
-    /* R: the specular cone of the surface fibers, upper half of the azimuths. */
-    const float theta = sample_truncated_normal(l.tn_R, u1);
-    const float phi = kPi * u2 - kHalfPi;
-    wo_f = direction_from_angles(theta, phi);
+    if (u < p.kappa_R * l.q_TT) {
+      /* R's TT part: through a surface fiber, forward. */
+      wo_f = direction_from_angles(sample_truncated_normal(l.tn_TT, u1), sample_truncated_normal(l.tn_TT_phi, u2));
+    }
+    else {
+      /* R: the specular cone of the surface fibers, upper half of the azimuths. */
+      wo_f = direction_from_angles(sample_truncated_normal(l.tn_R, u1), kPi * u2 - kHalfPi);
+    }
   }
   else {
     const float v = clampf((u - p.kappa_R) / (1.0f - p.kappa_R), 0.0f, 0.99999994f);

@@ -21,7 +21,7 @@ namespace neuralyarn::model {
 
 /* 2: energy calibration table; 3: R azimuth table (kernel array layout 3). Versions 1 and 2 still load
  * (without the tables they lack; their kernel array is rebuilt in the current layout). */
-constexpr int kModelFormatVersion = 3;
+constexpr int kModelFormatVersion = 4;
 
 class ModelError : public std::runtime_error {
  public:
@@ -53,12 +53,14 @@ struct EnergyCalibration {
   bool empty() const { return theta_bins == 0; }
 };
 
-/* The R lobe's azimuthal density nu(phi~_o | w_i) (kernel/yarn_bsdf.h yarn_r_azimuth, model/r_azimuth.h).
- * Empty: uniform. */
-struct RAzimuthTable {
+/* The R lobe's shape over w_i (kernel/yarn_bsdf.h, model/r_shape.h): the azimuthal density nu(phi~_o | w_i)
+ * of its reflection part and its TT share tau. Empty: uniform azimuth, no TT. */
+struct RShapeTable {
   int theta_bins = 0, phi_bins = 0, azimuth_bins = 0;
-  std::vector<float> values; /* [theta_i][phi_i][phi~_o], each row: sum * pi / azimuth_bins = 1 */
+  /* [theta_i][phi_i][nu over phi~_o (sum * pi / azimuth_bins = 1), tau r, g, b (in [0, 1])] */
+  std::vector<float> values;
   bool empty() const { return theta_bins == 0; }
+  int stride() const { return azimuth_bins + 3; }
 };
 
 struct YarnModel {
@@ -66,7 +68,7 @@ struct YarnModel {
   NetworkRecord T, R, M;
   SamplingProxy proxy;
   EnergyCalibration calibration;
-  RAzimuthTable r_azimuth;
+  RShapeTable r_shape;
   std::array<double, 3> albedo_M{}; /* M albedo averaged over w_i on the hemisphere */
   nlohmann::json provenance = nlohmann::json::object(); /* maps, seeds, code version, dates */
   nlohmann::json fidelity = nlohmann::json::object();   /* the numbers of `neuralyarn check`, if run */

@@ -1,0 +1,39 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// Fits the R lobe's shape table (kernel/yarn_bsdf.h) to the R map: the azimuthal density nu(phi~_o | w_i) of
+// its reflection part, for the surface fibers' mutual shadowing and masking that the fiber's uniform R
+// azimuth does not have (docs/decisions.md D18), and the share tau(w_i) (RGB) of its TT part, the light
+// that passes through one surface fiber and leaves upward (D21).
+//
+// Per table cell of incident directions and per channel, the R map is summed over cells of pooled
+// outgoing bins (about 12 degrees), and so is the model's lobe (integrated over the same map bins as
+// model/lobe_fidelity.h does) in na + 1 pieces: the reflection part with a uniform azimuth, split by the
+// phi~_o bin each sample came from, and the TT part. A non-negative least-squares fit
+//     map = sum_k b_k R_k + d TT
+// gives both at once: tau = d E_TT / (d E_TT + sum_k b_k E_k) (E: the pieces' energies) and the
+// reflection's relative density b_k, averaged over the channels and normalised (sum nu_k pi / n = 1), so
+// the lobe's energy is unchanged. The two parts differ in their longitudinal width (beta_R against beta_TT)
+// and azimuth (the reflection cone against the forward direction), which is what tells them apart. A phi~_o
+// bin that the lobe hardly reaches keeps the row's mean; densities stay within 20x of uniform.
+#pragma once
+
+#include <Eigen/Dense>
+
+#include "neuralyarn/model/model.h"
+#include "neuralyarn/rdm/gather.h"
+
+namespace neuralyarn::model {
+
+struct RShapeOptions {
+  int theta_bins = 11, phi_bins = 24, azimuth_bins = 16;
+  bool fit_tt = true; /* false: tau = 0 (the reflection part only, as model layout 3) */
+};
+
+/* The table for `model` (its current table is ignored) on `maps` (same preset). */
+RShapeTable fit_r_shape(const YarnModel &model, const rdm::RdmMaps &maps, const RShapeOptions &options = {});
+
+/* min |A x - y|^2 subject to x >= 0, from the normal equations G = A^T A, h = A^T y (Lawson and Hanson's
+ * active-set method). */
+Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd &G, const Eigen::VectorXd &h);
+
+}  // namespace neuralyarn::model
