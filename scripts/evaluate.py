@@ -15,9 +15,11 @@ References are cached in DIR/refs and reused when the scene files and the sample
 
 Scenes: `closeup`, the single-ply close-up of `neuralyarn cycles-scene` (ply radius 1 along x, camera at
 distance 12; the ply 48 long so that its ends are out of the frame). Methods: `explicit` (the fibers
-themselves, the reference's method, at the test's samples) and `native` (`--model models/<preset>.json`:
-one thick curve with the neural_yarn_bsdf closure). Lights: the rigs of `neuralyarn cycles-scene
---list-lights`.
+themselves, the reference's method, at the test's samples), `native` (`--model models/<preset>.json`:
+one thick curve with the neural_yarn_bsdf closure), and on request `osl` and `nodes`: the add-on's
+stock-Blender fallbacks on the native method's scene, rendered by the bpy wheel's Cycles
+(scripts/fallback_render.py rebuilds the scene in Blender; presets only). Lights: the rigs of
+`neuralyarn cycles-scene --list-lights`.
 
 Metrics against reference A (linear HDR images):
   mean_colour_error        per channel, mean colour / reference mean colour - 1, over the central region:
@@ -65,7 +67,12 @@ MODELS = os.path.join(ROOT, "models")
 
 PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
 SCENES = ["closeup"]
-METHODS = ["explicit", "native"]
+METHODS = ["explicit", "native", "osl", "nodes"]
+DEFAULT_METHODS = ["explicit", "native"]
+#: Methods rendered by Blender (the bpy wheel) from the native method's scene.
+FALLBACKS = ("osl", "nodes")
+PY = os.path.join(ROOT, ".venv", "bin", "python")
+FALLBACK_RENDER = os.path.join(ROOT, "scripts", "fallback_render.py")
 REFERENCE_METHOD = "explicit"
 # Cycles integrator seeds: the runs use 1..--seeds, the references two seeds of their own.
 REFERENCE_SEEDS = {"A": 1001, "B": 1002}
@@ -120,7 +127,8 @@ def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
     ap.add_argument("--quick", action="store_true",
                     help="96x48, reference 64 spp, 4 spp, fleece, lights key-rim and grazing (unless given)")
     ap.add_argument("--scenes", nargs="+", help=f"scenes ({', '.join(SCENES)}; default all)")
-    ap.add_argument("--methods", nargs="+", help=f"methods ({', '.join(METHODS)}; default all)")
+    ap.add_argument("--methods", nargs="+",
+                    help=f"methods ({', '.join(METHODS)}; default {', '.join(DEFAULT_METHODS)})")
     ap.add_argument("--presets", nargs="+", help=f"presets ({', '.join(PRESETS)}; default all)")
     ap.add_argument("--lights", nargs="+", help=f"light rigs ({', '.join(rigs)}; default all)")
     ap.add_argument("--yarn", action="append", default=[], metavar="NAME=PARAMS.json,MODEL.json",
@@ -139,7 +147,7 @@ def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
     a = ap.parse_args(argv)
     base = QUICK if a.quick else DEFAULTS
     a.scenes = names(a.scenes) or SCENES
-    a.methods = names(a.methods) or METHODS
+    a.methods = names(a.methods) or DEFAULT_METHODS
     a.presets = names(a.presets) or base["presets"]
     a.lights = names(a.lights) or base["lights"] or list(rigs)
     a.yarns = {}
@@ -176,7 +184,9 @@ def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
     if a.ref_spp % a.ref_rotations:
         raise Usage(f"--ref-spp ({a.ref_spp}) must be a multiple of --ref-rotations ({a.ref_rotations})")
     a.presets += [y for y in a.yarns if y not in a.presets]
-    if "native" in a.methods:
+    if any(m in FALLBACKS for m in a.methods) and a.yarns:
+        raise Usage("methods osl and nodes render the presets only (the add-on's shipped models)")
+    if "native" in a.methods or any(m in FALLBACKS for m in a.methods):
         for p in a.presets:
             if not os.path.isfile(model_path(a.yarns, p)):
                 raise Usage(f"method native: model '{model_path(a.yarns, p)}' is missing (scripts/bake_models.sh makes it)")
@@ -227,7 +237,7 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
             "--height", str(a.height), "--ply-length", f"{CLOSEUP_PLY_LENGTH:g}", "--out", path]
     if rotation:
         args += ["--ply-rotation", f"{rotation:g}"]
-    if method == "native":
+    if method == "native" or method in FALLBACKS:
         args += ["--model", model_path(a.yarns, preset)]
     run_cli(args)
     return path
@@ -245,14 +255,20 @@ def empty_scene(a) -> str:
     return path
 
 
-def render(a, scene: str, spp: int, exr: str, what: str) -> dict:
-    """Renders with the patched Cycles; returns seconds (wall) and peak_rss_mb, and logs the time. Raises
-    RenderFailed with the reason (exit code, signal, timeout, no image, non-finite pixels): the caller logs it."""
+def render(a, scene: str, spp: int, exr: str, what: str, fallback: tuple[str, str, int] | None = None) -> dict:
+    """Renders with the patched Cycles, or with `fallback` = (body, preset, seed) the add-on's fallback body in
+    Blender; returns seconds (wall) and peak_rss_mb, and logs the time. Raises RenderFailed with the reason
+    (exit code, signal, timeout, no image, non-finite pixels): the caller logs it."""
     t0 = time.monotonic()
     with tempfile.NamedTemporaryFile("r", suffix=".time") as tf:
-        cmd = ["/usr/bin/time", "-f", "%M", "-o", tf.name, CYCLES, "--background", "--quiet", "--samples",
-               str(spp), "--threads", str(a.threads), "--width", str(a.width), "--height", str(a.height),
-               "--output", exr, scene]
+        if fallback:
+            body, preset, seed = fallback
+            tool = [PY, FALLBACK_RENDER, scene, exr, "--preset", preset, "--body", body, "--samples", str(spp),
+                    "--seed", str(seed), "--threads", str(a.threads)]
+        else:
+            tool = [CYCLES, "--background", "--quiet", "--samples", str(spp), "--threads", str(a.threads),
+                    "--width", str(a.width), "--height", str(a.height), "--output", exr, scene]
+        cmd = ["/usr/bin/time", "-f", "%M", "-o", tf.name, *tool]
         if os.path.exists(exr):
             os.remove(exr)
         # A session of its own, so that a timeout kills Cycles too, not only /usr/bin/time.
@@ -271,8 +287,8 @@ def render(a, scene: str, spp: int, exr: str, what: str) -> dict:
         lines = [ln for ln in tf.read().splitlines() if ln.strip()]
     tail = " ".join((err or out or "").strip().splitlines()[-3:])
     if p.returncode != 0:
-        reason = f"cycles exited with {p.returncode}" + (f" ({signal.Signals(p.returncode - 128).name})"
-                                                          if p.returncode > 128 else "")
+        reason = f"{'blender' if fallback else 'cycles'} exited with {p.returncode}" + (
+            f" ({signal.Signals(p.returncode - 128).name})" if p.returncode > 128 else "")
         raise RenderFailed(f"{reason}: {tail}" if tail else reason)
     if not os.path.isfile(exr):
         raise RenderFailed(f"cycles wrote no image: {tail}")
@@ -469,7 +485,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
             try:
                 xml = write_scene(a, scene, method, preset, light, 1)
                 load = render(a, xml, 1, os.path.join(a.out, "renders", f"{scene}_{preset}_{light}_{method}_1spp.exr"),
-                              what)
+                              what, (method, preset, 1) if method in FALLBACKS else None)
             except RenderFailed as e:
                 load_failed = f"load render failed: {e}"
                 failures += 1
@@ -490,7 +506,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                     exr = os.path.join(a.out, "renders", f"{scene}_{preset}_{light}_{method}_{spp}spp_seed{seed}.exr")
                     try:
                         xml_s = xml if seed == 1 else write_scene(a, scene, method, preset, light, seed)
-                        cost = render(a, xml_s, spp, exr, what)
+                        cost = render(a, xml_s, spp, exr, what, (method, preset, seed) if method in FALLBACKS else None)
                     except RenderFailed as e:
                         rec["failed"] = str(e)
                         failures += 1

@@ -8,7 +8,8 @@ scripts/bench_fallback.sh:
 
 The scene is rebuilt element by element: <camera width height>, the perspective camera's translation and
 fov (vertical, as the standalone's auto viewplane for width >= height), point lights (tfm translation,
-strength = Blender's energy, size = radius: what Blender's own light sync passes to Cycles), the
+strength = Blender's energy, size = radius: what Blender's own light sync passes to Cycles), distant lights
+(a sun: the transform's -Z, strength = its energy, angle), the
 background's strength and colour, the integrator's bounce limits, and the <hair> curves with their radii.
 --body diffuse gives the curves a grey Diffuse BSDF instead (the scene-equivalence check; the XML is then
 expected to hold the same diffuse shader). The standalone camera is left-handed (x right, y up, looking
@@ -27,6 +28,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 import bpy
+import mathutils
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
 
@@ -96,18 +98,27 @@ def build(xml_path: str, preset: str, body: str, samples: int, seed: int):
     bg.inputs["Strength"].default_value = float(bg_el.get("strength", 1.0))
 
     for k, light_el in enumerate(root.iter("light")):
-        if light_el.get("light_type") != "point":
-            raise SystemExit(f"{xml_path}: only point lights are supported")
+        kind = light_el.get("light_type")
+        if kind not in ("point", "distant"):
+            raise SystemExit(f"{xml_path}: only point and distant lights are supported")
         tfm = floats(light_el.get("tfm")).reshape(3, 4)
         strength = floats(light_el.get("strength"))
-        light = bpy.data.lights.new(f"light{k}", "POINT")
-        light.energy = float(strength.max())
+        light = bpy.data.lights.new(f"light{k}", "POINT" if kind == "point" else "SUN")
+        light.energy = float(strength.max())  # Blender's sync passes energy (W, or W/m^2 for a sun) as strength
         light.color = tuple(strength / strength.max())
-        light.shadow_soft_size = float(light_el.get("size", 0.0))
-        if hasattr(light, "use_soft_falloff"):
-            light.use_soft_falloff = False  # Blender 4.0+'s default; the standalone light has none
         obj = bpy.data.objects.new(f"light{k}", light)
-        obj.location = tuple(tfm[:, 3])
+        if kind == "point":
+            light.shadow_soft_size = float(light_el.get("size", 0.0))
+            if hasattr(light, "use_soft_falloff"):
+                light.use_soft_falloff = False  # Blender 4.0+'s default; the standalone light has none
+            obj.location = tuple(tfm[:, 3])
+        else:
+            # Both shine along -Z of their transform; the angle is the disc's full angular diameter in both.
+            light.angle = float(light_el.get("angle", 0.0))
+            m = np.eye(4)
+            m[:3, :] = tfm
+            obj.matrix_world = mathutils.Matrix(m.tolist())
+        obj.visible_camera = light_el.get("use_camera", "true") != "false"
         scene.collection.objects.link(obj)
 
     if body == "diffuse":
@@ -154,6 +165,7 @@ def main() -> None:
     ap.add_argument("--body", choices=("osl", "nodes", "diffuse"), required=True)
     ap.add_argument("--samples", type=int, default=64)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--threads", type=int, default=0, help="render threads (0: all cores)")
     ap.add_argument("--save-blend", help="also save the scene as this .blend (models and images packed)")
     ap.add_argument("--open-blend", action="store_true",
                     help="SCENE is a .blend: open it (the add-on registered) and render it as saved")
@@ -168,6 +180,9 @@ def main() -> None:
         scene = build(args.scene, args.preset, args.body, args.samples, args.seed)
         if args.save_blend:
             bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.save_blend))
+    if args.threads > 0:
+        scene.render.threads_mode = "FIXED"
+        scene.render.threads = args.threads
     print(f"fallback_render: Blender {bpy.app.version_string}, Cycles OSL {bpy.app.build_options.cycles_osl}")
     tmp = args.out + ".mirrored.exr"
     scene.render.image_settings.file_format = "OPEN_EXR"

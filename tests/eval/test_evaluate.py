@@ -96,7 +96,7 @@ def test_progress_and_cached_references(quick):
 
 @pytest.mark.parametrize("args, message", [
     (["--lights", "sun"], "evaluate: error: unknown light 'sun' (known: key-rim, environment, front, grazing, back, axis)"),
-    (["--methods", "cycles-osl"], "evaluate: error: unknown method 'cycles-osl' (known: explicit, native)"),
+    (["--methods", "cycles-osl"], "evaluate: error: unknown method 'cycles-osl' (known: explicit, native, osl, nodes)"),
     (["--presets", "wool"], "evaluate: error: unknown preset 'wool' (known: fleece, silk, polyester, cotton, gabardine)"),
 ])
 def test_unknown_name_exits_1_with_one_line(tmp_path, args, message):
@@ -127,3 +127,22 @@ def test_a_yarn_beyond_the_presets(tmp_path):
     assert "my_wool" in scene.splitlines()[1]  # the explicit ply of the parameter file, not a preset
     bad = evaluate("--quick", "--out", str(tmp_path), "--yarn", "fleece=a.json,b.json")
     assert bad.returncode == 1 and "--yarn" in bad.stderr
+
+
+def test_the_stock_fallbacks_under_a_distant_light(tmp_path):
+    """--methods osl nodes: the add-on's fallbacks on the native method's scene, in Blender (the bpy wheel;
+    scripts/fallback_render.py turns the scene's distant light into a sun). The grazing light from the wrong
+    side, or at the wrong strength (a factor pi), would be off by far more than the fallbacks' own error
+    (tens of %, docs/benchmarks.md), so the mean luminance must stay within 50 % of the explicit fibers."""
+    r = evaluate("--quick", "--out", str(tmp_path), "--lights", "grazing", "--methods", "osl", "nodes",
+                 "--spp", "16")
+    assert r.returncode == 0, r.stderr
+    res = json.load(open(tmp_path / "results.json"))
+    runs = {x["method"]: x for x in res["runs"]}
+    assert set(runs) == {"osl", "nodes"}
+    for method, run in runs.items():
+        assert not run["failed"], (method, run["failed"])
+        assert abs(run["mean_luminance_error"]) < 0.5, (method, run["mean_luminance_error"])
+    bad = evaluate("--quick", "--out", str(tmp_path / "never"), "--methods", "osl", "--yarn",
+                   f"my_wool={os.path.join(ROOT, 'tests', 'data', 'good_custom.json')},{os.path.join(ROOT, 'models', 'fleece.json')}")
+    assert bad.returncode == 1 and "presets only" in bad.stderr
