@@ -96,23 +96,13 @@ struct LongitudinalLobe {
   float inv_beta_G; /* 1 / (beta G): gbar(theta) = normal_pdf((theta - mu) / beta) * inv_beta_G */
 };
 
-NY_KERNEL_FN LongitudinalLobe make_longitudinal_lobe(float mu, float beta)
+/* `wide`: G by cos2_gaussian_normalizer_wide (a fiber's TT, beta >= 5 degrees). */
+NY_KERNEL_FN LongitudinalLobe make_longitudinal_lobe(float mu, float beta, bool wide = false)
 {
   LongitudinalLobe lobe;
   lobe.mu = mu;
   lobe.beta = beta;
-  const float G = cos2_gaussian_normalizer(mu, beta);
-  lobe.inv_beta_G = (G > 0.0f) ? 1.0f / (beta * G) : 0.0f;
-  return lobe;
-}
-
-/* The same with cos2_gaussian_normalizer_wide. */
-NY_KERNEL_FN LongitudinalLobe make_wide_longitudinal_lobe(float mu, float beta)
-{
-  LongitudinalLobe lobe;
-  lobe.mu = mu;
-  lobe.beta = beta;
-  const float G = cos2_gaussian_normalizer_wide(mu, beta);
+  const float G = wide ? cos2_gaussian_normalizer_wide(mu, beta) : cos2_gaussian_normalizer(mu, beta);
   lobe.inv_beta_G = (G > 0.0f) ? 1.0f / (beta * G) : 0.0f;
   return lobe;
 }

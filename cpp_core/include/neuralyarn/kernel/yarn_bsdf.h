@@ -371,7 +371,7 @@ NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_ev
   if (average(l.tau) > 0.0f && e_R > 0.0f) {
     l.q_TT = clampf(average(l.weight_R * l.tau) / e_R, 0.0f, 1.0f);
     l.tn_TT = make_truncated_normal(-theta_i, p.fiber.beta_TT, -kHalfPi, kHalfPi);
-    l.m_TT = with_eval ? make_wide_longitudinal_lobe(-theta_i, p.fiber.beta_TT)
+    l.m_TT = with_eval ? make_longitudinal_lobe(-theta_i, p.fiber.beta_TT, true)
                        : LongitudinalLobe{-theta_i, p.fiber.beta_TT, 0.0f};
   }
   else {
