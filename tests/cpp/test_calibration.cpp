@@ -45,11 +45,13 @@ TEST(Calibration, MatchesTheMapsAtBinCentresAndHelpsOnIndependentMaps)
               before_b.albedo_mae_rel, after_b.albedo_mae_rel, before_b.T_rmse, after_b.T_rmse,
               before_b.R_energy_mae_rel, after_b.R_energy_mae_rel, before_b.M_energy_mae_rel, after_b.M_energy_mae_rel);
   /* On the maps it was computed from: the exit energy is T + R + M, so every error is float rounding
-   * (energies are sums of ~1000 floats). */
+   * (energies are sums of ~1000 floats) -- except where a bin's noisy total exceeds 1 (cotton's albedo is
+   * ~0.99, 8300 paths per bin): there R and M are scaled so that it scatters what it receives, no more
+   * (tests/cpp/test_furnace.cpp), which moves the means by ~0.2 %. */
   EXPECT_LT(after_a.T_rmse, 1e-5);
-  EXPECT_LT(after_a.R_energy_mae_rel, 1e-4);
-  EXPECT_LT(after_a.M_energy_mae_rel, 1e-4);
-  EXPECT_LT(after_a.albedo_mae_rel, 1e-4);
+  EXPECT_LT(after_a.R_energy_mae_rel, 0.005);
+  EXPECT_LT(after_a.M_energy_mae_rel, 0.005);
+  EXPECT_LT(after_a.albedo_mae_rel, 0.005);
   /* On independent maps of the same size: what is left is the noise of two 8300-path bins (~1.5 % relative
    * each, both maps), far below the networks' own error on cotton (11 %). */
   EXPECT_LT(after_b.albedo_mae_rel, 0.5 * before_b.albedo_mae_rel);

@@ -107,11 +107,25 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
     net_M[size_t(k) * 3 + 1] = e_m.g;
     net_M[size_t(k) * 3 + 2] = e_m.b;
   });
+  /* P_T at each bin centre as calibrated (the networks' plus the window's mean dP_T). */
+  std::vector<double> P_T(static_cast<size_t>(n));
+  tbb::parallel_for(0, n, [&](int k) { P_T[size_t(k)] = double(ny::yarn_lobes(p, incident(k)).P_T); });
   for (int k = 0; k < n; k++) {
     float *v = &c.values[size_t(k) * ny::kYarnCalStride];
     for (int ch = 0; ch < 3; ch++) {
       v[1 + ch] = ratio(window_sum(ER, 3, k, ch), window_sum(net_R, 3, k, ch));
       v[4 + ch] = ratio(window_sum(EM, 3, k, ch), window_sum(net_M, 3, k, ch));
+      /* No bin scatters more than the maps' window says leaves the ply, nor more than it receives: the
+       * window's ratios scale R and M by the window's mean, while P_T varies across it (the gaps between
+       * fibers), so where P_T is above the window's mean the three together could exceed it (by up to 6 %
+       * at grazing incidence before this bound, tests/cpp/test_furnace.cpp). */
+      const double total = std::min(1.0, window_sum(maps.exit_energy, 3, k, ch) / window);
+      const double scattered = v[1 + ch] * net_R[size_t(k) * 3 + size_t(ch)] + v[4 + ch] * net_M[size_t(k) * 3 + size_t(ch)];
+      const double room = std::max(0.0, total - P_T[size_t(k)]);
+      if (scattered > room && scattered > 0.0) {
+        v[1 + ch] = float(v[1 + ch] * room / scattered);
+        v[4 + ch] = float(v[4 + ch] * room / scattered);
+      }
     }
     bool hit = false;
     for (int j = 1; j < ny::kYarnCalStride; j++) {
