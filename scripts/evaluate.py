@@ -71,7 +71,6 @@ METHODS = ["explicit", "native", "osl", "nodes"]
 DEFAULT_METHODS = ["explicit", "native"]
 #: Methods rendered by Blender (the bpy wheel) from the native method's scene.
 FALLBACKS = ("osl", "nodes")
-PY = os.path.join(ROOT, ".venv", "bin", "python")
 FALLBACK_RENDER = os.path.join(ROOT, "scripts", "fallback_render.py")
 REFERENCE_METHOD = "explicit"
 # Cycles integrator seeds: the runs use 1..--seeds, the references two seeds of their own.
@@ -263,7 +262,7 @@ def render(a, scene: str, spp: int, exr: str, what: str, fallback: tuple[str, st
     with tempfile.NamedTemporaryFile("r", suffix=".time") as tf:
         if fallback:
             body, preset, seed = fallback
-            tool = [PY, FALLBACK_RENDER, scene, exr, "--preset", preset, "--body", body, "--samples", str(spp),
+            tool = [sys.executable, FALLBACK_RENDER, scene, exr, "--preset", preset, "--body", body, "--samples", str(spp),
                     "--seed", str(seed), "--threads", str(a.threads)]
         else:
             tool = [CYCLES, "--background", "--quiet", "--samples", str(spp), "--threads", str(a.threads),

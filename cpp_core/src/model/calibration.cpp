@@ -96,9 +96,12 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
   /* Pass 2: c_R, c_M with dP_T in place. */
   const std::vector<float> flat = work.kernel_flat();
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
-  std::vector<double> net_R(static_cast<size_t>(n) * 3), net_M(static_cast<size_t>(n) * 3);
+  /* P_T at each bin centre as calibrated (the networks' plus the window's mean dP_T), and R and M as the
+   * networks give them. */
+  std::vector<double> P_T(static_cast<size_t>(n)), net_R(static_cast<size_t>(n) * 3), net_M(static_cast<size_t>(n) * 3);
   tbb::parallel_for(0, n, [&](int k) {
     const ny::YarnLobes l = ny::yarn_lobes(p, incident(k));
+    P_T[size_t(k)] = double(l.P_T);
     const ny::Rgb e_m = m_lobe_energy(p, l);
     net_R[size_t(k) * 3] = 0.5 * l.weight_R.r;
     net_R[size_t(k) * 3 + 1] = 0.5 * l.weight_R.g;
@@ -107,9 +110,6 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
     net_M[size_t(k) * 3 + 1] = e_m.g;
     net_M[size_t(k) * 3 + 2] = e_m.b;
   });
-  /* P_T at each bin centre as calibrated (the networks' plus the window's mean dP_T). */
-  std::vector<double> P_T(static_cast<size_t>(n));
-  tbb::parallel_for(0, n, [&](int k) { P_T[size_t(k)] = double(ny::yarn_lobes(p, incident(k)).P_T); });
   for (int k = 0; k < n; k++) {
     float *v = &c.values[size_t(k) * ny::kYarnCalStride];
     for (int ch = 0; ch < 3; ch++) {

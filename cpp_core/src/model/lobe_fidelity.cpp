@@ -124,6 +124,12 @@ void integrate_r_parts(const ny::YarnBsdfParams &p, const rdm::MapResolution &b,
   }
 }
 
+size_t LobeGrid::outgoing_cell(int to, int po) const
+{
+  return size_t(cell_of(to, bins.theta_o, theta_o_cells)) * size_t(phi_o_cells) +
+         size_t(cell_of(po, bins.phi_o, phi_o_cells));
+}
+
 LobeGrid make_lobe_grid(const rdm::MapResolution &bins, const LobePooling &pooling)
 {
   if (!(pooling.cell_deg > 0.0) || !std::isfinite(pooling.cell_deg)) {
@@ -143,9 +149,7 @@ void add_to_lobe_grid(LobeGrid *g, int ti, int pi, int to, int po, const double 
 {
   const rdm::MapResolution &b = g->bins;
   const size_t group = size_t(ti) * size_t(g->phi_i_groups) + size_t(cell_of(pi, b.phi_i, g->phi_i_groups));
-  const size_t cell = size_t(cell_of(to, b.theta_o, g->theta_o_cells)) * size_t(g->phi_o_cells) +
-                      size_t(cell_of(po, b.phi_o, g->phi_o_cells));
-  double *c = &g->cells[(group * g->cells_per_group() + cell) * 3];
+  double *c = &g->cells[(group * g->cells_per_group() + g->outgoing_cell(to, po)) * 3];
   double *band = &g->bands[(group * kLobeBands + size_t(band_of(to, b.theta_o))) * 3];
   double *axial = &g->bands[(group * kLobeBands + kLobeAxialBand) * 3];
   const bool ax = is_axial(to, po, b);

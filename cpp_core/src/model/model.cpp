@@ -335,54 +335,39 @@ YarnModel model_from_json(const json &j, const std::string &source)
     m.albedo_M[c] = v.get<double>();
   }
   const int version = j["version"].get<int>();
-  if (version == 2) {
-    /* Layout 2 (no R azimuth table): the calibration table runs to the end; the array is rebuilt. */
+  if (version >= 2) {
+    /* The kernel array: layout 2 (no R table; the calibration table runs to the end), 3 (the R azimuth table
+     * without the TT share, under "r_azimuth") and 4 (this code's). Older layouts are only checked for their
+     * version and numbers and rebuilt with the tables taken over (a TT share of 0 renders as they did). */
+    const int layout = version; /* 2, 3 or 4 (kModelFormatVersion; later versions were refused above) */
     const std::vector<float> flat = float_array(j, "kernel_flat", where);
-    if (flat.size() < 20 || flat[0] != 2.0f) {
-      throw ModelError(where + "'kernel_flat' is not a layout 2 array");
+    if (layout == 4) {
+      if (const char *problem = ny::yarn_flat_check(flat.data(), int(flat.size()))) {
+        throw ModelError(where + "'kernel_flat' " + problem);
+      }
     }
-    for (float v : flat) {
-      if (!std::isfinite(v)) {
-        throw ModelError(where + "'kernel_flat' holds a non-finite number");
+    else {
+      const size_t header = layout == 2 ? 20 : 24;
+      if (flat.size() < header || flat[0] != float(layout) ||
+          (layout == 3 && !(flat[ny::kYarnFlatOffset_Az] >= float(header) &&
+                            flat[ny::kYarnFlatOffset_Az] <= float(flat.size())))) {
+        throw ModelError(where + "'kernel_flat' is not a layout " + std::to_string(layout) + " array");
+      }
+      for (float v : flat) {
+        if (!std::isfinite(v)) {
+          throw ModelError(where + "'kernel_flat' holds a non-finite number");
+        }
       }
     }
     if (j.contains("calibration")) {
-      m.calibration = calibration_from(j["calibration"], flat, flat.size(), where + "calibration: ");
+      const size_t end = layout == 2 ? flat.size() : size_t(flat[ny::kYarnFlatOffset_Az]);
+      m.calibration = calibration_from(j["calibration"], flat, end, where + "calibration: ");
     }
-  }
-  else if (version == 3) {
-    /* Layout 3 (the R azimuth table without the TT share): the tables are taken over, the array rebuilt. */
-    const std::vector<float> flat = float_array(j, "kernel_flat", where);
-    if (flat.size() < 24 || flat[0] != 3.0f || !(flat[ny::kYarnFlatOffset_Az] >= 24.0f) ||
-        !(flat[ny::kYarnFlatOffset_Az] <= float(flat.size()))) {
-      throw ModelError(where + "'kernel_flat' is not a layout 3 array");
+    const std::string r_key = layout == 3 ? "r_azimuth" : "r_shape";
+    if (layout >= 3 && j.contains(r_key)) {
+      m.r_shape = r_shape_from(j[r_key], flat, where + r_key + ": ", layout == 3);
     }
-    for (float v : flat) {
-      if (!std::isfinite(v)) {
-        throw ModelError(where + "'kernel_flat' holds a non-finite number");
-      }
-    }
-    if (j.contains("calibration")) {
-      m.calibration =
-          calibration_from(j["calibration"], flat, size_t(flat[ny::kYarnFlatOffset_Az]), where + "calibration: ");
-    }
-    if (j.contains("r_azimuth")) {
-      m.r_shape = r_shape_from(j["r_azimuth"], flat, where + "r_azimuth: ", true);
-    }
-  }
-  else if (version >= 4) {
-    const std::vector<float> flat = float_array(j, "kernel_flat", where);
-    if (const char *problem = ny::yarn_flat_check(flat.data(), int(flat.size()))) {
-      throw ModelError(where + "'kernel_flat' " + problem);
-    }
-    if (j.contains("calibration")) {
-      m.calibration =
-          calibration_from(j["calibration"], flat, size_t(flat[ny::kYarnFlatOffset_Az]), where + "calibration: ");
-    }
-    if (j.contains("r_shape")) {
-      m.r_shape = r_shape_from(j["r_shape"], flat, where + "r_shape: ", false);
-    }
-    if (m.kernel_flat() != flat) {
+    if (layout == 4 && m.kernel_flat() != flat) {
       throw ModelError(where + "'kernel_flat' disagrees with the networks, preset and sampling parameters");
     }
   }

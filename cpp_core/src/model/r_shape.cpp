@@ -16,7 +16,6 @@ namespace neuralyarn::model {
 
 namespace {
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kCellDeg = 12.0; /* pooled outgoing cells */
 constexpr double kMaxDensityRatio = 20.0;
 }  // namespace
 
@@ -94,9 +93,8 @@ RShapeTable fit_r_shape(const YarnModel &model, const rdm::RdmMaps &maps, const 
   }
   const rdm::MapResolution &b = maps.bins;
   const int na = o.azimuth_bins, nv = na + 1; /* the reflection's azimuth pieces and the TT part */
-  const int nct = std::max(1, std::min(b.theta_o, int(std::lround(180.0 / kCellDeg))));
-  const int ncp = std::max(1, std::min(b.phi_o, int(std::lround(360.0 / kCellDeg))));
-  const size_t n_cells = size_t(nct) * size_t(ncp);
+  const LobeGrid pooled = make_lobe_grid(b); /* its outgoing cells (about 12 degrees), as the 4D measure's */
+  const size_t n_cells = pooled.cells_per_group();
 
   RShapeTable t;
   t.theta_bins = o.theta_bins;
@@ -114,7 +112,6 @@ RShapeTable fit_r_shape(const YarnModel &model, const rdm::RdmMaps &maps, const 
   }
   const std::vector<float> flat = uniform.kernel_flat();
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
-  auto cell_of = [&](int to, int po) { return size_t(to * nct / b.theta_o) * size_t(ncp) + size_t(po * ncp / b.phi_o); };
   /* phi~_o bin of each map bin's centre (-1: not on the upper half, where R cannot go). */
   std::vector<int> az_of(b.outgoing(), -1);
   for (int to = 0; to < b.theta_o; to++) {
@@ -152,7 +149,7 @@ RShapeTable fit_r_shape(const YarnModel &model, const rdm::RdmMaps &maps, const 
             const float *v = &maps.r[maps.map_index(ti, pi, to, po)];
             const int k = az_of[size_t(to) * size_t(b.phi_o) + size_t(po)];
             for (int c = 0; c < 3; c++) {
-              y[tp][cell_of(to, po) * 3 + size_t(c)] += v[c] * dO;
+              y[tp][pooled.outgoing_cell(to, po) * 3 + size_t(c)] += v[c] * dO;
               if (k >= 0) {
                 y_az[tp][size_t(k) * 3 + size_t(c)] += v[c] * dO;
               }
@@ -163,7 +160,7 @@ RShapeTable fit_r_shape(const YarnModel &model, const rdm::RdmMaps &maps, const 
                           [&](int to, int po, float phi_f, const ny::Rgb &er, const ny::Rgb &et, const ny::Rgb &) {
                             const int k = std::clamp(int((phi_f + 0.5 * kPi) / kPi * na), 0, na - 1);
                             const int kc = az_of[size_t(to) * size_t(b.phi_o) + size_t(po)];
-                            double *a = &A[tp][cell_of(to, po) * size_t(nv) * 3];
+                            double *a = &A[tp][pooled.outgoing_cell(to, po) * size_t(nv) * 3];
                             const float vr[3] = {er.r, er.g, er.b}, vt[3] = {et.r, et.g, et.b};
                             for (int c = 0; c < 3; c++) {
                               a[size_t(k) * 3 + size_t(c)] += vr[c];
@@ -255,24 +252,20 @@ RShapeTable fit_r_shape(const YarnModel &model, const rdm::RdmMaps &maps, const 
       /* 3. Of the two, the one whose lobe is closer to the map over the pooled cells (energy-weighted L1,
        * totals matched per channel as the calibration will): the joint fit sees every sample's own azimuth,
        * the ratio matches the map's marginals exactly; which is closer differs with the incidence. */
+      /* Relative to uniform: mean 1, within kMaxDensityRatio either way (clamping moves the mean, so
+       * three rounds of rescaling and clamping, then a last rescale). */
       auto normalised = [&](std::vector<double> v) {
-        for (int pass = 0; pass < 3; pass++) {
+        for (int pass = 0; pass < 4; pass++) {
           double sum = 0;
           for (double x : v) {
             sum += x;
           }
           for (double &x : v) {
-            x = sum > 0 ? std::clamp(x * na / sum, 1.0 / kMaxDensityRatio, kMaxDensityRatio) : 1.0;
+            x = pass == 3 ? x * (na / sum)
+                          : sum > 0 ? std::clamp(x * na / sum, 1.0 / kMaxDensityRatio, kMaxDensityRatio) : 1.0;
           }
         }
-        double sum = 0;
-        for (double x : v) {
-          sum += x;
-        }
-        for (double &x : v) {
-          x *= na / sum;
-        }
-        return v; /* relative to uniform: mean 1 */
+        return v;
       };
       auto l1_of = [&](const std::vector<double> &a) {
         double err = 0;

@@ -359,8 +359,11 @@ NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_ev
     l.az_bins = p.az_bins;
   }
   /* The TT part, if it has a share: forward azimuth phi~_i + pi, truncated to the upper half. */
+  /* Without a share the TT part is never evaluated nor sampled (q_TT = 0): no erfc for it. */
   l.q_TT = 0.0f;
-  l.tn_TT_phi = make_truncated_normal(0.0f, 1.0f, -kHalfPi, kHalfPi);
+  l.tn_TT = l.tn_R;
+  l.m_TT = l.m_R;
+  l.tn_TT_phi = TruncatedNormal{0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
   if (average(l.tau) > 0.0f) {
     l.tn_TT_phi = make_truncated_normal(wrap_angle(phi_of(l.wi_f) + kPi), p.fiber.gamma_TT, -kHalfPi, kHalfPi);
     if (!(l.tn_TT_phi.mass > 0.0f)) {
@@ -373,10 +376,6 @@ NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_ev
     l.tn_TT = make_truncated_normal(-theta_i, p.fiber.beta_TT, -kHalfPi, kHalfPi);
     l.m_TT = with_eval ? make_longitudinal_lobe(-theta_i, p.fiber.beta_TT, true)
                        : LongitudinalLobe{-theta_i, p.fiber.beta_TT, 0.0f};
-  }
-  else {
-    l.tn_TT = l.tn_R;
-    l.m_TT = l.m_R;
   }
   return l;
 }

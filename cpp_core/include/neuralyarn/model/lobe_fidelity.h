@@ -60,6 +60,8 @@ struct LobeGrid {
   std::vector<double> cells, bands;
   size_t groups() const { return size_t(bins.theta_i) * size_t(phi_i_groups); }
   size_t cells_per_group() const { return size_t(theta_o_cells) * size_t(phi_o_cells); }
+  /* The cell of outgoing map bin (to, po) within a group. */
+  size_t outgoing_cell(int to, int po) const;
 };
 
 /* An empty grid (zeros) for maps of resolution `bins`. */
