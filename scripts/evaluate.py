@@ -254,10 +254,11 @@ def empty_scene(a) -> str:
     return path
 
 
-def render(a, scene: str, spp: int, exr: str, what: str, fallback: tuple[str, str, int] | None = None) -> dict:
+def render(a, scene: str, spp: int, exr: str, what: str, fallback: tuple[str, str, int] | None = None,
+           finite: bool = True) -> dict:
     """Renders with the patched Cycles, or with `fallback` = (body, preset, seed) the add-on's fallback body in
     Blender; returns seconds (wall) and peak_rss_mb, and logs the time. Raises RenderFailed with the reason
-    (exit code, signal, timeout, no image, non-finite pixels): the caller logs it."""
+    (exit code, signal, timeout, no image, and with `finite` non-finite pixels): the caller logs it."""
     t0 = time.monotonic()
     with tempfile.NamedTemporaryFile("r", suffix=".time") as tf:
         if fallback:
@@ -292,7 +293,7 @@ def render(a, scene: str, spp: int, exr: str, what: str, fallback: tuple[str, st
     if not os.path.isfile(exr):
         raise RenderFailed(f"cycles wrote no image: {tail}")
     img = read_exr(exr)
-    if not np.isfinite(img).all():
+    if finite and not np.isfinite(img).all():
         raise RenderFailed(f"{int((~np.isfinite(img)).sum())} non-finite pixel values")
     log(f"{what}: {seconds:.1f} s")
     return {"seconds": seconds, "peak_rss_mb": float(lines[-1]) / 1024.0 if lines else None}
@@ -320,14 +321,15 @@ def camera(scene: str) -> tuple[float, float]:
     return -float(t.group(1)), float(t.group(2))
 
 
-def central_region(distance: float, fov: float, width: int, height: int) -> tuple[slice, slice]:
+def central_region(distance: float, fov: float, width: int, height: int,
+                   radius: float = PLY_RADIUS) -> tuple[slice, slice]:
     """Rows and columns of the central region: the middle half of the width; the rows whose pixel-centre
     rays (x = 0) hit the ply's bounding cylinder y^2 + z^2 = R^2, less one row at each silhouette, where the
     pixel filter mixes ply and background."""
     # Cycles' standalone camera applies the field of view to the shorter side of the image.
     t = math.tan(0.5 * fov) * (1.0 if width >= height else height / width)
     # A ray from (0, 0, -d) with direction (0, v, 1) passes the axis at distance d |v| / sqrt(1 + v^2).
-    v_max = PLY_RADIUS / math.sqrt(distance * distance - PLY_RADIUS * PLY_RADIUS)
+    v_max = radius / math.sqrt(distance * distance - radius * radius)
     rows = [py for py in range(height) if abs((1.0 - 2.0 * (py + 0.5) / height) * t) <= v_max]
     if len(rows) < 3:
         raise RenderFailed(f"{width}x{height}: the ply covers {len(rows)} rows, too few for a central region")

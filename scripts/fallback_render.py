@@ -85,8 +85,8 @@ def build(xml_path: str, preset: str, body: str, samples: int, seed: int):
         scene.cycles.max_bounces = int(integ.get("max_bounce", 64))
         scene.cycles.glossy_bounces = int(integ.get("max_glossy_bounce", 64))
         scene.cycles.transmission_bounces = int(integ.get("max_transmission_bounce", 64))
-        scene.cycles.diffuse_bounces = int(integ.get("max_bounce", 64))
-        scene.cycles.transparent_max_bounces = 64
+        scene.cycles.diffuse_bounces = int(integ.get("max_diffuse_bounce", integ.get("max_bounce", 64)))
+        scene.cycles.transparent_max_bounces = int(integ.get("transparent_max_bounce", 64))
         scene.cycles.min_light_bounces = int(integ.get("min_bounce", 0))
 
     world = bpy.data.worlds.new("world")

@@ -2,7 +2,9 @@
 #include "model_commands.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
 
 #include "cli_common.h"
@@ -226,6 +228,13 @@ class Commands : public ModelCommands {
     fallback_->add_option("--threads", threads_, "Worker threads (0: all cores); results do not depend on it")
         ->capture_default_str();
 
+    furnace_ = app.add_subcommand("furnace",
+                                  "White furnace of a model: the largest energy it scatters from any incident bin "
+                                  "centre under uniform white light (must not exceed 1)");
+    furnace_->add_option("model", model_, "Model file (.json)")->required();
+    furnace_->add_option("--max", max_furnace_, "Exit 1 if the largest value exceeds this")
+        ->check(finite_range(0.0, 100.0));
+
     check_ = app.add_subcommand("check", "Fidelity of a model against maps (albedo, energies, sampling variance)");
     check_->add_option("model", model_, "Model file (.json)")->required();
     check_->add_option("--maps", maps_, "Map file (.nyrdm)")->required();
@@ -265,6 +274,9 @@ class Commands : public ModelCommands {
     }
     if (fallback_->parsed()) {
       return run_fallback();
+    }
+    if (furnace_->parsed()) {
+      return run_furnace();
     }
     return -1;
   }
@@ -404,6 +416,28 @@ class Commands : public ModelCommands {
     return 0;
   }
 
+  int run_furnace()
+  {
+    const model::YarnModel m = model::load_model(model_);
+    const std::vector<float> flat = m.kernel_flat();
+    const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    const rdm::MapResolution bins{22, 90, 45, 90};
+    const model::FurnaceMax f = model::white_furnace_max(p, bins);
+    /* Bin centres in degrees: theta_i in [0, 90), phi_i in [-180, 180). */
+    std::printf("white furnace max %.5f at theta_i %.1f deg, phi_i %.1f deg (%d x %d incident bin centres)\n", f.value,
+                (f.theta_bin + 0.5) * 90.0 / bins.theta_i, -180.0 + (f.phi_bin + 0.5) * 360.0 / bins.phi_i,
+                bins.theta_i, bins.phi_i);
+    if (!std::isfinite(f.value)) {
+      std::fprintf(stderr, "neuralyarn: error: the model scatters a non-finite energy\n");
+      return 1;
+    }
+    if (max_furnace_ && f.value > *max_furnace_) {
+      std::fprintf(stderr, "neuralyarn: error: white furnace %.5f exceeds --max %g\n", f.value, *max_furnace_);
+      return 1;
+    }
+    return 0;
+  }
+
   int run_fallback()
   {
     /* The model without its current tables: they are what this verb replaces, and stale or corrupt ones
@@ -452,7 +486,8 @@ class Commands : public ModelCommands {
     }
   }
 
-  CLI::App *train_, *fit_, *bake_, *check_, *fallback_;
+  CLI::App *train_, *fit_, *bake_, *check_, *fallback_, *furnace_;
+  std::optional<double> max_furnace_;
   TrainModelOptions topt_;
   model::FallbackOptions fbopt_;
   rdm::GatherOptions gopt_;

@@ -180,7 +180,9 @@ int main(int argc, char **argv)
       ->check(finite_range(1.0, 1000.0))
       ->capture_default_str();
   auto *s_opt_lights = scene->add_option("--lights", s_opt.lights,
-                                         "Light rig: " + scenes::light_rig_names() + " (--list-lights)")
+                                         "Light rig: " + scenes::light_rig_names() +
+                                             " (--list-lights), or sun-DEG-normal / sun-DEG-axis: a distant light DEG "
+                                             "degrees from the view")
                            ->capture_default_str();
   scene->add_flag("--white-furnace", s_opt.white_furnace,
                   "Uniform white background, no lights (the environment rig) and no Russian roulette")
@@ -202,6 +204,22 @@ int main(int argc, char **argv)
       ->capture_default_str();
   scene->add_option("--max-bounce", s_opt.max_bounce, "Cycles' bounce limit (Russian roulette ends paths before it)")
       ->check(CLI::Range(1, 65535))
+      ->capture_default_str();
+  scene->add_flag("--artist-bounces", s_opt.artist_bounces,
+                  "Blender's default bounce limits (12, diffuse 4, glossy 4, transmission 12) with the add-on's 64 "
+                  "transparent bounces, instead of --max-bounce for every kind");
+  scene->add_option("--camera-distance", s_opt.camera_distance,
+                    "Camera distance from the ply axis (ply radii): the ply's width in pixels is about "
+                    "height / (0.483 distance)")
+      ->check(finite_range(1.0001, 1e4))
+      ->capture_default_str();
+  scene->add_option("--unit-scale", s_opt.unit_scale,
+                    "Every length times this (ply radius 1 becomes this; a 0.5 mm ply in metres is 2.5e-4)")
+      ->check(finite_range(1e-6, 1e6))
+      ->capture_default_str();
+  scene->add_option("--layers", s_opt.layers,
+                    "Cloth layers: sheets of plies side by side, stacked away from the camera (1: the single ply)")
+      ->check(CLI::Range(1, 256))
       ->capture_default_str();
   scene->add_option("--seed", s_opt.seed, "Cycles' integrator seed: renders with other seeds have independent noise")
       ->check(CLI::Range(0, 2147483647))
@@ -250,28 +268,32 @@ int main(int argc, char **argv)
       scenes::write_ply_scene(resolve_preset(s_preset, s_params), s_opt, s_out);
       std::printf("wrote %s\n", s_out.c_str());
       if (!s_region.empty()) {
-        std::vector<const scenes::LightRig *> rigs;
+        if (s_opt.camera_distance != scenes::kCloseupCameraDistance || s_opt.unit_scale != 1.0 || s_opt.layers != 1) {
+          throw std::runtime_error("--predict-region predicts the close-up as it is: no --camera-distance, "
+                                   "--unit-scale or --layers");
+        }
+        std::vector<scenes::LightRig> rigs;
         if (s_predict_lights.empty()) {
           s_predict_lights.push_back(s_opt.white_furnace ? "environment" : s_opt.lights);
         }
         for (const std::string &name : s_predict_lights) {
-          rigs.push_back(&scenes::find_light_rig(name));
+          rigs.push_back(scenes::find_light_rig(name));
         }
         const scenes::PixelRegion region{s_opt.width, s_opt.height, s_region[0], s_region[1], s_region[2], s_region[3]};
         /* One line per prediction: "predicted model R G B RIG", "predicted maps R G B RIG PATH". */
         if (!s_opt.model.empty()) {
           const scenes::FarField f = scenes::model_far_field(model::load_model(s_opt.model));
-          for (const scenes::LightRig *rig : rigs) {
-            const scenes::Rgb3 a = scenes::predict_closeup(f, *rig, region);
-            std::printf("predicted model %.5f %.5f %.5f %s\n", a.r, a.g, a.b, rig->name.c_str());
+          for (const scenes::LightRig &rig : rigs) {
+            const scenes::Rgb3 a = scenes::predict_closeup(f, rig, region);
+            std::printf("predicted model %.5f %.5f %.5f %s\n", a.r, a.g, a.b, rig.name.c_str());
           }
         }
         for (const std::string &path : s_predict_maps) {
           const rdm::RdmMaps maps = rdm::load_maps(path);
           const scenes::FarField f = scenes::maps_far_field(maps);
-          for (const scenes::LightRig *rig : rigs) {
-            const scenes::Rgb3 a = scenes::predict_closeup(f, *rig, region);
-            std::printf("predicted maps %.5f %.5f %.5f %s %s\n", a.r, a.g, a.b, rig->name.c_str(), path.c_str());
+          for (const scenes::LightRig &rig : rigs) {
+            const scenes::Rgb3 a = scenes::predict_closeup(f, rig, region);
+            std::printf("predicted maps %.5f %.5f %.5f %s %s\n", a.r, a.g, a.b, rig.name.c_str(), path.c_str());
           }
         }
       }

@@ -620,6 +620,49 @@ def test_model_files_the_core_refuses_are_refused(bpy, addon, tmp_path, case):
         addon.model_io.parse_model(text, "model.json")
 
 
+def _edit(path, value):
+    """An edit of the model's JSON object: set (or with value None delete) the key at `path`."""
+    def apply(data):
+        d = data
+        for k in path[:-1]:
+            d = d[k]
+        if value is None:
+            del d[path[-1]]
+        else:
+            d[path[-1]] = value
+        return json.dumps(data)
+    return apply
+
+
+# Every message of model_io.parse_model and its fallback-table check, each from one edit of the shipped
+# cotton model (issue 19: a test that kills the mutant which drops the add-on's alpha < 0 check, and its
+# siblings).
+_REJECTIONS = [
+    ("not JSON", lambda data: json.dumps(data)[:-1], "not valid JSON"),
+    ("format", _edit(["format"], "something-else"), "not a neural yarn model file"),
+    ("version", _edit(["version"], 99), "model format version 99 is not supported"),
+    ("no preset", _edit(["preset"], None), "missing 'preset' object with a 'name'"),
+    ("negative alpha", _edit(["preset", "alpha"], -0.1), "preset 'alpha' must be a finite number >= 0"),
+    ("no kernel", _edit(["kernel_flat"], None), "missing 'kernel_flat'"),
+    ("no fallback", _edit(["fallback"], None), "has no 'fallback' tables"),
+    ("fallback not an object", _edit(["fallback"], [1, 2]), "'fallback' must be an object"),
+    ("fallback version", _edit(["fallback", "version"], 99), "fallback version 99 is not supported"),
+    ("fallback bins", _edit(["fallback", "theta_bins"], 1), "fallback bins must be integers in \\[2, 1024\\]"),
+    ("P_T above 1", lambda data: _edit(["fallback", "P_T"], [1.5] + data["fallback"]["P_T"][1:])(data),
+     "fallback 'P_T'\\[0\\] = 1.5 is outside"),
+    ("E_R short", lambda data: _edit(["fallback", "E_R"], data["fallback"]["E_R"][:-1])(data),
+     "fallback 'E_R' must be a list of"),
+]
+
+
+@pytest.mark.parametrize("case", [c[0] for c in _REJECTIONS])
+def test_every_model_file_rejection_names_its_key(addon, case):
+    data = json.loads(open(os.path.join(addon.resources.resource_dir("models"), "cotton.json")).read())
+    _, edit, message = next(c for c in _REJECTIONS if c[0] == case)
+    with pytest.raises(addon.model_io.ModelFileError, match="^model.json: " + message):
+        addon.model_io.parse_model(edit(data), "model.json")
+
+
 @pytest.mark.parametrize("op", ["knit", "plies"])
 def test_a_refused_object_leaves_no_material_behind(bpy, addon, empty, monkeypatch, op):
     """Issue 20, B6: the curves are refused at creation (here: Blender cannot make the Curves data); the

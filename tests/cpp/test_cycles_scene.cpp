@@ -121,7 +121,8 @@ TEST(CyclesScene, RigNamesInOrderAndUnknownNameListsThem)
     FAIL() << "no exception";
   }
   catch (const std::runtime_error &e) {
-    EXPECT_STREQ(e.what(), "unknown light rig 'sun' (known: key-rim, environment, front, grazing, back, axis)");
+    EXPECT_STREQ(e.what(), "unknown light rig 'sun' (known: key-rim, environment, front, grazing, back, axis, "
+                           "sun-DEG-normal, sun-DEG-axis with DEG in [0, 180])");
   }
   EXPECT_THROW(scene_text("sun"), std::runtime_error);
 }
@@ -183,7 +184,7 @@ TEST(CyclesScene, DistantRigsPointWhereTheyAreNamed)
     EXPECT_EQ(lights[0].at("use_mis"), "true");
     EXPECT_EQ(lights[0].at("use_camera"), "false");
     /* The table says the same. */
-    const RigLight &l = find_light_rig(e.rig).lights.at(0);
+    const RigLight l = find_light_rig(e.rig).lights.at(0);
     EXPECT_NEAR(l.x, d.x, 1e-6);
     EXPECT_NEAR(l.y, d.y, 1e-6);
     EXPECT_NEAR(l.z, d.z, 1e-6);
@@ -254,6 +255,112 @@ TEST(CyclesScene, PlyRotationTurnsTheFibersAboutTheAxis)
     EXPECT_NEAR(p90[i + 1], -p0[i + 2], 1e-6);
     EXPECT_NEAR(p90[i + 2], p0[i + 1], 1e-6);
   }
+}
+
+}  // namespace
+
+namespace {
+
+/* The numbers of attribute `key` of the scene's first <hair> element (searched, not regex-matched: long). */
+std::vector<double> hair_attribute(const std::string &xml, const std::string &key)
+{
+  const size_t hair = xml.find("<hair "), p = xml.find(" " + key + "=\"", hair);
+  if (hair == std::string::npos || p == std::string::npos) {
+    return {};
+  }
+  const size_t b = p + key.size() + 3;
+  return numbers(xml.substr(b, xml.find('"', b) - b));
+}
+
+TEST(CyclesScene, ParametricSunsAreTheNamedRigsAtOtherAngles)
+{
+  /* sun-80-normal is the grazing rig's light, sun-80-axis the axis rig's, sun-170-normal the back rig's. */
+  for (const auto &[sun, rig] : std::vector<std::pair<std::string, std::string>>{
+           {"sun-80-normal", "grazing"}, {"sun-80-axis", "axis"}, {"sun-170-normal", "back"}}) {
+    const RigLight a = find_light_rig(sun).lights.at(0), b = find_light_rig(rig).lights.at(0);
+    EXPECT_NEAR(a.x, b.x, 1e-12) << sun;
+    EXPECT_NEAR(a.y, b.y, 1e-12) << sun;
+    EXPECT_NEAR(a.z, b.z, 1e-12) << sun;
+    EXPECT_EQ(a.strength, b.strength);
+    EXPECT_EQ(a.size, b.size);
+  }
+  /* Written as the named rigs are: 89.9 degrees from the view, along the axis. */
+  const std::vector<Attributes> lights = elements(scene_text("sun-89.9-axis"), "light");
+  ASSERT_EQ(lights.size(), 1u);
+  const Dir d = distant_direction(lights[0]);
+  EXPECT_NEAR(degrees_from_view(d), 89.9, 1e-4);
+  EXPECT_NEAR(d.y, 0.0, 1e-7);
+  /* Camera and light coincident (0) and straight behind (180) are allowed; nothing else is. */
+  EXPECT_NEAR(find_light_rig("sun-0-normal").lights.at(0).z, -1.0, 1e-12);
+  EXPECT_NEAR(find_light_rig("sun-180-axis").lights.at(0).z, 1.0, 1e-12);
+  for (const char *bad : {"sun-180.5-normal", "sun--5-normal", "sun-abc-axis", "sun-45-up", "sun-45", "sun-45x-axis",
+                          "sun--axis"}) {
+    EXPECT_THROW(find_light_rig(bad), std::runtime_error) << bad;
+  }
+}
+
+TEST(CyclesScene, UnitScaleScalesEveryLengthAndPointLightPower)
+{
+  PlySceneOptions o;
+  const std::string one = scene_text(o);
+  o.unit_scale = 1e-3;
+  const std::string milli = scene_text(o);
+  const std::vector<double> p1 = hair_keys(one), pm = hair_keys(milli);
+  ASSERT_EQ(p1.size(), pm.size());
+  for (size_t i = 0; i < p1.size(); i += 97) {
+    EXPECT_NEAR(pm[i], 1e-3 * p1[i], 1e-9 + 1e-6 * std::abs(p1[i]));
+  }
+  EXPECT_NEAR(hair_attribute(milli, "radius").at(0), 1e-3 * hair_attribute(one, "radius").at(0), 1e-9);
+  EXPECT_NEAR(numbers(elements(milli, "transform").at(0).at("translate")).at(2), -12e-3, 1e-12);
+  /* key-rim's sphere lights: positions and radii scaled, power with the area (same irradiance at the ply). */
+  const Attributes l1 = elements(one, "light").at(0), lm = elements(milli, "light").at(0);
+  EXPECT_NEAR(numbers(lm.at("tfm")).at(3), 1e-3 * numbers(l1.at("tfm")).at(3), 1e-12);
+  EXPECT_NEAR(std::stod(lm.at("size")), 1e-3 * std::stod(l1.at("size")), 1e-12);
+  EXPECT_NEAR(numbers(lm.at("strength")).at(0), 1e-6 * numbers(l1.at("strength")).at(0), 1e-9);
+  o.unit_scale = 0.0;
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+}
+
+TEST(CyclesScene, LayersAreSheetsOfPliesStackedAwayFromTheCamera)
+{
+  PlySceneOptions o;
+  o.model = std::string(NY_TEST_DATA_DIR) + "/../../models/fleece.json";
+  o.layers = 3;
+  const std::string xml = scene_text(o);
+  const std::vector<double> nkeys = hair_attribute(xml, "nkeys"), p = hair_keys(xml);
+  /* The sheet fills the frame's height at the camera (12 tan 0.45 = 5.8 radii each side): 2 * 4 + 1 plies. */
+  ASSERT_EQ(nkeys.size(), 3u * 9u);
+  ASSERT_EQ(p.size(), 3u * nkeys.size() * size_t(nkeys[0]));
+  double z_max = 0.0, y_max = 0.0;
+  for (size_t i = 0; i < p.size(); i += 3) {
+    y_max = std::max(y_max, std::abs(p[i + 1]));
+    z_max = std::max(z_max, p[i + 2]);
+    EXPECT_GE(p[i + 2], 0.0);
+  }
+  EXPECT_NEAR(y_max, 4 * 2.05, 1e-5);
+  EXPECT_NEAR(z_max, 2 * 2.05, 1e-5); /* behind the first layer, away from the camera */
+  /* Explicit: the same plies of fibers, each turned differently. */
+  o.model.clear();
+  o.layers = 2;
+  const std::vector<double> fibers = hair_attribute(scene_text(o), "nkeys");
+  o.layers = 1;
+  EXPECT_EQ(fibers.size(), 2u * 9u * hair_attribute(scene_text(o), "nkeys").size());
+  o.layers = 0;
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+}
+
+TEST(CyclesScene, ArtistBounceLimitsAreBlendersDefaultsWithTheAddonsTransparency)
+{
+  PlySceneOptions o;
+  o.artist_bounces = true;
+  const Attributes a = elements(scene_text(o), "integrator").at(0);
+  EXPECT_EQ(a.at("max_bounce"), "12");
+  EXPECT_EQ(a.at("max_diffuse_bounce"), "4");
+  EXPECT_EQ(a.at("max_glossy_bounce"), "4");
+  EXPECT_EQ(a.at("max_transmission_bounce"), "12");
+  EXPECT_EQ(a.at("transparent_max_bounce"), "64");
+  o.white_furnace = true;
+  EXPECT_THROW(scene_text(o), std::runtime_error);
 }
 
 }  // namespace

@@ -570,6 +570,41 @@ TEST(Gather, RawDataHasTheHalfTurnSymmetry)
   }
 }
 
+/* Symmetrised maps: each bin is the mean of the raw bin and its half-turn image (the same paths, seed and
+ * threads), so a bin and its image hold the same value (kills a symmetrisation that averages with the wrong
+ * bin or forgets the outgoing half turn; docs/benchmarks.md, "Test power"). */
+TEST(Gather, SymmetrisedBinIsTheMeanOfTheRawBinAndItsHalfTurnImage)
+{
+  const rdm::MapResolution bins{3, 8, 6, 8};
+  const rdm::RdmMaps raw = rdm::gather(find_preset("fleece"), small_options(3 * 8 * 4000, bins, false, false));
+  const rdm::RdmMaps sym = rdm::gather(find_preset("fleece"), small_options(3 * 8 * 4000, bins, true, false));
+  const int hi = bins.phi_i / 2, ho = bins.phi_o / 2;
+  int nonzero = 0;
+  for (int ti = 0; ti < bins.theta_i; ti++) {
+    for (int pi = 0; pi < bins.phi_i; pi++) {
+      const int pi2 = (pi + hi) % bins.phi_i;
+      EXPECT_NEAR(sym.p_t[size_t(sym.incident_index(ti, pi))],
+                  0.5 * (raw.p_t[size_t(raw.incident_index(ti, pi))] + raw.p_t[size_t(raw.incident_index(ti, pi2))]),
+                  1e-6);
+      for (int to = 0; to < bins.theta_o; to++) {
+        for (int po = 0; po < bins.phi_o; po++) {
+          const int po2 = (po + ho) % bins.phi_o;
+          for (const auto map : {&rdm::RdmMaps::r, &rdm::RdmMaps::m}) {
+            for (int c = 0; c < 3; c++) {
+              const size_t a = sym.map_index(ti, pi, to, po) + size_t(c), b = sym.map_index(ti, pi2, to, po2) + size_t(c);
+              const double want = 0.5 * (double((raw.*map)[a]) + double((raw.*map)[b]));
+              EXPECT_EQ((sym.*map)[a], (sym.*map)[b]);
+              EXPECT_NEAR((sym.*map)[a], want, 1e-6 * want + 1e-12);
+              nonzero += want > 0.0;
+            }
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(nonzero, 1000);
+}
+
 /* alpha = 0: straight fibers are symmetric under x -> -x, i.e. phi -> pi - phi for both directions. */
 TEST(Gather, UntwistedPlyIsMirrorSymmetric)
 {

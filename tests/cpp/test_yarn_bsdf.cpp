@@ -434,3 +434,76 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
   }
   fs::remove_all(dir);
 }
+
+namespace {
+
+/* The model file's network evaluated in double from its record (layout of kernel/mlp.h), by a loop of its
+ * own: weights input-major, PReLU on hidden layers, the head on the last. */
+std::vector<double> network_in_double(const model::NetworkRecord &net, const std::vector<double> &x)
+{
+  const std::vector<float> &f = net.flat;
+  const int L = int(f[0]);
+  size_t k = size_t(L) + 3;
+  std::vector<double> in = x;
+  for (int l = 0; l < L; l++) {
+    const int n_in = int(f[size_t(1 + l)]), n_out = int(f[size_t(2 + l)]);
+    std::vector<double> z(size_t(n_out), 0.0);
+    for (int o = 0; o < n_out; o++) {
+      for (int i = 0; i < n_in; i++) {
+        z[size_t(o)] += double(f[k + size_t(i) * n_out + size_t(o)]) * in[size_t(i)];
+      }
+    }
+    k += size_t(n_in) * n_out;
+    for (int o = 0; o < n_out; o++) {
+      z[size_t(o)] += f[k + size_t(o)];
+    }
+    k += size_t(n_out);
+    if (l < L - 1) {
+      for (int o = 0; o < n_out; o++) {
+        z[size_t(o)] = z[size_t(o)] >= 0.0 ? z[size_t(o)] : double(f[k + size_t(o)]) * z[size_t(o)];
+      }
+      k += size_t(n_out);
+    }
+    else if (int(f[size_t(L) + 2]) == ny::kMlpHeadExp) {
+      for (double &v : z) {
+        v = std::exp(v);
+      }
+    }
+    in = z;
+  }
+  EXPECT_EQ(k, f.size());
+  return in;
+}
+
+}  // namespace
+
+TEST(YarnBsdf, MChannelKIsTheNetworksOutputKTimesItsScale)
+{
+  /* Kills the mutant that swaps the M network's red and blue outputs (the calibration table would hide it
+   * in every energy test; docs/benchmarks.md, "Test power"). Gabardine: C_TT (0.999, 0.33, 0.354), so the
+   * network's channels differ by a factor ~3. */
+  const model::YarnModel m = model::load_model(model::builtin_model_path("gabardine"));
+  const std::vector<float> flat = m.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  const double dirs[][6] = {{0.3, 0.2, 0.93, -0.2, 0.5, 0.84}, {0.1, -0.6, 0.79, 0.4, 0.1, -0.91},
+                            {-0.7, 0.1, 0.7, 0.6, -0.3, 0.74}, {0.05, 0.05, 0.997, 0.0, 0.0, -1.0}};
+  int distinct = 0;
+  for (const auto &d : dirs) {
+    const ny::Vec3 wi = ny::normalize(ny::make_vec3(float(d[0]), float(d[1]), float(d[2])));
+    const ny::Vec3 wo = ny::normalize(ny::make_vec3(float(d[3]), float(d[4]), float(d[5])));
+    const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+    float dP_T;
+    ny::Rgb c_R, c_M;
+    ny::yarn_calibration(p, wi, &dP_T, &c_R, &c_M);
+    const double escape = std::max(1.0 - l.P_T, double(ny::kYarnMinEscape));
+    const std::vector<double> net = network_in_double(m.M, {wi.x, wi.y, wi.z, wo.x, wo.y, wo.z});
+    const ny::Rgb got = ny::yarn_eval_M(p, l, wo);
+    const double want[3] = {net[0] * c_M.r * escape, net[1] * c_M.g * escape, net[2] * c_M.b * escape};
+    const float g[3] = {got.r, got.g, got.b};
+    for (int c = 0; c < 3; c++) {
+      EXPECT_NEAR(g[c], want[c], 1e-4 * want[c] + 1e-9) << "channel " << c;
+    }
+    distinct += std::abs(want[0] - want[2]) > 0.2 * std::max(want[0], want[2]);
+  }
+  EXPECT_GE(distinct, 2); /* the test can see a swap */
+}

@@ -3,10 +3,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
+#include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/train/dataset.h"
 
 namespace neuralyarn::model {
@@ -27,6 +29,46 @@ float ratio(double map, double net)
   return float(map / net);
 }
 }  // namespace
+
+ny::Rgb white_furnace(const ny::YarnBsdfParams &p, const ny::Vec3 &wi)
+{
+  const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+  return ny::make_rgb(l.P_T) + l.weight_R * 0.5f + m_lobe_energy(p, l);
+}
+
+FurnaceMax white_furnace_max(const ny::YarnBsdfParams &p, const rdm::MapResolution &bins, int threads)
+{
+  std::unique_ptr<tbb::global_control> limit;
+  if (threads > 0) {
+    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
+  }
+  std::vector<FurnaceMax> rows(size_t(bins.theta_i));
+  tbb::parallel_for(0, bins.theta_i, [&](int ti) {
+    FurnaceMax &row = rows[size_t(ti)];
+    for (int pi = 0; pi < bins.phi_i; pi++) {
+      const ny::Rgb e = white_furnace(p, incident_sub_direction(bins, ti, pi, 0, 1));
+      for (const float v : {e.r, e.g, e.b}) {
+        if (std::isnan(v)) { /* the worst value: it must not hide behind a comparison */
+          row = {double(v), ti, pi};
+          return;
+        }
+        if (row.theta_bin < 0 || double(v) > row.value) {
+          row = {double(v), ti, pi};
+        }
+      }
+    }
+  });
+  FurnaceMax worst;
+  for (const FurnaceMax &r : rows) {
+    if (std::isnan(r.value)) {
+      return r;
+    }
+    if (worst.theta_bin < 0 || r.value > worst.value) {
+      worst = r;
+    }
+  }
+  return worst;
+}
 
 ny::Rgb m_lobe_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l)
 {

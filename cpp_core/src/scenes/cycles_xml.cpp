@@ -102,14 +102,43 @@ std::string light_rig_names()
   return names;
 }
 
-const LightRig &find_light_rig(const std::string &name)
+LightRig find_light_rig(const std::string &name)
 {
   for (const LightRig &r : light_rigs()) {
     if (r.name == name) {
       return r;
     }
   }
-  throw std::runtime_error("unknown light rig '" + name + "' (known: " + light_rig_names() + ")");
+  /* sun-DEG-normal, sun-DEG-axis */
+  const size_t a = name.find('-'), b = name.rfind('-');
+  if (name.compare(0, 4, "sun-") == 0 && b > a + 1) {
+    const std::string deg_text = name.substr(a + 1, b - a - 1), plane = name.substr(b + 1);
+    size_t used = 0;
+    double deg = -1.0;
+    try {
+      deg = std::stod(deg_text, &used);
+    }
+    catch (const std::exception &) {
+      used = 0;
+    }
+    if (used == deg_text.size() && deg >= 0.0 && deg <= 180.0 && (plane == "normal" || plane == "axis")) {
+      const bool normal = plane == "normal";
+      return {name,
+              "distant light " + deg_text + " deg from the view, " +
+                  (normal ? "in the plane normal to the ply (toward +y)" : "along the ply axis (toward +x)"),
+              false,
+              {sun(deg, normal ? 0.0 : 1.0, normal ? 1.0 : 0.0)}};
+    }
+  }
+  throw std::runtime_error("unknown light rig '" + name + "' (known: " + light_rig_names() +
+                           ", sun-DEG-normal, sun-DEG-axis with DEG in [0, 180])");
+}
+
+BounceLimits BounceLimits::blender_addon()
+{
+  BounceLimits b;
+  b.total = 12, b.diffuse = 4, b.glossy = 4, b.transmission = 12, b.transparent = 64;
+  return b;
 }
 
 void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const std::string &path)
@@ -119,10 +148,26 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
     throw std::runtime_error("the white furnace is the 'environment' light rig; it cannot use lights '" + o.lights +
                              "'");
   }
-  const LightRig &rig = find_light_rig(o.white_furnace ? std::string("environment") : o.lights);
+  const LightRig rig = find_light_rig(o.white_furnace ? std::string("environment") : o.lights);
   if (o.max_bounce < 1 || o.max_bounce > 65535) {
     /* Cycles keeps bounce counters in 16 bits. */
     throw std::runtime_error("max_bounce must be in [1, 65535], got " + std::to_string(o.max_bounce));
+  }
+  if (!(o.camera_distance > 1.0 && o.camera_distance <= 1e4)) {
+    throw std::runtime_error("camera_distance must be in (1, 1e4] ply radii (outside the ply), got " +
+                             std::to_string(o.camera_distance));
+  }
+  if (!(o.unit_scale >= 1e-6 && o.unit_scale <= 1e6)) {
+    throw std::runtime_error("unit_scale must be in [1e-6, 1e6], got " + std::to_string(o.unit_scale));
+  }
+  if (o.layers < 1 || o.layers > 256) {
+    throw std::runtime_error("layers must be in [1, 256], got " + std::to_string(o.layers));
+  }
+  const BounceLimits limits = o.artist_bounces ? BounceLimits::blender_addon()
+                                               : BounceLimits{o.max_bounce, o.max_bounce, o.max_bounce,
+                                                              o.max_bounce, o.max_bounce};
+  if (o.white_furnace && o.artist_bounces) {
+    throw std::runtime_error("the white furnace runs every path to its end; it cannot use the artist's bounce limits");
   }
   const bool aggregated = !o.model.empty();
   std::string model_path;
@@ -143,15 +188,47 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
       model_path = std::filesystem::absolute(o.model).string();
     }
   }
+  /* The plies: one on the x axis, or `layers` sheets of plies side by side (along y, enough to fill the
+   * frame's height at the camera's distance) stacked away from the camera (along +z), touching but for a
+   * small gap. */
+  struct Placement {
+    double y, z, turn_deg;
+  };
+  std::vector<Placement> plies;
+  if (o.layers == 1) {
+    plies.push_back({0.0, 0.0, o.ply_rotation_deg});
+  }
+  else {
+    constexpr double kPitch = 2.05;
+    const int half = int(std::ceil(o.camera_distance * std::tan(0.5 * kCloseupCameraFov) / kPitch)) + 1;
+    for (int k = 0; k < o.layers; k++) {
+      for (int j = -half; j <= half; j++) {
+        /* Each explicit ply another orientation of the cross-section (the golden angle apart). */
+        plies.push_back({kPitch * j, kPitch * k, o.ply_rotation_deg + 137.5 * double(plies.size())});
+      }
+    }
+  }
+  const double s = o.unit_scale;
   geometry::PlyParams pp{preset.N, preset.rho, preset.alpha, 1.0};
   const geometry::Ply ply(pp, geometry::pack_cross_section(pp, o.packing_seed));
-  geometry::CurveSet curves =
-      geometry::export_fibers(ply, -0.5 * o.ply_length, 0.5 * o.ply_length, o.segments_per_turn);
-  /* The fibers turned about the ply axis: another orientation of the same random cross-section. */
-  const Eigen::Matrix3f turn =
-      Eigen::AngleAxisf(float(o.ply_rotation_deg * kDegToRad), Eigen::Vector3f::UnitX()).toRotationMatrix();
-  for (Eigen::Vector3f &p : curves.points) {
-    p = turn * p;
+  geometry::CurveSet curves;
+  if (!aggregated) {
+    const geometry::CurveSet one =
+        geometry::export_fibers(ply, -0.5 * o.ply_length, 0.5 * o.ply_length, o.segments_per_turn);
+    curves.offsets = {0};
+    for (const Placement &pl : plies) {
+      /* The fibers turned about the ply axis: another orientation of the same random cross-section. */
+      const Eigen::Matrix3f turn =
+          Eigen::AngleAxisf(float(pl.turn_deg * kDegToRad), Eigen::Vector3f::UnitX()).toRotationMatrix();
+      const Eigen::Vector3f at(0.0f, float(pl.y), float(pl.z));
+      for (const Eigen::Vector3f &p : one.points) {
+        curves.points.push_back(float(s) * (turn * p + at));
+      }
+      for (int c = 0; c < one.num_curves(); c++) {
+        curves.radii.push_back(one.radii[size_t(c)] * float(s));
+        curves.offsets.push_back(curves.offsets.back() + (one.offsets[size_t(c) + 1] - one.offsets[size_t(c)]));
+      }
+    }
   }
 
   std::ostringstream x;
@@ -160,9 +237,9 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
     << (aggregated ? " ply, aggregated (one thick curve, neural_yarn_bsdf)" : " ply, explicit fibers (khungurn_fiber_bsdf)")
     << " (generated by `neuralyarn cycles-scene`) -->\n<cycles>\n";
   x << "<camera width=\"" << o.width << "\" height=\"" << o.height << "\" />\n";
-  /* Camera 12 radii in front of the ply (-z), looking at the origin along +z. */
-  x << "<transform translate=\"0 0 " << -kCloseupCameraDistance << "\">\n  <camera type=\"perspective\" fov=\"" << kCloseupCameraFov
-    << "\" />\n</transform>\n";
+  /* The camera camera_distance radii in front of the ply (-z), looking at the origin along +z. */
+  x << "<transform translate=\"0 0 " << -o.camera_distance * s << "\">\n  <camera type=\"perspective\" fov=\""
+    << kCloseupCameraFov << "\" />\n</transform>\n";
   /* Bounce limits: a limit cuts the long random walks inside bright plies and biases the explicit-fiber
    * references dark (cotton, key-rim, 160 x 80, 256 spp, same seed: the ply's central region is 4.7 %
    * darker at 64 bounces than at 4096; 1024 and 4096 gave bit-identical images), so the limit is high and
@@ -170,10 +247,10 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
    * furnace must not lose energy at all: no roulette there (min_bounce = max_bounce), every path runs
    * until it leaves (an albedo-1 ply lets light out after tens of events). Transparent bounces (the
    * aggregated model's T lobe) and diffuse ones get the same limit. */
-  const int bounces = o.max_bounce;
-  x << "<integrator max_bounce=\"" << bounces << "\" max_diffuse_bounce=\"" << bounces << "\" max_glossy_bounce=\""
-    << bounces << "\" max_transmission_bounce=\"" << bounces << "\" transparent_max_bounce=\"" << bounces
-    << "\" min_bounce=\"" << (o.white_furnace ? bounces : 0)
+  x << "<integrator max_bounce=\"" << limits.total << "\" max_diffuse_bounce=\"" << limits.diffuse
+    << "\" max_glossy_bounce=\"" << limits.glossy << "\" max_transmission_bounce=\"" << limits.transmission
+    << "\" transparent_max_bounce=\"" << limits.transparent << "\" min_bounce=\""
+    << (o.white_furnace ? limits.total : 0)
     /* No sample clamping: Cycles clamps indirect light at 10 by default, which biases the explicit-fiber
      * references low (-10 to -15 % with these lights, more with more lights: the clamp acts on each light
      * sample divided by its selection probability) and makes the image depend on the number of lights. */
@@ -189,12 +266,12 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
       << "  <connect from=\"e emission\" to=\"output surface\" />\n</shader>\n";
     x << "<state shader=\"lamp\">\n";
     for (const RigLight &l : rig.lights) {
-      const double s = l.strength;
       if (l.kind == RigLight::Kind::point) {
         /* Cycles 4.3 lights are placed by their own 3x4 transform (rows; translation in the last column);
-         * the enclosing <transform> does not apply to them. */
-        x << "  <light light_type=\"point\" tfm=\"1 0 0 " << l.x << " 0 1 0 " << l.y << " 0 0 1 " << l.z
-          << "\" strength=\"" << s << " " << s << " " << s << "\" size=\"" << l.size << "\" />\n";
+         * the enclosing <transform> does not apply to them. Scaled scenes scale the power with the area. */
+        const double w = l.strength * s * s;
+        x << "  <light light_type=\"point\" tfm=\"1 0 0 " << l.x * s << " 0 1 0 " << l.y * s << " 0 0 1 " << l.z * s
+          << "\" strength=\"" << w << " " << w << " " << w << "\" size=\"" << l.size * s << "\" />\n";
       }
       else {
         /* A distant light shines along -Z of its transform (Light::get_dir() is minus the third column; the
@@ -208,7 +285,7 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
           /* (+ 0.0 writes -0 as 0) */
           x << (r ? " " : "") << u[r] + 0.0 << " " << v[r] + 0.0 << " " << z[r] + 0.0 << " 0";
         }
-        x << "\" strength=\"" << s << " " << s << " " << s
+        x << "\" strength=\"" << l.strength << " " << l.strength << " " << l.strength
           << "\" angle=\"" << l.size * kDegToRad << "\" use_mis=\"true\" use_camera=\"false\" />\n";
       }
     }
@@ -220,9 +297,16 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
       << (o.embed_model ? " model_json=\"" + xml_escape(read_text_file(o.model)) + "\"" : std::string()) << " />\n"
       << "  <connect from=\"y bsdf\" to=\"output surface\" />\n</shader>\n";
     const int keys = 17;
-    x << "<state shader=\"yarn\">\n<hair nkeys=\"" << keys << "\" radius=\"1\"\n  P=\"";
-    for (int k = 0; k < keys; k++) {
-      x << (k ? " " : "") << -0.5 * o.ply_length + o.ply_length * k / (keys - 1) << " 0 0";
+    x << "<state shader=\"yarn\">\n<hair nkeys=\"";
+    for (size_t i = 0; i < plies.size(); i++) {
+      x << (i ? " " : "") << keys;
+    }
+    x << "\" radius=\"" << s << "\"\n  P=\"";
+    for (size_t i = 0; i < plies.size(); i++) {
+      for (int k = 0; k < keys; k++) {
+        x << (i || k ? " " : "") << s * (-0.5 * o.ply_length + o.ply_length * k / (keys - 1)) << " "
+          << s * plies[i].y << " " << s * plies[i].z;
+      }
     }
     x << "\" />\n</state>\n</cycles>\n";
   }

@@ -22,6 +22,18 @@ constexpr float kCalibrationMin = 0.01f, kCalibrationMax = 100.0f;
  * are tens of degrees wide). */
 ny::Rgb m_lobe_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l);
 
+/* White furnace (after pbrt-v4's Hair.WhiteFurnace): the energy the model scatters from w_i under a uniform
+ * white environment, P_T + the R lobe's exact energy (weight_R / 2) + the M lobe's integral. */
+ny::Rgb white_furnace(const ny::YarnBsdfParams &p, const ny::Vec3 &wi);
+
+/* Its largest channel over the centres of `bins`' incident cells (where the calibration table holds), and
+ * where. */
+struct FurnaceMax {
+  double value = 0.0;
+  int theta_bin = -1, phi_bin = -1;
+};
+FurnaceMax white_furnace_max(const ny::YarnBsdfParams &p, const rdm::MapResolution &bins, int threads = 0);
+
 /* The table for `model` (its networks; its current table is ignored) on `maps` (same preset), at the maps'
  * incident resolution. */
 EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &maps, int threads = 0);

@@ -6,7 +6,8 @@
 // same preset and packing seed: explicit (the ply's fibers as <hair> curves shaded by the
 // khungurn_fiber_bsdf closure) and aggregated (one thick curve of the ply's radius shaded by the
 // neural_yarn_bsdf closure with a model file). Units: the ply radius is 1; the ply lies along x through
-// the origin, the camera looks along +z from z = -12.
+// the origin, the camera looks along +z from z = -12. The stability suite (scripts/stability.py) varies
+// the camera's distance, the scene's unit, the light's angle and stacks cloth layers of plies.
 #pragma once
 
 #include <cstdint>
@@ -41,8 +42,19 @@ struct LightRig {
 const std::vector<LightRig> &light_rigs();
 /* "key-rim, environment, ...": the rigs' names in order. */
 std::string light_rig_names();
-/* The rig of that name; throws std::runtime_error listing the known names otherwise. */
-const LightRig &find_light_rig(const std::string &name);
+/* The rig of that name, or a parametric distant light "sun-DEG-normal" / "sun-DEG-axis": DEG (0 to 180)
+ * degrees from the view direction, tilted in the plane normal to the ply (toward +y) or along its axis
+ * (toward +x) — the grazing rig is sun-80-normal. Throws std::runtime_error listing the known names
+ * otherwise. */
+LightRig find_light_rig(const std::string &name);
+
+/* Cycles' bounce limits (integrator max_bounce, max_diffuse_bounce, ...), each in [0, 65535] (total >= 1). */
+struct BounceLimits {
+  int total = 1024, diffuse = 1024, glossy = 1024, transmission = 1024, transparent = 1024;
+  /* Blender's defaults (12, 4, 4, 12) with the add-on's transparent limit (addon/scene_setup.py): what an
+   * artist's scene renders with. */
+  static BounceLimits blender_addon();
+};
 
 struct PlySceneOptions {
   int width = 320, height = 160;
@@ -56,6 +68,11 @@ struct PlySceneOptions {
   bool white_furnace = false;    /* the "environment" rig without Russian roulette (lights must stay the default
                                   * or be "environment"): every path runs until it leaves */
   int max_bounce = 1024;         /* Cycles' bounce limits (all kinds); low limits bias bright fibers dark */
+  bool artist_bounces = false;   /* instead: BounceLimits::blender_addon() (the stability suite's stacks) */
+  double camera_distance = kCloseupCameraDistance; /* from the ply axis, in ply radii (> 1): the ply's size in pixels */
+  double unit_scale = 1.0;       /* every length (ply, camera, lights) times this: a ply of radius 1e-3 or 1e3 */
+  int layers = 1;                /* > 1: cloth layers, each a sheet of parallel plies side by side (along y),
+                                  * stacked away from the camera (+z) — light through all of them */
   int seed = 0;                  /* Cycles' integrator seed: independent noise per value */
   std::string model;             /* aggregated version: the model file (written relative to the scene) */
   bool embed_model = false;      /* write the model's JSON into the scene (model_json), not its path */

@@ -1,0 +1,112 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The stability suite, scripts/stability.sh (issue 19): its measure on synthetic images (NaN, Inf, negative
+and firefly pixels counted, bias and variance against a known reference), and the quick run as CI runs it:
+every cell has every field; no render has a NaN, Inf or negative pixel; no model gains energy in the white
+furnace; the native closure renders the same image at every scene unit; its noise falls with the samples;
+the impossible packing fails within a minute naming the parameter.
+
+Run by ctest (stability.pytest_quick) with .venv/bin/python -m pytest; NY_STABILITY_OUT names the output
+directory (default: a pytest temporary directory), NY_BUILD_DIR the build.
+"""
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir, os.pardir))
+sys.path.insert(0, os.path.join(ROOT, "scripts"))
+import stability  # noqa: E402
+
+RENDER_FIELDS = ["sweep", "method", "preset", "spp", "seeds", "nan_pixels", "inf_pixels", "negative_pixels",
+                 "firefly_pixels", "bias", "variance", "failed"]
+
+
+def test_measure_counts_bad_pixels_and_fireflies():
+    ref = np.full((8, 16, 3), 0.5)
+    a, b = ref.copy(), ref.copy()
+    a[1, 1, 0] = np.nan
+    a[2, 2, 1] = np.inf
+    b[3, 3, 2] = -0.1
+    b[5, 9] = 100.0  # above 10 x (the 5 x 5 maximum 0.5 + 5 % of the mean): a firefly
+    b[6, 12] = 4.0  # below it: noise
+    m = stability.measure([a, b], ref, None, environment=False)
+    assert (m["nan_pixels"], m["inf_pixels"], m["negative_pixels"], m["firefly_pixels"]) == (1, 1, 1, 1)
+    assert m["region"] == "frame"
+
+
+def test_measure_bias_variance_and_furnace_against_known_values():
+    ref = np.full((6, 6, 3), 0.4)
+    lo, hi = np.full_like(ref, 0.3), np.full_like(ref, 0.5)  # mean 0.4: unbiased, per-pixel variance 0.02
+    m = stability.measure([lo, hi], ref, (slice(1, 5), slice(1, 5)), environment=True)
+    assert m["bias"] == pytest.approx(0.0, abs=1e-12)
+    assert m["variance"] == pytest.approx(0.02 / 0.4 ** 2)
+    assert m["furnace_max"] == pytest.approx(0.4)
+    m = stability.measure([hi, hi], ref, (slice(1, 5), slice(1, 5)), environment=False)
+    assert m["bias"] == pytest.approx(0.25) and m["variance"] == 0.0 and "furnace_max" not in m
+    assert stability.measure([hi], ref, None, environment=False)["variance"] is None
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    out = os.environ.get("NY_STABILITY_OUT") or str(tmp_path_factory.mktemp("stability"))
+    shutil.rmtree(out, ignore_errors=True)
+    r = subprocess.run(["bash", os.path.join(ROOT, "scripts", "stability.sh"), "--quick", "--out", out],
+                       capture_output=True, text=True, timeout=1500)
+    assert r.returncode == 0, r.stderr[-3000:]
+    with open(os.path.join(out, "results.json")) as f:
+        return out, json.load(f)
+
+
+def renders(results):
+    return [c for c in results["cells"] if c["sweep"] in stability.SWEPT]
+
+
+def test_every_cell_has_every_field_and_the_map_is_written(quick):
+    out, results = quick
+    assert {c["sweep"] for c in results["cells"]} == set(stability.SWEEPS)
+    for c in renders(results):
+        assert set(RENDER_FIELDS) <= set(c), (c, set(RENDER_FIELDS) - set(c))
+        assert c["failed"] is False, c
+        assert isinstance(c["bias"], float) and math.isfinite(c["bias"]), c
+    assert os.path.getsize(os.path.join(out, "stability_map.png")) > 10000
+
+
+def test_no_render_has_nan_inf_or_negative_pixels(quick):
+    for c in renders(quick[1]):
+        assert c["nan_pixels"] == c["inf_pixels"] == c["negative_pixels"] == 0, c
+
+
+def test_no_model_gains_energy(quick):
+    cells = [c for c in quick[1]["cells"] if c.get("furnace_max") is not None]
+    assert {c["preset"] for c in cells if c["sweep"] == "furnace"} == set(stability.ev.PRESETS)
+    for c in cells:
+        # 1 % above 1 is pbrt's Hair.WhiteFurnace bound; renders: the brightest row of a 16-spp image.
+        assert c["furnace_max"] <= (1.01 if c["sweep"] in ("furnace", "bakes") else 1.0), c
+
+
+def test_the_native_closure_renders_the_same_image_at_every_scene_unit(quick):
+    units = {c["unit_scale"]: c for c in quick[1]["cells"] if c["sweep"] == "units" and c["method"] == "native"}
+    assert set(units) == {2.5e-4, 1.0, 1e3}
+    for u, c in units.items():
+        # Same seeds, same pixels: only float rounding of a scaled scene separates them.
+        assert c["bias"] == pytest.approx(units[1.0]["bias"], abs=2e-3), (u, c)
+
+
+def test_native_noise_falls_with_the_samples(quick):
+    var = {c["spp"]: c["variance"] for c in quick[1]["cells"] if c["sweep"] == "samples" and c["method"] == "native"}
+    assert sorted(var) == [1, 4, 16, 64]
+    # Variance ~ 1/spp: 64x fewer between 1 and 64 samples; a factor 16 leaves room for the seeds' noise.
+    assert var[64] < var[1] / 16, var
+
+
+def test_an_impossible_packing_fails_fast_naming_the_parameter(quick):
+    bakes = {c["bake"]: c for c in quick[1]["cells"] if c["sweep"] == "bakes"}
+    bad = bakes["unpackable"]
+    assert bad["failed"] and "rho" in bad["failed"] and bad["seconds"] < 60, bad
+    good = bakes["c_tt_one"]
+    assert good["failed"] is False and good["furnace_max"] <= 1.01, good
