@@ -102,5 +102,7 @@ BENCHMARK_CAPTURE(BM_yarn_pdf, fleece, "fleece");
 BENCHMARK_CAPTURE(BM_yarn_sample, fleece, "fleece");
 BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf, cotton, "cotton");
 BENCHMARK_CAPTURE(BM_yarn_sample, cotton, "cotton");
+BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf, gabardine, "gabardine");  // M 6-32-32-3 (D22)
+BENCHMARK_CAPTURE(BM_yarn_sample, gabardine, "gabardine");
 
 BENCHMARK_MAIN();
