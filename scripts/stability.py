@@ -3,7 +3,7 @@
 """The stability suite (issue 19): where each method holds and where it fails.
 
     bash scripts/stability.sh --out DIR [--quick] [--sweeps views scale units samples layers bakes furnace]
-        [--presets P ...] [--methods explicit native osl nodes] [--threads N] [--timeout S]
+        [--presets P ...] [--methods explicit native osl nodes] [--append] [--threads N] [--timeout S]
 
 Sweeps, on the evaluation harness's scene (scripts/evaluate.py, `neuralyarn cycles-scene`), every method
 against an explicit-fiber reference of the same scene (the mean over orientations of the ply, as the harness):
@@ -482,6 +482,9 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--sweeps", nargs="+", help=f"sweeps ({', '.join(SWEEPS)}; default all)")
     ap.add_argument("--presets", nargs="+")
     ap.add_argument("--methods", nargs="+", help=f"render methods ({', '.join(RENDER_METHODS)})")
+    ap.add_argument("--append", action="store_true",
+                    help="keep the cells of DIR/results.json that this run does not redo (same sweep, preset and "
+                         "method), so that one results.json, map and summary can gather several runs")
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--timeout", type=float, default=1800.0)
     try:
@@ -520,14 +523,24 @@ def main(argv: list[str]) -> int:
             cells += sweep_bakes(a, progress)
         else:
             cells += sweep_furnace(a, progress)
-    results = {"format": "neuralyarn-stability 1", "command": ["scripts/stability.sh", *argv],
+    commands, earlier_seconds = [["scripts/stability.sh", *argv]], 0.0
+    old_path = os.path.join(a.out, "results.json")
+    if args.append and os.path.isfile(old_path):
+        with open(old_path) as f:
+            old = json.load(f)
+        redone = {(c["sweep"], c["preset"], c["method"]) for c in cells}
+        cells = [c for c in old["cells"] if (c["sweep"], c["preset"], c["method"]) not in redone] + cells
+        commands = old["commands"] + commands
+        earlier_seconds = old["seconds"]
+    results = {"format": "neuralyarn-stability 1", "commands": commands,
                "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                "git": ev.git_revision(), "machine": {"cpu": ev.cpu_model(), "cores": os.cpu_count()},
                "settings": {k: v for k, v in cfg.items()} | {"threads": a.threads, "quick": args.quick,
                                                             "firefly_factor": FIREFLY_FACTOR,
                                                             "firefly_window": FIREFLY_WINDOW,
                                                             "firefly_floor": FIREFLY_FLOOR},
-               "seconds": time.monotonic() - t0, "cells": cells}
+               "seconds": earlier_seconds + time.monotonic() - t0,
+               "cells": cells}
     with open(os.path.join(a.out, "results.json"), "w") as f:
         json.dump(results, f, indent=1)
     stability_map(cells, os.path.join(a.out, "stability_map.png"))

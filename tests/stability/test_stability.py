@@ -110,3 +110,19 @@ def test_an_impossible_packing_fails_fast_naming_the_parameter(quick):
     assert bad["failed"] and "rho" in bad["failed"] and bad["seconds"] < 60, bad
     good = bakes["c_tt_one"]
     assert good["failed"] is False and good["furnace_max"] <= 1.01, good
+
+
+def test_append_replaces_the_cells_it_redoes_and_keeps_the_others(tmp_path):
+    def run(*args):
+        r = subprocess.run(["bash", os.path.join(ROOT, "scripts", "stability.sh"), "--quick", "--out", str(tmp_path),
+                            *args], capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr[-2000:]
+        with open(tmp_path / "results.json") as f:
+            return json.load(f)
+    first = run("--sweeps", "furnace")
+    again = run("--sweeps", "furnace", "--append")
+    assert len(again["cells"]) == len(first["cells"]) == 5 and len(again["commands"]) == 2
+    other = run("--sweeps", "views", "--presets", "fleece", "--methods", "native", "--append")
+    assert {c["sweep"] for c in other["cells"]} == {"furnace", "views"} and len(other["commands"]) == 3
+    assert run("--sweeps", "furnace")["commands"] == [["scripts/stability.sh", "--quick", "--out", str(tmp_path),
+                                                       "--sweeps", "furnace"]]
