@@ -3,7 +3,8 @@
 """The stability suite (issue 19): where each method holds and where it fails.
 
     bash scripts/stability.sh --out DIR [--quick] [--sweeps views scale units samples layers bakes furnace]
-        [--presets P ...] [--methods explicit native osl nodes] [--append] [--threads N] [--timeout S]
+        [--presets P ...] [--methods explicit native osl nodes] [--scale-px W ...] [--append] [--threads N]
+        [--timeout S]
 
 Sweeps, on the evaluation harness's scene (scripts/evaluate.py, `neuralyarn cycles-scene`), every method
 against an explicit-fiber reference of the same scene (the mean over orientations of the ply, as the harness):
@@ -16,11 +17,13 @@ against an explicit-fiber reference of the same scene (the mean over orientation
            references' bounce limits and with the artist's (Blender's defaults, the add-on's 64 transparent);
   bakes    fiber parameters beyond the presets (alpha 0, rho, N, beta_R, C_TT (1, 1, 1), very dark fibers,
            impossible packings): success, time, albedo error, white furnace;
-  furnace  the white furnace of every shipped model (`neuralyarn furnace`).
+  furnace  the white furnace of every shipped model (`neuralyarn furnace`, at the bin centres and inside the
+           bins).
 
 Each cell of DIR/results.json `cells` holds: sweep, method, preset, the swept parameters, spp, seeds,
-nan_pixels, inf_pixels, negative_pixels, firefly_pixels, furnace_max (the largest white-furnace value: of
-the model, or of the environment-lit render's brightest row; absent where none applies), bias, variance,
+nan_pixels, inf_pixels, negative_pixels, firefly_pixels, furnace_max (the largest white-furnace value seen:
+of the model anywhere inside its incident bins, or of the environment-lit render's brightest row; absent
+where none applies; models also furnace_max_centres, at the bin centres), bias, variance,
 seconds, failed (false or the reason). Definitions:
   bias      mean Rec. 709 luminance of the seeds' mean image / the reference's - 1, over the harness's central
             region (the whole frame where the ply is under 3 rows);
@@ -363,11 +366,17 @@ def sweep_bakes(a, progress):
 
 
 def furnace(model: str) -> dict:
-    r = subprocess.run([ev.CLI, "furnace", model], capture_output=True, text=True)
-    m = re.search(r"white furnace max (\S+)", r.stdout)
-    if r.returncode != 0 and not m:
-        return {"furnace_max": None, "failed": (r.stderr or r.stdout).strip()}
-    return {"furnace_max": float(m.group(1)) if m else None}
+    """furnace_max: the largest white-furnace value of the model at 3 x 3 directions inside every incident bin
+    and at theta_i 89.975 deg (`neuralyarn furnace --inside`); furnace_max_centres: at the bin centres, where
+    the calibration bounds it."""
+    out = {}
+    for key, extra in (("furnace_max", ["--inside"]), ("furnace_max_centres", [])):
+        r = subprocess.run([ev.CLI, "furnace", model, *extra], capture_output=True, text=True)
+        m = re.search(r"white furnace max (\S+)", r.stdout)
+        out[key] = float(m.group(1)) if m else None
+        if not m:
+            out["failed"] = (r.stderr or r.stdout).strip()
+    return out
 
 
 def sweep_furnace(a, progress):
@@ -385,15 +394,16 @@ SWEPT = {"views": "light", "scale": "ply_pixels", "units": "unit_scale", "sample
 
 
 def stability_map(cells: list[dict], path: str) -> None:
-    """One heatmap per render sweep: methods (and variants) against the swept value, |bias| in %; X where a
-    cell failed or has NaN/Inf/negative pixels, F where it has fireflies."""
+    """One heatmap per render sweep: methods (and variants) against the swept value, coloured by |bias| in %
+    and labelled with the bias; X where a cell failed or has NaN/Inf/negative pixels, F where it has
+    firefly pixels."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     sweeps = [s for s in SWEPT if any(c["sweep"] == s for c in cells)]
     if not sweeps:
         return
-    fig, axes = plt.subplots(len(sweeps), 1, figsize=(10, 1.9 * len(sweeps) + 0.6), squeeze=False)
+    fig, axes = plt.subplots(len(sweeps), 1, figsize=(11, 2.3 * len(sweeps) + 0.6), squeeze=False)
     for ax, sw in zip(axes[:, 0], sweeps):
         cs = [c for c in cells if c["sweep"] == sw]
         def row_of(c):
@@ -409,16 +419,16 @@ def stability_map(cells: list[dict], path: str) -> None:
             bad = c["failed"] or c.get("nan_pixels") or c.get("inf_pixels") or c.get("negative_pixels")
             if c.get("bias") is not None:
                 grid[i, j] = 100 * abs(c["bias"])
-            marks[(i, j)] = "X" if bad else ("F" if c.get("firefly_pixels") else
-                                             (f"{100 * c['bias']:+.0f}" if c.get("bias") is not None else "-"))
+            text = f"{100 * c['bias']:+.0f}" if c.get("bias") is not None else "-"
+            marks[(i, j)] = "X" if bad else text + (" F" if c.get("firefly_pixels") else "")
         im = ax.imshow(np.minimum(grid, 100), cmap="magma_r", vmin=0, vmax=50, aspect="auto")
         for (i, j), t in marks.items():
             ax.text(j, i, t, ha="center", va="center", fontsize=7,
                     color="white" if not math.isnan(grid[i, j]) and grid[i, j] > 25 else "black")
         ax.set_yticks(range(len(rows)), rows, fontsize=7)
-        ax.set_xticks(range(len(cols)), [str(c) for c in cols], fontsize=7)
-        ax.set_title(f"{sw}: |bias| of the mean luminance against explicit fibers, % (X failed or NaN/Inf/negative, "
-                     "F fireflies)", fontsize=8)
+        ax.set_xticks(range(len(cols)), [str(c) for c in cols], fontsize=7, rotation=20, ha="right")
+        ax.set_title(f"{sw}: bias of the mean luminance against explicit fibers, % (colour: |bias|; X failed or "
+                     "NaN/Inf/negative pixels, F firefly pixels)", fontsize=8)
         fig.colorbar(im, ax=ax, fraction=0.02)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -455,7 +465,8 @@ def summary(results: dict) -> str:
         lines.append("")
     bakes = [c for c in cells if c["sweep"] == "bakes"]
     if bakes:
-        lines += ["**bakes** (fleece with one change)", "", "| bake | change | s | albedo error % | furnace max | failed |",
+        lines += ["**bakes** (fleece with one change)", "",
+                  "| bake | change | s | albedo error % | furnace max (inside the bins) | failed |",
                   "|---|---|---|---|---|---|"]
         for c in bakes:
             err = c.get("albedo_error")
@@ -467,9 +478,9 @@ def summary(results: dict) -> str:
         lines.append("")
     furn = [c for c in cells if c["sweep"] == "furnace"]
     if furn:
-        lines += ["**white furnace** of the shipped models: " +
-                  ", ".join(f"{c['preset']} {c['furnace_max']:.4f}" for c in furn if c.get("furnace_max") is not None),
-                  ""]
+        lines += ["**white furnace** of the shipped models (bin centres / inside the bins and at theta_i 89.975 deg): " +
+                  ", ".join(f"{c['preset']} {c.get('furnace_max_centres') or 0:.4f} / {c['furnace_max']:.4f}"
+                            for c in furn if c.get("furnace_max") is not None), ""]
     return "\n".join(lines)
 
 
@@ -482,6 +493,8 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--sweeps", nargs="+", help=f"sweeps ({', '.join(SWEEPS)}; default all)")
     ap.add_argument("--presets", nargs="+")
     ap.add_argument("--methods", nargs="+", help=f"render methods ({', '.join(RENDER_METHODS)})")
+    ap.add_argument("--scale-px", nargs="+", type=float,
+                    help="ply widths in pixels of the scale sweep (default: quick 30 3 0.5, full 300 30 3 1 0.5)")
     ap.add_argument("--append", action="store_true",
                     help="keep the cells of DIR/results.json that this run does not redo (same sweep, preset and "
                          "method), so that one results.json, map and summary can gather several runs")
@@ -492,7 +505,11 @@ def main(argv: list[str]) -> int:
             if not os.access(tool, os.X_OK):
                 raise ev.Usage(f"{tool} is not built (scripts/setup.sh builds it)")
         args = ap.parse_args(argv)
-        cfg = QUICK if args.quick else FULL
+        cfg = dict(QUICK if args.quick else FULL)
+        if args.scale_px:
+            if not all(0.0 < v <= 1000.0 for v in args.scale_px):
+                raise ev.Usage("--scale-px: widths must be in (0, 1000] pixels")
+            cfg["scale_px"] = args.scale_px
         sweeps = ev.names(args.sweeps) or SWEEPS
         presets = ev.names(args.presets) or cfg["presets"]
         methods = ev.names(args.methods) or cfg["methods"]

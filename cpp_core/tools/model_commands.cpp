@@ -229,9 +229,11 @@ class Commands : public ModelCommands {
         ->capture_default_str();
 
     furnace_ = app.add_subcommand("furnace",
-                                  "White furnace of a model: the largest energy it scatters from any incident bin "
-                                  "centre under uniform white light (must not exceed 1)");
+                                  "White furnace of a model: the largest energy it scatters from any incident "
+                                  "direction under uniform white light (must not exceed 1)");
     furnace_->add_option("model", model_, "Model file (.json)")->required();
+    furnace_->add_flag("--inside", furnace_inside_,
+                       "Also between the bin centres (3 x 3 directions per bin) and at theta_i 89.975 deg");
     furnace_->add_option("--max", max_furnace_, "Exit 1 if the largest value exceeds this")
         ->check(finite_range(0.0, 100.0));
 
@@ -421,12 +423,16 @@ class Commands : public ModelCommands {
     const model::YarnModel m = model::load_model(model_);
     const std::vector<float> flat = m.kernel_flat();
     const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    /* The bin centres of the paper's incident bins (where the calibration bounds the sum), or with --inside
+     * 3 x 3 directions inside each bin and theta_i 89.975 deg. */
     const rdm::MapResolution bins{22, 90, 45, 90};
-    const model::FurnaceMax f = model::white_furnace_max(p, bins);
-    /* Bin centres in degrees: theta_i in [0, 90), phi_i in [-180, 180). */
-    std::printf("white furnace max %.5f at theta_i %.1f deg, phi_i %.1f deg (%d x %d incident bin centres)\n", f.value,
-                (f.theta_bin + 0.5) * 90.0 / bins.theta_i, -180.0 + (f.phi_bin + 0.5) * 360.0 / bins.phi_i,
-                bins.theta_i, bins.phi_i);
+    const model::FurnaceMax f =
+        model::white_furnace_max(p, model::furnace_directions(bins, furnace_inside_ ? 3 : 1, furnace_inside_));
+    std::printf("white furnace max %.5f at theta_i %.2f deg, phi_i %.1f deg (%s)\n", f.value,
+                std::acos(std::clamp(double(f.wi.z), -1.0, 1.0)) * 180.0 / 3.14159265358979323846,
+                std::atan2(double(f.wi.y), double(f.wi.x)) * 180.0 / 3.14159265358979323846,
+                furnace_inside_ ? "3 x 3 directions inside each of 22 x 90 incident bins, and theta_i 89.975 deg"
+                                : "22 x 90 incident bin centres");
     if (!std::isfinite(f.value)) {
       std::fprintf(stderr, "neuralyarn: error: the model scatters a non-finite energy\n");
       return 1;
@@ -488,6 +494,7 @@ class Commands : public ModelCommands {
 
   CLI::App *train_, *fit_, *bake_, *check_, *fallback_, *furnace_;
   std::optional<double> max_furnace_;
+  bool furnace_inside_ = false;
   TrainModelOptions topt_;
   model::FallbackOptions fbopt_;
   rdm::GatherOptions gopt_;

@@ -36,38 +36,49 @@ ny::Rgb white_furnace(const ny::YarnBsdfParams &p, const ny::Vec3 &wi)
   return ny::make_rgb(l.P_T) + l.weight_R * 0.5f + m_lobe_energy(p, l);
 }
 
-FurnaceMax white_furnace_max(const ny::YarnBsdfParams &p, const rdm::MapResolution &bins, int threads)
+std::vector<ny::Vec3> furnace_directions(const rdm::MapResolution &bins, int sub, bool edge)
+{
+  std::vector<ny::Vec3> dirs;
+  for (int ti = 0; ti < bins.theta_i; ti++) {
+    for (int pi = 0; pi < bins.phi_i; pi++) {
+      for (int s = 0; s < sub * sub; s++) {
+        dirs.push_back(incident_sub_direction(bins, ti, pi, s, sub));
+      }
+    }
+  }
+  if (edge) {
+    /* theta_i 89.975 deg: beyond the last bin centre the table is constant while the lobes still change. */
+    const rdm::MapResolution fine{1800, bins.phi_i, bins.theta_o, bins.phi_o};
+    for (int pi = 0; pi < bins.phi_i; pi++) {
+      dirs.push_back(incident_sub_direction(fine, fine.theta_i - 1, pi, 0, 1));
+    }
+  }
+  return dirs;
+}
+
+FurnaceMax white_furnace_max(const ny::YarnBsdfParams &p, const std::vector<ny::Vec3> &dirs, int threads)
 {
   std::unique_ptr<tbb::global_control> limit;
   if (threads > 0) {
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
   }
-  std::vector<FurnaceMax> rows(size_t(bins.theta_i));
-  tbb::parallel_for(0, bins.theta_i, [&](int ti) {
-    FurnaceMax &row = rows[size_t(ti)];
-    for (int pi = 0; pi < bins.phi_i; pi++) {
-      const ny::Rgb e = white_furnace(p, incident_sub_direction(bins, ti, pi, 0, 1));
-      for (const float v : {e.r, e.g, e.b}) {
-        if (std::isnan(v)) { /* the worst value: it must not hide behind a comparison */
-          row = {double(v), ti, pi};
-          return;
-        }
-        if (row.theta_bin < 0 || double(v) > row.value) {
-          row = {double(v), ti, pi};
-        }
+  std::vector<double> worst(dirs.size());
+  tbb::parallel_for(size_t(0), dirs.size(), [&](size_t i) {
+    const ny::Rgb e = white_furnace(p, dirs[i]);
+    /* NaN is the worst value: it must not hide behind a comparison. */
+    worst[i] = std::isnan(e.r) || std::isnan(e.g) || std::isnan(e.b) ? std::nan("")
+                                                                       : std::max({e.r, e.g, e.b});
+  });
+  FurnaceMax f;
+  for (size_t i = 0; i < dirs.size(); i++) {
+    if (std::isnan(worst[i]) || f.index < 0 || worst[i] > f.value) {
+      f = {worst[i], int(i), dirs[i]};
+      if (std::isnan(worst[i])) {
+        break;
       }
     }
-  });
-  FurnaceMax worst;
-  for (const FurnaceMax &r : rows) {
-    if (std::isnan(r.value)) {
-      return r;
-    }
-    if (worst.theta_bin < 0 || r.value > worst.value) {
-      worst = r;
-    }
   }
-  return worst;
+  return f;
 }
 
 ny::Rgb m_lobe_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l)

@@ -8,6 +8,8 @@
 // networks' shapes.
 #pragma once
 
+#include <vector>
+
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/rdm/gather.h"
@@ -26,13 +28,19 @@ ny::Rgb m_lobe_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l);
  * white environment, P_T + the R lobe's exact energy (weight_R / 2) + the M lobe's integral. */
 ny::Rgb white_furnace(const ny::YarnBsdfParams &p, const ny::Vec3 &wi);
 
-/* Its largest channel over the centres of `bins`' incident cells (where the calibration table holds), and
- * where. */
+/* Directions to evaluate the furnace at: sub x sub inside every incident cell of `bins` (uniform in cos
+ * theta_i and phi_i; sub = 1: the bin centres, where the calibration table is bounded), and with `edge`
+ * theta_i 89.975 deg at each phi_i bin centre (beyond the last centre the table is constant while the lobes
+ * change). Between centres and at the edge the models still exceed 1 (docs/benchmarks.md, "Stability"). */
+std::vector<ny::Vec3> furnace_directions(const rdm::MapResolution &bins, int sub, bool edge);
+
+/* The largest channel of white_furnace over `dirs`, and where (NaN, if any, wins). */
 struct FurnaceMax {
   double value = 0.0;
-  int theta_bin = -1, phi_bin = -1;
+  int index = -1; /* into dirs */
+  ny::Vec3 wi{};
 };
-FurnaceMax white_furnace_max(const ny::YarnBsdfParams &p, const rdm::MapResolution &bins, int threads = 0);
+FurnaceMax white_furnace_max(const ny::YarnBsdfParams &p, const std::vector<ny::Vec3> &dirs, int threads = 0);
 
 /* The table for `model` (its networks; its current table is ignored) on `maps` (same preset), at the maps'
  * incident resolution. */
