@@ -150,28 +150,33 @@ def write_scene(a, s: dict, method: str, seed: int, rotation: float = 0.0) -> st
     return path
 
 
+def render_spec(a, s: dict, xml: str, spp: int, exr: str, what: str, fallback=None, finite: bool = True) -> dict:
+    """ev.render at the spec's image size (the harness reads it from its settings)."""
+    return ev.render(types.SimpleNamespace(**{**vars(a), "width": s["width"], "height": s["height"]}), xml, spp, exr,
+                     what, fallback, finite=finite)
+
+
 def render_view(a, s: dict, method: str, spp: int, seed: int, what: str) -> tuple[np.ndarray, float]:
     """One render of the scene spec by a method; (image, seconds). Non-finite pixels are kept (counted)."""
     xml = write_scene(a, s, method, seed)
     exr = os.path.join(a.out, "renders", f"{key_of(s)}_{method}_{spp}spp_seed{seed}.exr")
     fb = (method, s["preset"], seed) if method in ev.FALLBACKS else None
-    a.width, a.height = s["width"], s["height"]
-    cost = ev.render(a, xml, spp, exr, what, fb, finite=False)
+    cost = render_spec(a, s, xml, spp, exr, what, fb, finite=False)
     return read_exr(exr), cost["seconds"]
 
 
 def reference(a, s: dict, progress) -> np.ndarray:
-    """Explicit fibers at a.ref_spp, the mean over a.ref_rotations orientations (cached in DIR/refs by spec)."""
+    """Explicit fibers at a.ref_spp, the mean over a.ref_rotations orientations as the harness's reference A
+    (cached in DIR/refs by spec)."""
     exr = os.path.join(a.out, "refs", f"{key_of(s)}_{a.ref_spp}spp_{a.ref_rotations}rot.exr")
     if os.path.isfile(exr):
         return read_exr(exr)
     k, spp = a.ref_rotations, max(1, a.ref_spp // a.ref_rotations)
     total = None
-    for i in range(k):
-        xml = write_scene(a, s, "explicit", ev.REFERENCE_SEEDS["A"] + 2 * i, i * 360.0 / k)
+    for i, (seed, rotation) in enumerate(ev.reference_parts("A", k)):
+        xml = write_scene(a, s, "explicit", seed, rotation)
         part = exr + ".part.exr"
-        a.width, a.height = s["width"], s["height"]
-        ev.render(a, xml, spp, part, progress(f"reference {key_of(s)} [{i + 1}/{k}]"))
+        render_spec(a, s, xml, spp, part, progress(f"reference {key_of(s)} [{i + 1}/{k}]"))
         img = read_exr(part)
         os.remove(part)
         total = img if total is None else total + img
@@ -393,6 +398,12 @@ def sweep_furnace(a, progress):
 SWEPT = {"views": "light", "scale": "ply_pixels", "units": "unit_scale", "samples": "spp", "layers": "layers"}
 
 
+def row_name(c: dict) -> str:
+    """A cell's row in the map and the summary: preset and method, and for the layers its light and bounces."""
+    extra = f" {c['light']} ({c['bounces']} bounces)" if c["sweep"] == "layers" else ""
+    return f"{c['preset']} {c['method']}{extra}"
+
+
 def stability_map(cells: list[dict], path: str) -> None:
     """One heatmap per render sweep: methods (and variants) against the swept value, coloured by |bias| in %
     and labelled with the bias; X where a cell failed or has NaN/Inf/negative pixels, F where it has
@@ -406,16 +417,12 @@ def stability_map(cells: list[dict], path: str) -> None:
     fig, axes = plt.subplots(len(sweeps), 1, figsize=(11, 2.3 * len(sweeps) + 0.6), squeeze=False)
     for ax, sw in zip(axes[:, 0], sweeps):
         cs = [c for c in cells if c["sweep"] == sw]
-        def row_of(c):
-            extra = f" {c['light']}" if sw == "layers" else ""
-            extra += f" ({c['bounces']})" if "bounces" in c else ""
-            return f"{c['preset']} {c['method']}{extra}"
-        rows = list(dict.fromkeys(row_of(c) for c in cs))
+        rows = list(dict.fromkeys(row_name(c) for c in cs))
         cols = list(dict.fromkeys(c[SWEPT[sw]] for c in cs))
         grid = np.full((len(rows), len(cols)), np.nan)
         marks = {}
         for c in cs:
-            i, j = rows.index(row_of(c)), cols.index(c[SWEPT[sw]])
+            i, j = rows.index(row_name(c)), cols.index(c[SWEPT[sw]])
             bad = c["failed"] or c.get("nan_pixels") or c.get("inf_pixels") or c.get("negative_pixels")
             if c.get("bias") is not None:
                 grid[i, j] = 100 * abs(c["bias"])
@@ -447,8 +454,7 @@ def summary(results: dict) -> str:
         cols = list(dict.fromkeys(c[key] for c in cs))
         rows: dict = {}
         for c in cs:
-            name = f"{c['preset']} {c['method']}" + (f" {c['light']}" if sw == "layers" else "") + \
-                (f" ({c['bounces']} bounces)" if "bounces" in c else "")
+            name = row_name(c)
             if c["failed"]:
                 text = "failed"
             else:
@@ -468,13 +474,13 @@ def summary(results: dict) -> str:
         lines += ["**bakes** (fleece with one change)", "",
                   "| bake | change | s | albedo error % | furnace max (inside the bins) | failed |",
                   "|---|---|---|---|---|---|"]
+        def fmt(v, spec):
+            return format(v, spec) if v is not None else "-"
         for c in bakes:
             err = c.get("albedo_error")
             lines.append(f"| {c['bake']} | {json.dumps(c['changed'])} | {c.get('seconds', 0):.0f} | "
-                         f"{100 * err:.2f} | " if err is not None else
-                         f"| {c['bake']} | {json.dumps(c['changed'])} | {c.get('seconds', 0):.0f} | - | ")
-            lines[-1] += (f"{c['furnace_max']:.4f}" if c.get("furnace_max") is not None else "-") + \
-                f" | {str(c['failed'] or '').replace('|', '/')} |"
+                         f"{fmt(100 * err if err is not None else None, '.2f')} | {fmt(c.get('furnace_max'), '.4f')} | "
+                         f"{str(c['failed'] or '').replace('|', '/')} |")
         lines.append("")
     furn = [c for c in cells if c["sweep"] == "furnace"]
     if furn:

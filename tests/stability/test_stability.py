@@ -106,8 +106,11 @@ def test_the_native_closure_renders_the_same_image_at_every_scene_unit(quick):
 def test_native_noise_falls_with_the_samples(quick):
     var = {c["spp"]: c["variance"] for c in quick[1]["cells"] if c["sweep"] == "samples" and c["method"] == "native"}
     assert sorted(var) == [1, 4, 16, 64]
-    # Variance ~ 1/spp: 64x fewer between 1 and 64 samples; a factor 16 leaves room for the seeds' noise.
-    assert var[64] < var[1] / 16, var
+    # Variance ~ 1/spp or faster (Cycles' tabulated Sobol is randomised quasi-Monte Carlo): 16x fewer between
+    # 4 and 64 samples; a factor 4 leaves room for the two seeds' noise. Not from 1 spp: there the seeds barely
+    # randomise the pattern (fleece: 8.6e-7 per pixel at 1 spp, 1.4e-5 at 4, 8.2e-7 at 16), so the variance
+    # across seeds is no estimate of one render's noise.
+    assert var[64] < var[4] / 4 and var[16] < var[4], var
 
 
 def test_an_impossible_packing_fails_fast_naming_the_parameter(quick):
