@@ -16,10 +16,13 @@ References are cached in DIR/refs and reused when the scene files and the sample
 Scenes: `closeup`, the single-ply close-up of `neuralyarn cycles-scene` (ply radius 1 along x, camera at
 distance 12; the ply 48 long so that its ends are out of the frame). Methods: `explicit` (the fibers
 themselves, the reference's method, at the test's samples), `native` (`--model models/<preset>.json`:
-one thick curve with the neural_yarn_bsdf closure), and on request `osl` and `nodes`: the add-on's
+one thick curve with the neural_yarn_bsdf closure), on request `osl` and `nodes`: the add-on's
 stock-Blender fallbacks on the native method's scene, rendered by the bpy wheel's Cycles
-(scripts/fallback_render.py rebuilds the scene in Blender; presets only). Lights: the rigs of
-`neuralyarn cycles-scene --list-lights`.
+(scripts/fallback_render.py rebuilds the scene in Blender; presets only), and the baselines an artist would
+use instead, on the native method's geometry (`neuralyarn cycles-scene --list-baselines`: `chiang`, `huang`
+(Principled Hair), `sheen` (Principled BSDF)), each with the colour whose central-region mean under the
+uniform environment matches reference A's there (fitted per preset, DIR/baselines.json; decisions D23).
+Lights: the rigs of `neuralyarn cycles-scene --list-lights`.
 
 Metrics against reference A (linear HDR images):
   mean_colour_error        per channel, mean colour / reference mean colour - 1, over the central region:
@@ -31,11 +34,15 @@ Metrics against reference A (linear HDR images):
   relmse                   mean over pixels of mean_c (x - r)^2 / (r^2 + 0.01), the top 0.1 % discarded;
   ssim                     scripts/images.py: display images (the reference's 99.5th percentile
                            maps to 1, clamped, sRGB), Gaussian window sigma 1.5.
-Cost: seconds_load (wall time of a 1-sample render of the same scene), seconds_render (wall time minus
-that), peak_rss_mb (/usr/bin/time %M), baseline_rss_mb (an empty scene's), curve_keys (from the scene).
+Cost: seconds_load (wall time of a 1-sample render of the same scene, the median of three), seconds_render
+(wall time minus that), peak_rss_mb (/usr/bin/time %M), baseline_rss_mb (an empty scene's), curve_keys (from
+the scene). Speed against error (scripts/evaluate_charts.py): per (scene, preset, light) FLIP against render
+time over --spp, one curve per method; results.json's `summary` has per scene and method the speed-up over
+explicit fibers at equal FLIP and at equal samples, and the memory ratio above the baseline.
 
 Writes DIR/results.json, DIR/summary.md (also printed), DIR/strips/<scene>_<preset>_<light>.png
-(reference | native | explicit at the first --spp, one exposure). One progress line per render on
+(reference | native | explicit at the first --spp, one exposure), DIR/charts/ (with two or more --spp).
+One progress line per render on
 stderr. Exit codes: 0 all rendered, 1 bad arguments or a missing build/model (one line on stderr, nothing
 rendered), 2 some renders failed (recorded in results.json with the reason).
 """
@@ -57,6 +64,7 @@ import time
 
 import numpy as np
 
+from evaluate_charts import error_time_charts, speed_summary, summary_table
 from images import LUMINANCE, display, display_ssim, exposure_of, read_exr, write_exr
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
@@ -67,10 +75,13 @@ MODELS = os.path.join(ROOT, "models")
 
 PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
 SCENES = ["closeup"]
-METHODS = ["explicit", "native", "osl", "nodes"]
+METHODS = ["explicit", "native", "osl", "nodes"]  # + the baselines of the CLI (cli_table)
 DEFAULT_METHODS = ["explicit", "native"]
 #: Methods rendered by Blender (the bpy wheel) from the native method's scene.
 FALLBACKS = ("osl", "nodes")
+#: The baselines' colour fit (fit_baseline): samples per fitting render, renders at most, and the largest
+#: relative error per channel of the central-region mean that ends it.
+BASELINE_FIT = {"spp": 64, "renders": 8, "tolerance": 0.005}
 FALLBACK_RENDER = os.path.join(ROOT, "scripts", "fallback_render.py")
 REFERENCE_METHOD = "explicit"
 # Cycles integrator seeds: the runs use 1..--seeds, the references two seeds of their own.
@@ -120,7 +131,7 @@ def names(values: list[str] | None) -> list[str] | None:
     return [n for v in values for n in v.split(",") if n]
 
 
-def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
+def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> argparse.Namespace:
     ap = Parser(prog="evaluate.sh", description=__doc__.split("\n")[0])
     ap.add_argument("--out", required=True, help="output directory (created; references cached there)")
     ap.add_argument("--quick", action="store_true",
@@ -159,7 +170,8 @@ def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
             if not os.path.isfile(f):
                 raise Usage(f"--yarn {name}: '{f}' does not exist")
         a.yarns[name] = {"params": os.path.abspath(params), "model": os.path.abspath(model)}
-    for kind, given, known in (("scene", a.scenes, SCENES), ("method", a.methods, METHODS),
+    a.baselines = [m for m in a.methods if m in baselines]
+    for kind, given, known in (("scene", a.scenes, SCENES), ("method", a.methods, METHODS + baselines),
                                ("preset", a.presets, PRESETS + list(a.yarns)), ("light", a.lights, list(rigs))):
         for n in given:
             if n not in known:
@@ -185,7 +197,7 @@ def parse_args(argv: list[str], rigs: dict[str, str]) -> argparse.Namespace:
     a.presets += [y for y in a.yarns if y not in a.presets]
     if any(m in FALLBACKS for m in a.methods) and a.yarns:
         raise Usage("methods osl and nodes render the presets only (the add-on's shipped models)")
-    if "native" in a.methods or any(m in FALLBACKS for m in a.methods):
+    if "native" in a.methods or any(m in FALLBACKS for m in a.methods) or a.baselines:
         for p in a.presets:
             if not os.path.isfile(model_path(a.yarns, p)):
                 raise Usage(f"method native: model '{model_path(a.yarns, p)}' is missing (scripts/bake_models.sh makes it)")
@@ -214,21 +226,27 @@ def run_cli(args: list[str]) -> str:
     return r.stdout
 
 
-def light_rigs() -> dict[str, str]:
-    """name -> description, from the CLI (the one table of rigs, cpp_core/src/scenes/cycles_xml.cpp)."""
-    r = subprocess.run([CLI, "cycles-scene", "--list-lights"], capture_output=True, text=True)
+def cli_table(flag: str) -> dict[str, str]:
+    """name -> description of `neuralyarn cycles-scene --list-lights` or `--list-baselines` (the one table of
+    each, cpp_core/src/scenes/cycles_xml.cpp)."""
+    r = subprocess.run([CLI, "cycles-scene", flag], capture_output=True, text=True)
     if r.returncode != 0:
-        raise Usage(f"{CLI} cycles-scene --list-lights failed: {r.stderr.strip()} (rebuild: scripts/setup.sh)")
-    rigs = {}
+        raise Usage(f"{CLI} cycles-scene {flag} failed: {r.stderr.strip()} (rebuild: scripts/setup.sh)")
+    table = {}
     for line in r.stdout.splitlines():
         name, _, desc = line.strip().partition(" ")
-        rigs[name] = desc.strip()
-    return rigs
+        table[name] = desc.strip()
+    return table
 
 
-def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, rotation: float = 0.0) -> str:
+def light_rigs() -> dict[str, str]:
+    return cli_table("--list-lights")
+
+
+def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, rotation: float = 0.0,
+                colour: list[float] | None = None) -> str:
     """The scene file of one render (the closeup: `neuralyarn cycles-scene`); `rotation` turns the explicit
-    ply about its axis (degrees)."""
+    ply about its axis (degrees); a baseline method needs its `colour`."""
     assert scene == "closeup"
     turned = f"_rot{rotation:g}" if rotation else ""
     path = os.path.join(a.out, "scenes", f"{scene}_{preset}_{light}_{method}_seed{seed}{turned}.xml")
@@ -238,6 +256,8 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
         args += ["--ply-rotation", f"{rotation:g}"]
     if method == "native" or method in FALLBACKS:
         args += ["--model", model_path(a.yarns, preset)]
+    elif method in a.baselines:
+        args += ["--baseline", method, "--baseline-colour", *(f"{c:.6f}" for c in colour)]
     run_cli(args)
     return path
 
@@ -395,13 +415,19 @@ class Progress:
         return f"[{self.done}/{self.total}] {what}"
 
 
+def reference_parts(which: str, k_count: int) -> list[tuple[int, float]]:
+    """(Cycles seed, ply rotation in degrees) of the k_count renders that reference `which` (A or B) averages:
+    A at k 360/K, B halfway between, each with seed base + 2k."""
+    offset = 0.0 if which == "A" else 0.5
+    return [(REFERENCE_SEEDS[which] + 2 * k, (k + offset) * 360.0 / k_count) for k in range(k_count)]
+
+
 def reference(a, scene: str, preset: str, light: str, which: str, what: str) -> dict:
     """Reference `which` (A or B) of (scene, preset, light): the mean of a.ref_rotations renders of the
     explicit ply turned about its axis (REFERENCE_SEEDS), or reused from DIR/refs when the scene files and the
     samples are the same."""
     k_count, spp = a.ref_rotations, a.ref_spp // a.ref_rotations
-    offset = 0.0 if which == "A" else 0.5
-    parts = [(REFERENCE_SEEDS[which] + 2 * k, (k + offset) * 360.0 / k_count) for k in range(k_count)]
+    parts = reference_parts(which, k_count)
     xmls = [write_scene(a, scene, REFERENCE_METHOD, preset, light, seed, rot) for seed, rot in parts]
     name = f"{scene}_{preset}_{light}_{which}"
     exr = os.path.join(a.out, "refs", name + ".exr")
@@ -431,12 +457,70 @@ def reference(a, scene: str, preset: str, light: str, which: str, what: str) -> 
     return {**meta, "image": os.path.relpath(exr, a.out), "cached": False}
 
 
+def fit_baseline(a, scene: str, preset: str, method: str, env_ref: dict, what: str) -> dict:
+    """The colour of a baseline for a preset: the one whose mean colour over the central region under the uniform
+    environment matches reference A's there — what an artist matching the yarn's colour under even light would
+    pick (the neural model is calibrated to the same thing, D23). Per channel, colour -> mean is monotonic: a
+    multiplicative step, then secant steps in log-log, clamped to [1e-4, 1]: where a stock closure's own white
+    specular outshines the target (fleece's dark red), the channel ends at the bound, its error recorded. Reused from DIR/baselines.json when
+    the reference, the image size and the fit settings are the same. Returns {"colour", "error" (relative, per
+    channel, of the last render), "renders", "converged", "cached"}."""
+    path = os.path.join(a.out, "baselines.json")
+    table = {}
+    if os.path.isfile(path):
+        with open(path) as f:
+            table = json.load(f)
+    key = {"reference": env_ref["scene_sha256"], "ref_spp": env_ref["spp"], "width": a.width, "height": a.height,
+           **BASELINE_FIT}
+    name = f"{scene}_{preset}_{method}"
+    if name in table and table[name]["key"] == key:
+        log(f"{what}: cached")
+        return {**table[name]["fit"], "cached": True}
+    ref = read_exr(os.path.join(a.out, env_ref["image"]))
+    xml = write_scene(a, scene, REFERENCE_METHOD, preset, "environment", REFERENCE_SEEDS["A"])
+    region = central_region(*camera(xml), a.width, a.height)
+    target = ref[region].mean(axis=(0, 1))
+    colour = np.clip(target, 1e-3, 1.0)  # the environment is white: the mean is an albedo
+    history: list[tuple[np.ndarray, np.ndarray]] = []
+    for k in range(BASELINE_FIT["renders"]):
+        xml = write_scene(a, scene, method, preset, "environment", 1, colour=list(colour))
+        exr = os.path.join(a.out, "renders", f"{name}_fit.exr")
+        render(a, xml, BASELINE_FIT["spp"], exr, f"{what} [{k + 1}: {' '.join(f'{c:.4f}' for c in colour)}]")
+        mean = read_exr(exr)[region].mean(axis=(0, 1))
+        history.append((colour.copy(), mean))
+        error = mean / target - 1.0
+        stuck = ((colour <= 1e-4) & (error > 0)) | ((colour >= 1.0) & (error < 0))
+        if np.all((np.abs(error) <= BASELINE_FIT["tolerance"]) | stuck):
+            break
+        slope = np.ones(3)
+        if len(history) > 1:
+            (c0, m0), (c1, m1) = history[-2], history[-1]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                slope = np.log(m1 / m0) / np.log(c1 / c0)
+            slope = np.where(np.isfinite(slope), np.clip(slope, 0.2, 5.0), 1.0)
+        colour = np.clip(colour * (target / np.maximum(mean, 1e-12)) ** (1.0 / slope), 1e-4, 1.0)
+    fit = {"colour": [float(c) for c in history[-1][0]], "error": [float(e) for e in error],
+           "renders": len(history), "converged": bool(np.all(np.abs(error) <= BASELINE_FIT["tolerance"]))}
+    table[name] = {"key": key, "fit": fit}
+    with open(path, "w") as f:
+        json.dump(table, f, indent=1)
+    return {**fit, "cached": False}
+
+
+def load_seconds(a, xml: str, exr: str, what: str, fallback) -> dict:
+    """The load cost: the median wall time of three 1-sample renders (one is as noisy as the renders of a few
+    samples it is subtracted from); peak memory of the first."""
+    costs = [render(a, xml, 1, exr, f"{what} {k + 1}/3", fallback) for k in range(3)]
+    return {"seconds": float(np.median([c["seconds"] for c in costs])), "peak_rss_mb": costs[0]["peak_rss_mb"]}
+
+
 def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
     for sub in ("scenes", "refs", "renders", "strips"):
         os.makedirs(os.path.join(a.out, sub), exist_ok=True)
     groups = [(s, p, l) for s in a.scenes for p in a.presets for l in a.lights]
     n_runs = len(a.methods) * len(a.spp) * a.seeds
-    progress = Progress(1 + len(groups) * (2 + len(a.methods) + n_runs))
+    fits = [(s, p) for s in a.scenes for p in a.presets] if a.baselines else []
+    progress = Progress(1 + len(fits) * (1 + len(a.baselines)) + len(groups) * (2 + len(a.methods) + n_runs))
     failures = 0
 
     try:
@@ -445,6 +529,31 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
     except RenderFailed as e:
         baseline, failures = None, failures + 1
         log(f"the empty scene: FAILED, {e}")
+
+    # The baselines' colours, from the environment's reference A of each (scene, preset).
+    colours, baseline_fits = {}, []
+    for scene, preset in fits:
+        what = progress(f"reference A {scene} {preset} environment {a.ref_spp} spp (for the baselines' colours)")
+        try:
+            env_ref = reference(a, scene, preset, "environment", "A", what)
+        except RenderFailed as e:
+            failures += 1
+            log(f"{what}: FAILED, {e}")
+            env_ref = None
+        for method in a.baselines:
+            what = progress(f"{method} {scene} {preset} colour fit")
+            rec = {"scene": scene, "preset": preset, "method": method, "failed": False}
+            try:
+                if env_ref is None:
+                    raise RenderFailed("the environment's reference failed")
+                fit = fit_baseline(a, scene, preset, method, env_ref, what)
+                colours[(scene, preset, method)] = fit["colour"]
+                rec.update(fit)
+            except RenderFailed as e:
+                failures += 1
+                rec["failed"] = f"colour fit failed: {e}"
+                log(f"{what}: FAILED, {e}")
+            baseline_fits.append(rec)
 
     references, noise_floor, runs, cameras = [], [], [], {}
     for scene, preset, light in groups:
@@ -483,10 +592,13 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
             # Load cost: a 1-sample render of the same scene (seed 1), once per method.
             xml, load, load_failed = None, None, None
             what = progress(f"{method} {scene} {preset} {light} 1 spp (load)")
+            colour = colours.get((scene, preset, method))
             try:
-                xml = write_scene(a, scene, method, preset, light, 1)
-                load = render(a, xml, 1, os.path.join(a.out, "renders", f"{scene}_{preset}_{light}_{method}_1spp.exr"),
-                              what, (method, preset, 1) if method in FALLBACKS else None)
+                if method in a.baselines and colour is None:
+                    raise RenderFailed("no colour (its fit failed)")
+                xml = write_scene(a, scene, method, preset, light, 1, colour=colour)
+                load = load_seconds(a, xml, os.path.join(a.out, "renders", f"{scene}_{preset}_{light}_{method}_1spp.exr"),
+                                    what, (method, preset, 1) if method in FALLBACKS else None)
             except RenderFailed as e:
                 load_failed = f"load render failed: {e}"
                 failures += 1
@@ -506,7 +618,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                         continue
                     exr = os.path.join(a.out, "renders", f"{scene}_{preset}_{light}_{method}_{spp}spp_seed{seed}.exr")
                     try:
-                        xml_s = xml if seed == 1 else write_scene(a, scene, method, preset, light, seed)
+                        xml_s = xml if seed == 1 else write_scene(a, scene, method, preset, light, seed, colour=colour)
                         cost = render(a, xml_s, spp, exr, what, (method, preset, seed) if method in FALLBACKS else None)
                     except RenderFailed as e:
                         rec["failed"] = str(e)
@@ -540,12 +652,14 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         "scenes": cameras,
         "lights": {l: rigs[l] for l in a.lights},
         "methods": a.methods,
+        "baselines": baseline_fits,
         "presets": a.presets,
         "yarns": a.yarns,
         "references": references,
         "noise_floor": noise_floor,
         "runs": runs,
     }
+    results["summary"] = speed_summary(results)
     return results, failures
 
 
@@ -633,6 +747,16 @@ def summary(results: dict) -> str:
             f"{fmt(mean([r['flip'] for r in ok]), '.3f')} | {fmt(fl['flip'], '.3f')} | "
             f"{fmt(mean([r['seconds_render'] for r in ok]), '.2f')} | {fmt(mean([r['seconds_load'] for r in ok]), '.2f')} | "
             f"{fmt(mean([r['peak_rss_mb'] for r in ok]), '.0f')} | {failed.replace('|', '/')[:80]} |")
+    if results.get("baselines"):
+        lines += ["", "Baselines' colours (fitted to reference A's central-region mean under the environment):", "",
+                  "| scene | preset | method | colour | error R / G / B % | renders | failed |", "|---|---|---|---|---|---|---|"]
+        for b in results["baselines"]:
+            lines.append(f"| {b['scene']} | {b['preset']} | {b['method']} | "
+                         f"{' '.join(f'{c:.4f}' for c in b.get('colour', []))} | "
+                         f"{' / '.join(f'{100 * e:+.1f}' for e in b.get('error', []))} | {b.get('renders', '-')} | "
+                         f"{b['failed'] or ''} |")
+    if results.get("summary"):
+        lines += ["", "Speed against explicit fibers (scripts/evaluate_charts.py):", "", summary_table(results).rstrip()]
     return "\n".join(lines) + "\n"
 
 
@@ -642,7 +766,7 @@ def main(argv: list[str]) -> int:
             if not os.access(tool, os.X_OK):
                 raise Usage(f"{tool} is not built (scripts/setup.sh builds it)")
         rigs = light_rigs()
-        a = parse_args(argv, rigs)
+        a = parse_args(argv, rigs, list(cli_table("--list-baselines")))
         a.out = os.path.abspath(a.out)
         os.makedirs(a.out, exist_ok=True)
     except Usage as e:
@@ -656,6 +780,8 @@ def main(argv: list[str]) -> int:
     with open(os.path.join(a.out, "summary.md"), "w") as f:
         f.write(table)
     contact_sheet(a.out, results)
+    if len(a.spp) > 1:
+        error_time_charts(a.out, results)
     print(table, end="")
     log(f"wrote {os.path.join(a.out, 'results.json')}, summary.md, strips/, strips.png in {time.monotonic() - t0:.0f} s"
         + (f"; {failures} render(s) FAILED" if failures else ""))

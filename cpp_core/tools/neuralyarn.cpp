@@ -224,7 +224,24 @@ int main(int argc, char **argv)
   scene->add_option("--seed", s_opt.seed, "Cycles' integrator seed: renders with other seeds have independent noise")
       ->check(CLI::Range(0, 2147483647))
       ->capture_default_str();
-  scene->add_option("--model", s_opt.model, "Aggregated version: one thick curve with this neural yarn model");
+  auto *s_opt_model =
+      scene->add_option("--model", s_opt.model, "Aggregated version: one thick curve with this neural yarn model");
+  std::vector<double> s_baseline_colour;
+  auto *s_opt_baseline = scene->add_option("--baseline", s_opt.baseline,
+                                           "Aggregated geometry with a stock closure instead of a model (--list-baselines)")
+                             ->excludes(s_opt_model);
+  scene->add_option("--baseline-colour", s_baseline_colour, "With --baseline: its colour R G B, each in [0, 1]")
+      ->expected(3)
+      ->needs(s_opt_baseline);
+  scene->add_flag_callback(
+      "--list-baselines",
+      [] {
+        for (const auto &b : scenes::baselines()) {
+          std::printf("%-12s %s\n", b.name.c_str(), b.description.c_str());
+        }
+        throw CLI::Success();
+      },
+      "Print the baselines (name, description; one a line) and exit");
   scene->add_flag("--embed-model", s_opt.embed_model,
                   "With --model: write the model's JSON into the scene (a self-contained file; cycles_patch 0003)");
   std::vector<int> s_region;
@@ -263,6 +280,9 @@ int main(int argc, char **argv)
       scenes::find_light_rig(s_opt.lights); /* an unknown rig is named before anything else */
       for (const std::string &name : s_predict_lights) {
         scenes::find_light_rig(name);
+      }
+      for (size_t c = 0; c < s_baseline_colour.size(); c++) {
+        s_opt.baseline_colour[c] = s_baseline_colour[c];
       }
       check_writable(s_out);
       scenes::write_ply_scene(resolve_preset(s_preset, s_params), s_opt, s_out);

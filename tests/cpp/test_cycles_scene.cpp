@@ -364,3 +364,42 @@ TEST(CyclesScene, ArtistBounceLimitsAreBlendersDefaultsWithTheAddonsTransparency
 }
 
 }  // namespace
+
+TEST(CyclesSceneBaselines, StockClosuresOnTheAggregatedGeometryWithTheirColour)
+{
+  PlySceneOptions o;
+  o.model = std::string(NY_TEST_DATA_DIR) + "/../../models/fleece.json";
+  const std::string native = scene_text(o);
+  o.model.clear();
+  o.baseline_colour[0] = 0.25, o.baseline_colour[1] = 0.5, o.baseline_colour[2] = 0.75;
+  for (const auto &b : neuralyarn::scenes::baselines()) {
+    SCOPED_TRACE(b.name);
+    o.baseline = b.name;
+    const std::string xml = scene_text(o);
+    /* The same one thick curve as the neural model's, and no neural closure. */
+    EXPECT_EQ(hair_keys(xml), hair_keys(native));
+    EXPECT_EQ(hair_attribute(xml, "radius"), hair_attribute(native, "radius"));
+    EXPECT_EQ(xml.find("neural_yarn_bsdf"), std::string::npos);
+    const bool hair = b.name != "sheen";
+    const std::vector<Attributes> nodes = elements(xml, hair ? "principled_hair_bsdf" : "principled_bsdf");
+    ASSERT_EQ(nodes.size(), 1u);
+    EXPECT_EQ(numbers(nodes[0].at(hair ? "color" : "base_color")), (std::vector<double>{0.25, 0.5, 0.75}));
+    if (hair) {
+      EXPECT_EQ(nodes[0].at("model"), b.name == "chiang" ? "Chiang" : "Huang");
+      EXPECT_EQ(nodes[0].at("parametrization"), "Direct coloring");
+    }
+    else {
+      EXPECT_EQ(nodes[0].at("sheen_weight"), "1");
+    }
+  }
+  o.baseline = "lambert";
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  o.baseline = "chiang";
+  o.baseline_colour[1] = std::nan("");
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  o.baseline_colour[1] = 1.5;
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  o.baseline_colour[1] = 0.5;
+  o.model = std::string(NY_TEST_DATA_DIR) + "/../../models/fleece.json";
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+}

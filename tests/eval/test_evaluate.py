@@ -81,8 +81,10 @@ def test_noise_floor_and_header(quick):
     assert results["settings"]["ref_spp"] == 64 and results["settings"]["width"] == 96
     assert sorted(results["lights"]) == sorted(LIGHTS)
     with open(os.path.join(out, "summary.md")) as f:
-        rows = [ln for ln in f if ln.startswith("| closeup | fleece |")]
-    assert len(rows) == 4
+        rows = [ln.split("|") for ln in f if ln.startswith("| closeup | fleece |")]
+    # The error table (spp in the fifth column) and the speed table (one row per group, native only).
+    assert sum(r[5].strip() == "4" for r in rows) == 4
+    assert sum(r[4].strip() == "native" and r[5].strip() != "4" for r in rows) == 2
     for light in LIGHTS:
         assert os.path.getsize(os.path.join(out, "strips", f"closeup_fleece_{light}.png")) > 0
 
@@ -96,7 +98,7 @@ def test_progress_and_cached_references(quick):
 
 @pytest.mark.parametrize("args, message", [
     (["--lights", "sun"], "evaluate: error: unknown light 'sun' (known: key-rim, environment, front, grazing, back, axis)"),
-    (["--methods", "cycles-osl"], "evaluate: error: unknown method 'cycles-osl' (known: explicit, native, osl, nodes)"),
+    (["--methods", "cycles-osl"], "evaluate: error: unknown method 'cycles-osl' (known: explicit, native, osl, nodes, chiang, huang, sheen)"),
     (["--presets", "wool"], "evaluate: error: unknown preset 'wool' (known: fleece, silk, polyester, cotton, gabardine)"),
 ])
 def test_unknown_name_exits_1_with_one_line(tmp_path, args, message):
@@ -146,3 +148,36 @@ def test_the_stock_fallbacks_under_a_distant_light(tmp_path):
     bad = evaluate("--quick", "--out", str(tmp_path / "never"), "--methods", "osl", "--yarn",
                    f"my_wool={os.path.join(ROOT, 'tests', 'data', 'good_custom.json')},{os.path.join(ROOT, 'models', 'fleece.json')}")
     assert bad.returncode == 1 and "presets only" in bad.stderr
+
+
+def test_baselines_fitted_under_the_environment_and_speed_against_error(tmp_path):
+    """--methods explicit chiang sheen over two spp: each baseline's colour is fitted to the explicit fibers
+    under the uniform environment (within the fit's tolerance there, D23), rendered on the native geometry,
+    and results.json's summary holds its speed-up over explicit fibers at equal FLIP, at equal samples and
+    the memory ratio; the error-against-time charts are drawn."""
+    r = evaluate("--quick", "--out", str(tmp_path), "--lights", "grazing", "--methods", "explicit", "chiang", "sheen",
+                 "--spp", "4", "16")
+    assert r.returncode == 0, r.stderr
+    res = json.load(open(tmp_path / "results.json"))
+    fits = {b["method"]: b for b in res["baselines"]}
+    assert set(fits) == {"chiang", "sheen"}
+    for b in fits.values():
+        assert b["failed"] is False, b
+        # Each channel matches, or its colour is at a bound that cannot go further: a stock closure's white
+        # specular alone outshines fleece's dark red (D23).
+        for c, e in zip(b["colour"], b["error"]):
+            assert abs(e) <= 0.005 or (c <= 1e-4 and e > 0) or (c >= 1 and e < 0), b
+        assert b["converged"] == all(abs(e) <= 0.005 for e in b["error"])
+    assert any(abs(e) <= 0.005 for e in fits["chiang"]["error"])
+    scene = open(tmp_path / "scenes" / "closeup_fleece_grazing_chiang_seed1.xml").read()
+    assert "<principled_hair_bsdf" in scene and " ".join(f"{c:.6f}" for c in fits["chiang"]["colour"]) in scene
+    summ = res["summary"]["closeup"]
+    assert set(summ) == {"chiang", "sheen"}
+    for e in summ.values():
+        assert finite(e["speedup_equal_spp"]) and e["speedup_equal_spp"] > 1  # one curve against the fibers
+        assert e["groups"][0]["equal_flip"] is not None and finite(e["speedup_equal_flip"])
+        assert e["memory_ratio"] is None or finite(e["memory_ratio"])
+    assert os.path.getsize(tmp_path / "charts" / "closeup_fleece_grazing_flip_time.png") > 0
+    # A second run reuses the fitted colours.
+    again = evaluate("--quick", "--out", str(tmp_path), "--lights", "grazing", "--methods", "chiang", "--spp", "4")
+    assert again.returncode == 0 and "chiang closeup fleece colour fit: cached" in again.stderr

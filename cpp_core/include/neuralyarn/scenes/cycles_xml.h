@@ -7,7 +7,9 @@
 // khungurn_fiber_bsdf closure) and aggregated (one thick curve of the ply's radius shaded by the
 // neural_yarn_bsdf closure with a model file). Units: the ply radius is 1; the ply lies along x through
 // the origin, the camera looks along +z from z = -12. The stability suite (scripts/stability.py) varies
-// the camera's distance, the scene's unit, the light's angle and stacks cloth layers of plies.
+// the camera's distance, the scene's unit, the light's angle and stacks cloth layers of plies. The
+// evaluation harness (scripts/evaluate.py) also renders the aggregated geometry with a stock Cycles closure
+// instead of the neural one: the baselines an artist would use (Principled Hair, Principled BSDF's sheen).
 #pragma once
 
 #include <cstdint>
@@ -76,7 +78,17 @@ struct PlySceneOptions {
   int seed = 0;                  /* Cycles' integrator seed: independent noise per value */
   std::string model;             /* aggregated version: the model file (written relative to the scene) */
   bool embed_model = false;      /* write the model's JSON into the scene (model_json), not its path */
+  std::string baseline;          /* instead of --model: the aggregated geometry with a stock closure (baselines()) */
+  double baseline_colour[3] = {0.5, 0.5, 0.5}; /* its colour, each in [0, 1] (the harness fits it, D23) */
 };
+
+/* A stock closure on the aggregated ply: what an artist would use instead of the neural model. */
+struct Baseline {
+  std::string name, description;
+};
+/* chiang, huang (Principled Hair, Blender's defaults but for the colour: "Direct coloring", and for Huang a
+ * round cross-section), sheen (Principled BSDF with sheen 1 and Blender's default specular). */
+const std::vector<Baseline> &baselines();
 
 /* Writes the scene; throws std::runtime_error naming the path when it cannot be written. */
 void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &options, const std::string &path);

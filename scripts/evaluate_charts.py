@@ -1,0 +1,250 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
+"""Speed against error, from the evaluation harness's results.json (scripts/evaluate.py): the curves, the
+speed-ups at equal error and the charts.
+
+A method's curve in a (scene, preset, light) group is its points over the samples per pixel: render seconds
+and mean HDR-FLIP against reference A, each the mean over seeds (FLIP's spread over seeds kept). The time a
+method needs to reach an error level is read off its curve by interpolating log time against log FLIP
+between the first point at or below the level and the one before it; at or below the level at its first
+point, the first point's time is an upper bound; never below it, there is no time.
+
+Speed-up of a method over explicit fibers at equal FLIP, per group: at the lowest error both curves reach
+(the larger of the two minima), explicit's time over the method's. A biased method levels off at its bias, so
+that is the level where it stops improving; explicit fibers keep improving. Speed-up at equal samples: the
+ratio of render times at each spp both have (their median). Memory ratio: peak memory above the empty
+scene's, explicit over the method (median over the groups; Cycles' own memory is the baseline).
+
+    .venv/bin/python scripts/evaluate_charts.py DIR    redraws DIR/charts and prints the summary of DIR/results.json
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+
+import numpy as np
+
+REFERENCE_METHOD = "explicit"
+#: Render times below this are timing noise on the log axis (a few-sample render of a small image).
+MIN_SECONDS = 0.01
+
+
+def curves(results: dict) -> dict:
+    """(scene, preset, light) -> method -> list of {"spp", "seconds", "flip", "flip_sd", "seeds"} sorted by spp,
+    from the runs that did not fail."""
+    acc: dict = {}
+    for r in results["runs"]:
+        if r["failed"] or r["flip"] is None or r["seconds_render"] is None:
+            continue
+        acc.setdefault((r["scene"], r["preset"], r["light"]), {}).setdefault(r["method"], {}).setdefault(
+            r["spp"], []).append(r)
+    out: dict = {}
+    for group, methods in acc.items():
+        for method, by_spp in methods.items():
+            pts = []
+            for spp in sorted(by_spp):
+                rs = by_spp[spp]
+                flips = [x["flip"] for x in rs]
+                pts.append({"spp": spp, "seconds": max(MIN_SECONDS, float(np.mean([x["seconds_render"] for x in rs]))),
+                            "flip": float(np.mean(flips)), "flip_sd": float(np.std(flips)), "seeds": len(rs)})
+            out.setdefault(group, {})[method] = pts
+    return out
+
+
+def time_to_reach(curve: list[dict], level: float) -> tuple[float | None, bool]:
+    """(seconds, upper_bound) for the curve to reach FLIP `level`; (None, False) if it never does."""
+    for i, p in enumerate(curve):
+        if p["flip"] <= level:
+            if i == 0:
+                return p["seconds"], True
+            q = curve[i - 1]
+            lf0, lf1 = math.log(q["flip"]), math.log(p["flip"])
+            w = (math.log(level) - lf0) / (lf1 - lf0) if lf1 != lf0 else 1.0
+            return math.exp(math.log(q["seconds"]) + w * (math.log(p["seconds"]) - math.log(q["seconds"]))), False
+    return None, False
+
+
+def equal_flip_speedup(method_curve: list[dict], reference_curve: list[dict]) -> dict | None:
+    """{"flip", "seconds_reference", "seconds_method", "speedup", "bound"} at the lowest FLIP both reach; bound
+    "lower" or "upper" when the method's or the reference's time is only an upper bound there."""
+    if not method_curve or not reference_curve:
+        return None
+    level = max(min(p["flip"] for p in method_curve), min(p["flip"] for p in reference_curve))
+    t_m, m_bound = time_to_reach(method_curve, level)
+    t_r, r_bound = time_to_reach(reference_curve, level)
+    if t_m is None or t_r is None:
+        return None
+    bound = "lower" if m_bound and not r_bound else "upper" if r_bound and not m_bound else (
+        "unknown" if m_bound and r_bound else None)
+    return {"flip": level, "seconds_reference": t_r, "seconds_method": t_m, "speedup": t_r / t_m, "bound": bound}
+
+
+def memory_above_baseline(results: dict, group: tuple, method: str) -> float | None:
+    rs = [r for r in results["runs"] if (r["scene"], r["preset"], r["light"]) == group and r["method"] == method
+          and not r["failed"] and r["peak_rss_mb"] and r["baseline_rss_mb"]]
+    if not rs:
+        return None
+    return float(np.median([r["peak_rss_mb"] - r["baseline_rss_mb"] for r in rs]))
+
+
+def speed_summary(results: dict) -> dict:
+    """results.json's `summary`: per scene, per method other than explicit fibers, `speedup_equal_flip` and
+    `speedup_equal_spp` (the median over groups, and every group's value), and `memory_ratio`."""
+    cs = curves(results)
+    summary: dict = {}
+    for group, methods in sorted(cs.items()):
+        scene = group[0]
+        ref = methods.get(REFERENCE_METHOD)
+        if not ref:
+            continue
+        ref_mem = memory_above_baseline(results, group, REFERENCE_METHOD)
+        for method, curve in methods.items():
+            if method == REFERENCE_METHOD:
+                continue
+            entry = summary.setdefault(scene, {}).setdefault(method, {"groups": []})
+            eq = equal_flip_speedup(curve, ref)
+            ref_t = {p["spp"]: p["seconds"] for p in ref}
+            at_spp = [ref_t[p["spp"]] / p["seconds"] for p in curve if p["spp"] in ref_t]
+            mem = memory_above_baseline(results, group, method)
+            entry["groups"].append({
+                "preset": group[1], "light": group[2], "equal_flip": eq,
+                "speedup_equal_spp": float(np.median(at_spp)) if at_spp else None,
+                "memory_ratio": ref_mem / mem if ref_mem is not None and mem and mem > 0 else None})
+    for scene in summary.values():
+        for entry in scene.values():
+            gs = entry["groups"]
+            eq = [g["equal_flip"]["speedup"] for g in gs if g["equal_flip"]]
+            spp = [g["speedup_equal_spp"] for g in gs if g["speedup_equal_spp"] is not None]
+            mem = [g["memory_ratio"] for g in gs if g["memory_ratio"] is not None]
+            entry["speedup_equal_flip"] = float(np.median(eq)) if eq else None
+            entry["speedup_equal_spp"] = float(np.median(spp)) if spp else None
+            entry["memory_ratio"] = float(np.median(mem)) if mem else None
+    return summary
+
+
+def summary_table(results: dict) -> str:
+    """Markdown: per group and method, the equal-FLIP level, both times and the speed-ups; then per scene."""
+    summ = results.get("summary") or {}
+    lines = ["| scene | preset | light | method | equal FLIP | explicit s | method s | speed-up at equal FLIP "
+             "| speed-up at equal spp | memory ratio |", "|---|---|---|---|---|---|---|---|---|---|"]
+    mark = {"lower": "≥ ", "upper": "≤ ", "unknown": "~ ", None: ""}
+
+    def fmt(v, spec):
+        return format(v, spec) if v is not None else "-"
+
+    for scene, methods in summ.items():
+        for method, e in methods.items():
+            for g in e["groups"]:
+                q = g["equal_flip"] or {}
+                lines.append(f"| {scene} | {g['preset']} | {g['light']} | {method} | {fmt(q.get('flip'), '.3f')} | "
+                             f"{fmt(q.get('seconds_reference'), '.2f')} | {fmt(q.get('seconds_method'), '.2f')} | "
+                             f"{mark[q.get('bound')] if q else ''}{fmt(q.get('speedup'), '.1f')} | "
+                             f"{fmt(g['speedup_equal_spp'], '.1f')} | {fmt(g['memory_ratio'], '.2f')} |")
+    lines += ["", "| scene | method | speed-up at equal FLIP (median) | at equal spp (median) | memory ratio (median) |",
+              "|---|---|---|---|---|"]
+    for scene, methods in summ.items():
+        for method, e in methods.items():
+            lines.append(f"| {scene} | {method} | {fmt(e['speedup_equal_flip'], '.1f')} | "
+                         f"{fmt(e['speedup_equal_spp'], '.1f')} | {fmt(e['memory_ratio'], '.2f')} |")
+    return "\n".join(lines) + "\n"
+
+
+def pareto(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The points no other point beats in both time and error, by time."""
+    front, best = [], math.inf
+    for t, f in sorted(points):
+        if f < best:
+            front.append((t, f))
+            best = f
+    return front
+
+
+def error_time_charts(out: str, results: dict) -> list[str]:
+    """DIR/charts/<scene>_<preset>_<light>_flip_time.png per group (FLIP against render seconds, log-log, one
+    curve per method with its spread over seeds, the Pareto front, the references' noise floor) and
+    DIR/charts/flip_time.png (all groups). Returns the paths."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    cs = curves(results)
+    floors = {(f["scene"], f["preset"], f["light"]): f["flip"] for f in results["noise_floor"]}
+    os.makedirs(os.path.join(out, "charts"), exist_ok=True)
+    methods = sorted({m for g in cs.values() for m in g}, key=lambda m: (m != REFERENCE_METHOD, m))
+    colour = {m: plt.get_cmap("tab10")(k) for k, m in enumerate(methods)}
+    groups = sorted(cs)
+    paths = []
+
+    def draw(ax, group, legend):
+        pts = []
+        for m in methods:
+            c = cs[group].get(m)
+            if not c:
+                continue
+            t = [p["seconds"] for p in c]
+            f = [p["flip"] for p in c]
+            ax.errorbar(t, f, yerr=[p["flip_sd"] for p in c], color=colour[m], marker="o", ms=3, lw=1, capsize=2,
+                        label=m)
+            for p in c:
+                ax.annotate(str(p["spp"]), (p["seconds"], p["flip"]), fontsize=5, color=colour[m],
+                            xytext=(2, 2), textcoords="offset points")
+            pts += list(zip(t, f))
+        front = pareto(pts)
+        ax.step([p[0] for p in front], [p[1] for p in front], where="post", color="k", lw=2, alpha=0.25,
+                label="Pareto front")
+        if floors.get(group):
+            ax.axhline(floors[group], color="grey", ls=":", lw=1, label="reference noise floor")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(f"{group[1]}, {group[2]}", fontsize=8)
+        ax.tick_params(labelsize=6)
+        if legend:
+            ax.legend(fontsize=6)
+
+    for group in groups:
+        fig, ax = plt.subplots(figsize=(5, 3.6))
+        draw(ax, group, True)
+        ax.set_xlabel("render seconds (load excluded)")
+        ax.set_ylabel("mean HDR-FLIP against the reference")
+        fig.tight_layout()
+        path = os.path.join(out, "charts", f"{group[0]}_{group[1]}_{group[2]}_flip_time.png")
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        paths.append(path)
+    if groups:
+        lights = sorted({g[2] for g in groups}, key=[g[2] for g in groups].index)
+        rows = sorted({(g[0], g[1]) for g in groups}, key=[(g[0], g[1]) for g in groups].index)
+        fig, axes = plt.subplots(len(rows), len(lights), squeeze=False,
+                                 figsize=(3.0 * len(lights), 2.4 * len(rows) + 0.5))
+        for i, row in enumerate(rows):
+            for j, light in enumerate(lights):
+                group = (*row, light)
+                if group in cs:
+                    draw(axes[i][j], group, i == 0 and j == 0)
+                else:
+                    axes[i][j].axis("off")
+        fig.suptitle("mean HDR-FLIP (log) against render seconds (log); numbers: samples per pixel", fontsize=9)
+        fig.tight_layout()
+        path = os.path.join(out, "charts", "flip_time.png")
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 1 or not os.path.isfile(os.path.join(argv[0], "results.json")):
+        print("usage: evaluate_charts.py DIR (with DIR/results.json)", file=sys.stderr)
+        return 1
+    with open(os.path.join(argv[0], "results.json")) as f:
+        results = json.load(f)
+    results["summary"] = speed_summary(results)
+    for p in error_time_charts(argv[0], results):
+        print(f"wrote {p}", file=sys.stderr)
+    print(summary_table(results), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

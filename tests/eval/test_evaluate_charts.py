@@ -1,0 +1,72 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Speed against error (scripts/evaluate_charts.py) on synthetic curves whose answers are known: explicit
+fibers converge as FLIP = 0.2 (t / 4)^-1/2 (unbiased noise), a biased method levels off at 0.12."""
+import math
+import os
+import sys
+
+import pytest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "scripts"))
+import evaluate_charts as ec  # noqa: E402
+
+EXPLICIT = [{"spp": 1, "seconds": 1.0, "flip": 0.4}, {"spp": 4, "seconds": 4.0, "flip": 0.2},
+            {"spp": 16, "seconds": 16.0, "flip": 0.1}]
+BIASED = [{"spp": 1, "seconds": 0.1, "flip": 0.3}, {"spp": 4, "seconds": 0.4, "flip": 0.15},
+          {"spp": 16, "seconds": 1.6, "flip": 0.12}, {"spp": 64, "seconds": 6.4, "flip": 0.12}]
+
+
+def test_time_to_reach_interpolates_log_time_against_log_error():
+    assert ec.time_to_reach(EXPLICIT, 0.2) == (pytest.approx(4.0), False)
+    assert ec.time_to_reach(EXPLICIT, 0.2 / math.sqrt(2)) == (pytest.approx(8.0), False)
+    assert ec.time_to_reach(EXPLICIT, 0.5) == (1.0, True)  # below it at once: an upper bound
+    assert ec.time_to_reach(EXPLICIT, 0.05) == (None, False)
+
+
+def test_equal_flip_speedup_at_the_lowest_error_both_reach():
+    q = ec.equal_flip_speedup(BIASED, EXPLICIT)
+    assert q["flip"] == pytest.approx(0.12)  # the biased method's floor, above explicit's 0.1
+    assert q["seconds_method"] == pytest.approx(1.6)
+    assert q["seconds_reference"] == pytest.approx(4.0 * (0.2 / 0.12) ** 2)
+    assert q["speedup"] == pytest.approx(4.0 * (0.2 / 0.12) ** 2 / 1.6)
+    assert q["bound"] is None
+    # A method better than explicit's best at its first point: its time is an upper bound, the speed-up a lower one.
+    good = [{"spp": 1, "seconds": 0.5, "flip": 0.05}]
+    q = ec.equal_flip_speedup(good, EXPLICIT)
+    assert (q["flip"], q["seconds_reference"], q["bound"]) == (0.1, pytest.approx(16.0), "lower")
+    assert ec.equal_flip_speedup([], EXPLICIT) is None
+
+
+def test_pareto_front():
+    pts = [(1, 0.4), (2, 0.5), (4, 0.2), (0.5, 0.6), (8, 0.2), (16, 0.1)]
+    assert ec.pareto(pts) == [(0.5, 0.6), (1, 0.4), (4, 0.2), (16, 0.1)]
+
+
+def results_of(curves_by_method, peak):
+    runs = []
+    for method, curve in curves_by_method.items():
+        for p in curve:
+            for seed, d in ((1, -0.01), (2, 0.01)):  # two seeds around the mean
+                runs.append({"scene": "closeup", "preset": "fleece", "light": "grazing", "method": method,
+                             "spp": p["spp"], "seed": seed, "seconds_render": p["seconds"], "flip": p["flip"] + d,
+                             "peak_rss_mb": peak[method], "baseline_rss_mb": 100.0, "failed": False})
+    # A failed run counts nowhere.
+    runs.append({**runs[0], "seed": 3, "flip": None, "seconds_render": None, "failed": "cycles exited with 1"})
+    return {"runs": runs, "noise_floor": [{"scene": "closeup", "preset": "fleece", "light": "grazing", "flip": 0.05}]}
+
+
+def test_speed_summary_and_charts(tmp_path):
+    res = results_of({"explicit": EXPLICIT, "native": BIASED}, {"explicit": 500.0, "native": 110.0})
+    s = ec.speed_summary(res)
+    native = s["closeup"]["native"]
+    assert native["speedup_equal_flip"] == pytest.approx(4.0 * (0.2 / 0.12) ** 2 / 1.6)
+    assert native["speedup_equal_spp"] == pytest.approx(10.0)  # 1/0.1, 4/0.4, 16/1.6
+    assert native["memory_ratio"] == pytest.approx(40.0)  # (500 - 100) / (110 - 100)
+    assert "explicit" not in s["closeup"]
+    c = ec.curves(res)[("closeup", "fleece", "grazing")]["explicit"]
+    assert [p["seeds"] for p in c] == [2, 2, 2] and c[0]["flip_sd"] == pytest.approx(0.01)
+    res["summary"] = s
+    assert "| closeup | native | 6.9 | 10.0 | 40.00 |" in ec.summary_table(res)
+    paths = ec.error_time_charts(str(tmp_path), res)
+    assert [os.path.basename(p) for p in paths] == ["closeup_fleece_grazing_flip_time.png", "flip_time.png"]
+    assert all(os.path.getsize(p) > 10000 for p in paths)
