@@ -4,6 +4,7 @@
 
     bash scripts/evaluate.sh --out DIR [--quick] [--presets P ...] [--lights L ...] [--methods M ...]
         [--scenes closeup] [--spp 64 256] [--seeds 1] [--ref-spp 1024] [--ref-rotations 8] [--width 160 --height 80]
+        [--distances 12 48 160]
         [--threads N] [--timeout 1800]
 
 Renders every (scene, method, preset, light, spp, seed) with the patched standalone Cycles
@@ -13,8 +14,12 @@ Renders every (scene, method, preset, light, spp, seed) with the patched standal
 that it holds the mean over the cross-section's orientation, as the maps do (D20).
 References are cached in DIR/refs and reused when the scene files and the sample count are the same.
 
-Scenes: `closeup`, the single-ply close-up of `neuralyarn cycles-scene` (ply radius 1 along x, camera at
-distance 12; the ply 48 long so that its ends are out of the frame). Methods: `explicit` (the fibers
+Scenes: `garment` (on request; --garment-stitches, default 40 x 40: a plain-knit sleeve of 3-ply yarn,
+scripts/garment.py, seen whole at 320 x 240, the point lights moved out with the camera; its central region is
+the middle half of the frame, all fabric; explicit fibers only up to ~50 M curve keys, a 10 x 10 piece for
+fleece, larger pieces are refused and recorded as failed), and `closeup`, the single-ply close-up of `neuralyarn cycles-scene` (ply radius 1 along x, camera at
+distance 12 — or each of --distances, in ply radii: the ply is about height / (0.483 distance) pixels wide —
+the ply 48 long, or longer with the distance, so that its ends are out of the frame). Methods: `explicit` (the fibers
 themselves, the reference's method, at the test's samples), `native` (`--model models/<preset>.json`:
 one thick curve with the neural_yarn_bsdf closure), on request `osl` and `nodes`: the add-on's
 stock-Blender fallbacks on the native method's scene, rendered by the bpy wheel's Cycles
@@ -27,7 +32,8 @@ Lights: the rigs of `neuralyarn cycles-scene --list-lights`.
 Metrics against reference A (linear HDR images):
   mean_colour_error        per channel, mean colour / reference mean colour - 1, over the central region:
                            the middle half of the width, the rows whose pixel centres see the ply's bounding
-                           cylinder (from the scene's camera), less one row at each silhouette;
+                           cylinder (from the scene's camera), less one row at each silhouette; where the ply
+                           is too thin for that (under 3 rows), over the whole frame (the run's `region`);
   mean_colour_error_frame  the same over the whole frame;
   mean_luminance_error     the same for Rec. 709 luminance, central region;
   flip                     mean HDR-FLIP (NVIDIA, PyPI flip-evaluator), 67 pixels per degree, whole frame;
@@ -41,7 +47,8 @@ time over --spp, one curve per method; results.json's `summary` has per scene an
 explicit fibers at equal FLIP and at equal samples, and the memory ratio above the baseline.
 
 Writes DIR/results.json, DIR/summary.md (also printed), DIR/strips/<scene>_<preset>_<light>.png
-(reference | native | explicit at the first --spp, one exposure), DIR/charts/ (with two or more --spp).
+(reference | native | explicit at the first --spp, one exposure), DIR/charts/ (error against time with two
+or more --spp, error against the ply's size on screen with two or more --distances).
 One progress line per render on
 stderr. Exit codes: 0 all rendered, 1 bad arguments or a missing build/model (one line on stderr, nothing
 rendered), 2 some renders failed (recorded in results.json with the reason).
@@ -62,9 +69,12 @@ import sys
 import tempfile
 import time
 
+import types
+
 import numpy as np
 
-from evaluate_charts import error_time_charts, speed_summary, summary_table
+from garment import garment_plies
+from evaluate_charts import error_distance_charts, error_time_charts, speed_summary, summary_table
 from images import LUMINANCE, display, display_ssim, exposure_of, read_exr, write_exr
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
@@ -74,7 +84,12 @@ CYCLES = os.path.join(BUILD, "cycles", "bin", "cycles")
 MODELS = os.path.join(ROOT, "models")
 
 PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
-SCENES = ["closeup"]
+SCENES = ["closeup", "garment"]
+DEFAULT_SCENES = ["closeup"]
+#: The garment (scripts/garment.py: a plain-knit sleeve of 3-ply yarn): image size, explicit fibers' keys per
+#: helix turn (the examples' patches use as many), the frame's margin around the tube, references of one
+#: orientation (its plies already show the cross-section turned by the golden angle from ply to ply).
+GARMENT = {"width": 320, "height": 240, "segments_per_turn": 12, "margin": 1.08, "ref_rotations": 1}
 METHODS = ["explicit", "native", "osl", "nodes"]  # + the baselines of the CLI (cli_table)
 DEFAULT_METHODS = ["explicit", "native"]
 #: Methods rendered by Blender (the bpy wheel) from the native method's scene.
@@ -96,6 +111,7 @@ PLY_RADIUS = 1.0  # cycles-scene's unit
 # frame is 23 radii wide at the ply, 2:1) and far enough from the central region that light entering through
 # an end cap does not reach it (the axis rig: with 16, the central region of the explicit ply is 7 % brighter).
 CLOSEUP_PLY_LENGTH = 48.0
+CLOSEUP_DISTANCE = 12.0  # cycles-scene's default camera distance (ply radii)
 FLIP_PPD = 67.0
 RELMSE_EPS = 0.01
 RELMSE_DISCARD = 0.001
@@ -136,7 +152,9 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
     ap.add_argument("--out", required=True, help="output directory (created; references cached there)")
     ap.add_argument("--quick", action="store_true",
                     help="96x48, reference 64 spp, 4 spp, fleece, lights key-rim and grazing (unless given)")
-    ap.add_argument("--scenes", nargs="+", help=f"scenes ({', '.join(SCENES)}; default all)")
+    ap.add_argument("--scenes", nargs="+", help=f"scenes ({', '.join(SCENES)}; default {', '.join(DEFAULT_SCENES)})")
+    ap.add_argument("--garment-stitches", type=int, default=40,
+                    help="the garment's stitches around and rows (default 40: 40 x 40)")
     ap.add_argument("--methods", nargs="+",
                     help=f"methods ({', '.join(METHODS)}; default {', '.join(DEFAULT_METHODS)})")
     ap.add_argument("--presets", nargs="+", help=f"presets ({', '.join(PRESETS)}; default all)")
@@ -152,11 +170,16 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
                          "its samples (default 8)")
     ap.add_argument("--width", type=int, help="image width (default 160)")
     ap.add_argument("--height", type=int, help="image height (default 80)")
+    ap.add_argument("--distances", nargs="+",
+                    help="camera distances from the ply axis in ply radii (default 12: the close-up; 160 makes the "
+                         "ply about a pixel wide at height 80)")
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1, help="Cycles threads (default: all cores)")
     ap.add_argument("--timeout", type=float, default=1800.0, help="seconds before a render counts as failed")
     a = ap.parse_args(argv)
     base = QUICK if a.quick else DEFAULTS
-    a.scenes = names(a.scenes) or SCENES
+    a.scenes = names(a.scenes) or DEFAULT_SCENES
+    if not 1 <= a.garment_stitches <= 400:
+        raise Usage(f"--garment-stitches must be in [1, 400], got {a.garment_stitches}")
     a.methods = names(a.methods) or DEFAULT_METHODS
     a.presets = names(a.presets) or base["presets"]
     a.lights = names(a.lights) or base["lights"] or list(rigs)
@@ -185,6 +208,13 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
     a.ref_spp = a.ref_spp if a.ref_spp is not None else base["ref_spp"]
     a.ref_rotations = a.ref_rotations if a.ref_rotations is not None else base["ref_rotations"]
     a.seeds = a.seeds if a.seeds is not None else 1
+    try:
+        a.distances = [float(d) for d in names(a.distances)] if a.distances else [CLOSEUP_DISTANCE]
+    except ValueError:
+        raise Usage(f"--distances must be numbers, got {' '.join(a.distances)}")
+    for d in a.distances:
+        if not (1.0001 <= d <= 1e4) or ply_length(d, a) > 1000.0:
+            raise Usage(f"--distances: {d:g} is not in [1.0001, 1e4] ply radii with a ply of at most 1000 radii in the frame")
     for flag, v in (("--spp", min(a.spp)), ("--ref-spp", a.ref_spp), ("--ref-rotations", a.ref_rotations),
                     ("--seeds", a.seeds), ("--width", a.width),
                     ("--height", a.height), ("--threads", a.threads)):
@@ -243,15 +273,63 @@ def light_rigs() -> dict[str, str]:
     return cli_table("--list-lights")
 
 
+def ply_length(distance: float, a) -> float:
+    """The close-up's ply length at a camera distance: 48 at the close-up's 12, growing with the frame's width
+    at the ply (its ends out of the frame and far from the central region)."""
+    fov = 0.9  # cycles-scene's, of the shorter side
+    across = 2.0 * distance * math.tan(0.5 * fov) * max(a.width, a.height) / min(a.width, a.height)
+    return round(max(CLOSEUP_PLY_LENGTH, 2.1 * across), 1)
+
+
+def tag(scene: str, preset: str, light: str, distance: float | None = CLOSEUP_DISTANCE) -> str:
+    """The file-name stem of a (scene, preset, light, distance) group (the close-up's distance, and the
+    garment's own, None, unnamed)."""
+    return f"{scene}_{preset}_{light}" + ("" if distance in (None, CLOSEUP_DISTANCE) else f"_d{distance:g}")
+
+
+def for_scene(a, scene: str):
+    """The settings as one scene renders with them (the garment's own image size and reference orientations)."""
+    if scene != "garment":
+        return a
+    return types.SimpleNamespace(**{**vars(a), "width": GARMENT["width"], "height": GARMENT["height"],
+                                    "ref_rotations": GARMENT["ref_rotations"]})
+
+
+def garment_scene_args(a) -> list[str]:
+    """cycles-scene's arguments for the garment: its plies file (DIR/scenes/garment_SxS.json, written once),
+    the camera that frames the whole tube, the point lights moved out with it."""
+    n = a.garment_stitches
+    path = os.path.join(a.out, "scenes", f"garment_{n}x{n}.json")
+    meta_path = path[:-5] + ".meta.json"
+    if not (os.path.isfile(path) and os.path.isfile(meta_path)):
+        g = garment_plies(n, n)
+        with open(path, "w") as f:
+            json.dump(g, f, separators=(",", ":"))
+        with open(meta_path, "w") as f:
+            json.dump({k: v for k, v in g.items() if k != "plies"}, f)
+    with open(meta_path) as f:
+        meta = json.load(f)
+    t = math.tan(0.45)  # cycles-scene's field of view (0.9) is the shorter side's: the height here
+    aspect = GARMENT["width"] / GARMENT["height"]
+    d = GARMENT["margin"] * max(0.5 * meta["height"] / t, 0.5 * meta["width"] / (t * aspect))
+    return ["--plies", path, "--camera-distance", f"{d:.4f}", "--light-scale", f"{d / CLOSEUP_DISTANCE:.6g}",
+            "--segments-per-turn", str(GARMENT["segments_per_turn"])]
+
+
 def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, rotation: float = 0.0,
-                colour: list[float] | None = None) -> str:
-    """The scene file of one render (the closeup: `neuralyarn cycles-scene`); `rotation` turns the explicit
-    ply about its axis (degrees); a baseline method needs its `colour`."""
-    assert scene == "closeup"
+                colour: list[float] | None = None, distance: float = CLOSEUP_DISTANCE) -> str:
+    """The scene file of one render (`neuralyarn cycles-scene`: the close-up, or with `--plies` the garment);
+    `rotation` turns the explicit ply (each ply) about its axis (degrees); a baseline method needs its `colour`."""
     turned = f"_rot{rotation:g}" if rotation else ""
-    path = os.path.join(a.out, "scenes", f"{scene}_{preset}_{light}_{method}_seed{seed}{turned}.xml")
+    path = os.path.join(a.out, "scenes", f"{tag(scene, preset, light, distance)}_{method}_seed{seed}{turned}.xml")
     args = ["cycles-scene", *yarn_args(a.yarns, preset), "--lights", light, "--seed", str(seed), "--width", str(a.width),
-            "--height", str(a.height), "--ply-length", f"{CLOSEUP_PLY_LENGTH:g}", "--out", path]
+            "--height", str(a.height), "--out", path]
+    if scene == "garment":
+        args += garment_scene_args(a)
+    else:
+        args += ["--ply-length", f"{ply_length(distance, a):g}"]
+        if distance != CLOSEUP_DISTANCE:
+            args += ["--camera-distance", f"{distance:g}"]
     if rotation:
         args += ["--ply-rotation", f"{rotation:g}"]
     if method == "native" or method in FALLBACKS:
@@ -422,14 +500,15 @@ def reference_parts(which: str, k_count: int) -> list[tuple[int, float]]:
     return [(REFERENCE_SEEDS[which] + 2 * k, (k + offset) * 360.0 / k_count) for k in range(k_count)]
 
 
-def reference(a, scene: str, preset: str, light: str, which: str, what: str) -> dict:
+def reference(a, scene: str, preset: str, light: str, which: str, what: str,
+              distance: float = CLOSEUP_DISTANCE) -> dict:
     """Reference `which` (A or B) of (scene, preset, light): the mean of a.ref_rotations renders of the
     explicit ply turned about its axis (REFERENCE_SEEDS), or reused from DIR/refs when the scene files and the
     samples are the same."""
     k_count, spp = a.ref_rotations, a.ref_spp // a.ref_rotations
     parts = reference_parts(which, k_count)
-    xmls = [write_scene(a, scene, REFERENCE_METHOD, preset, light, seed, rot) for seed, rot in parts]
-    name = f"{scene}_{preset}_{light}_{which}"
+    xmls = [write_scene(a, scene, REFERENCE_METHOD, preset, light, seed, rot, distance=distance) for seed, rot in parts]
+    name = f"{tag(scene, preset, light, distance)}_{which}"
     exr = os.path.join(a.out, "refs", name + ".exr")
     meta_path = os.path.join(a.out, "refs", name + ".json")
     key = {"scene_sha256": hashlib.sha256("".join(sha256(x) for x in xmls).encode()).hexdigest(),
@@ -517,9 +596,11 @@ def load_seconds(a, xml: str, exr: str, what: str, fallback) -> dict:
 def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
     for sub in ("scenes", "refs", "renders", "strips"):
         os.makedirs(os.path.join(a.out, sub), exist_ok=True)
-    groups = [(s, p, l) for s in a.scenes for p in a.presets for l in a.lights]
+    groups = [(s, p, l, d) for s in a.scenes for p in a.presets for l in a.lights
+              for d in (a.distances if s == "closeup" else [None])]
     n_runs = len(a.methods) * len(a.spp) * a.seeds
-    fits = [(s, p) for s in a.scenes for p in a.presets] if a.baselines else []
+    # The baselines' colours are fitted on the close-up (one ply under even light) for every scene.
+    fits = [("closeup", p) for p in a.presets] if a.baselines else []
     progress = Progress(1 + len(fits) * (1 + len(a.baselines)) + len(groups) * (2 + len(a.methods) + n_runs))
     failures = 0
 
@@ -556,13 +637,16 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
             baseline_fits.append(rec)
 
     references, noise_floor, runs, cameras = [], [], [], {}
-    for scene, preset, light in groups:
-        group = {"scene": scene, "preset": preset, "light": light}
+    for scene, preset, light, distance in groups:
+        a_all, a = a, for_scene(a, scene)
+        group = {"scene": scene, "preset": preset, "light": light, "distance": distance}
+        name = tag(scene, preset, light, distance)
+        at = f"{scene} {preset} {light}" + (f" distance {distance:g}" if distance not in (None, CLOSEUP_DISTANCE) else "")
         refs, failed = {}, {}
         for which in ("A", "B"):
-            what = progress(f"reference {which} {scene} {preset} {light} {a.ref_spp} spp")
+            what = progress(f"reference {which} {at} {a.ref_spp} spp")
             try:
-                refs[which] = reference(a, scene, preset, light, which, what)
+                refs[which] = reference(a, scene, preset, light, which, what, distance)
             except RenderFailed as e:
                 failed[which] = f"reference {which} failed: {e}"
                 failures += 1
@@ -572,15 +656,30 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                            **{f"image_{w}": r["image"] for w, r in refs.items()},
                            **{f"seconds_{w}": r["seconds"] for w, r in refs.items()}})
         ref_failed = failed.get("A")  # the runs need reference A only, the noise floor both
-        ref_img, region, distance = None, None, None
-        ref_scene = os.path.join(a.out, "scenes", f"{scene}_{preset}_{light}_{REFERENCE_METHOD}_seed{REFERENCE_SEEDS['A']}.xml")
+        ref_img, region, region_name = None, None, None
+        ref_scene = os.path.join(a.out, "scenes", f"{name}_{REFERENCE_METHOD}_seed{REFERENCE_SEEDS['A']}.xml")
         if os.path.isfile(ref_scene):
-            distance, fov = camera(ref_scene)
-            cameras[scene] = {"distance": distance, "fov": fov, "ply_length": CLOSEUP_PLY_LENGTH}
+            cam_distance, fov = camera(ref_scene)
+            if distance is None:  # the garment's own camera
+                group["distance"] = distance = cam_distance
+            cameras.setdefault(scene, {"distance": CLOSEUP_DISTANCE, "fov": fov, "ply_length": CLOSEUP_PLY_LENGTH,
+                                       "distances": {}} if scene == "closeup" else
+                               {"distance": cam_distance, "fov": fov, "stitches": a.garment_stitches,
+                                "width": a.width, "height": a.height, "distances": {}})
+            cameras[scene]["distances"][f"{distance:g}"] = {
+                "ply_length": ply_length(distance, a) if scene == "closeup" else None,
+                "ply_pixels": 2.0 * min(a.width, a.height) / (2.0 * cam_distance * math.tan(0.5 * fov))}
         if not ref_failed:
             ref_img = read_exr(os.path.join(a.out, refs["A"]["image"]))
-            region = central_region(distance, fov, a.width, a.height)
-        floor = {**group, "failed": "; ".join(failed.values()) or False}
+            try:
+                if scene == "garment":  # the middle half of the frame: all fabric
+                    region = (slice(a.height // 4, a.height - a.height // 4), slice(a.width // 4, a.width - a.width // 4))
+                    region_name = "central"
+                else:
+                    region, region_name = central_region(cam_distance, fov, a.width, a.height), "central"
+            except RenderFailed:  # the ply is too thin for a central region: the whole frame
+                region, region_name = (slice(None), slice(None)), "frame"
+        floor = {**group, "region": region_name, "failed": "; ".join(failed.values()) or False}
         if not failed:
             floor.update(metrics(read_exr(os.path.join(a.out, refs["B"]["image"])), ref_img, region))
         else:
@@ -591,13 +690,13 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         for method in a.methods:
             # Load cost: a 1-sample render of the same scene (seed 1), once per method.
             xml, load, load_failed = None, None, None
-            what = progress(f"{method} {scene} {preset} {light} 1 spp (load)")
-            colour = colours.get((scene, preset, method))
+            what = progress(f"{method} {at} 1 spp (load)")
+            colour = colours.get(("closeup", preset, method))
             try:
                 if method in a.baselines and colour is None:
                     raise RenderFailed("no colour (its fit failed)")
-                xml = write_scene(a, scene, method, preset, light, 1, colour=colour)
-                load = load_seconds(a, xml, os.path.join(a.out, "renders", f"{scene}_{preset}_{light}_{method}_1spp.exr"),
+                xml = write_scene(a, scene, method, preset, light, 1, colour=colour, distance=distance)
+                load = load_seconds(a, xml, os.path.join(a.out, "renders", f"{name}_{method}_1spp.exr"),
                                     what, (method, preset, 1) if method in FALLBACKS else None)
             except RenderFailed as e:
                 load_failed = f"load render failed: {e}"
@@ -606,19 +705,20 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
             keys = curve_keys(xml) if xml else None
             for spp in a.spp:
                 for seed in range(1, a.seeds + 1):
-                    rec = {**group, "method": method, "distance": distance, "spp": spp,
+                    rec = {**group, "method": method, "spp": spp, "region": region_name,
                            "seed": seed, "seconds_load": None, "seconds_render": None, "peak_rss_mb": None,
                            "baseline_rss_mb": baseline, "curve_keys": keys, **{k: None for k in METRIC_KEYS},
                            "image": None, "failed": False}
-                    what = progress(f"{method} {scene} {preset} {light} {spp} spp seed {seed}")
-                    if ref_failed or load_failed:
-                        rec["failed"] = ref_failed or load_failed
+                    what = progress(f"{method} {at} {spp} spp seed {seed}")
+                    if load_failed:
+                        rec["failed"] = load_failed
                         log(f"{what}: skipped ({rec['failed']})")
                         runs.append(rec)
                         continue
-                    exr = os.path.join(a.out, "renders", f"{scene}_{preset}_{light}_{method}_{spp}spp_seed{seed}.exr")
+                    exr = os.path.join(a.out, "renders", f"{name}_{method}_{spp}spp_seed{seed}.exr")
                     try:
-                        xml_s = xml if seed == 1 else write_scene(a, scene, method, preset, light, seed, colour=colour)
+                        xml_s = xml if seed == 1 else write_scene(a, scene, method, preset, light, seed, colour=colour,
+                                                                  distance=distance)
                         cost = render(a, xml_s, spp, exr, what, (method, preset, seed) if method in FALLBACKS else None)
                     except RenderFailed as e:
                         rec["failed"] = str(e)
@@ -630,13 +730,17 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                     # (A few-sample render can finish faster than the 1-sample one: timing noise, not a cost.)
                     rec.update({"seconds_load": load["seconds"],
                                 "seconds_render": max(0.0, cost["seconds"] - load["seconds"]),
-                                "peak_rss_mb": cost["peak_rss_mb"], "image": os.path.relpath(exr, a.out),
-                                **metrics(img, ref_img, region)})
+                                "peak_rss_mb": cost["peak_rss_mb"], "image": os.path.relpath(exr, a.out)})
+                    if ref_img is not None:
+                        rec.update(metrics(img, ref_img, region))
+                    else:  # the cost is measured; the error needs the reference
+                        rec["no_reference"] = ref_failed
                     runs.append(rec)
                     if spp == a.spp[0] and seed == 1:
                         strip[method] = img
         if ref_img is not None:
-            write_strip(a, scene, preset, light, strip)
+            write_strip(a, name, strip)
+        a = a_all
 
     results = {
         "format": "neuralyarn-evaluate 1",
@@ -644,7 +748,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "git": git_revision(),
         "machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "system": platform.platform()},
-        "settings": {"width": a.width, "height": a.height, "ref_spp": a.ref_spp,
+        "settings": {"width": a.width, "height": a.height, "ref_spp": a.ref_spp, "distances": a.distances,
                      "ref_rotations": a.ref_rotations, "spp": a.spp, "seeds": a.seeds,
                      "threads": a.threads, "timeout_s": a.timeout, "reference_method": REFERENCE_METHOD,
                      "reference_seeds": REFERENCE_SEEDS, "flip_ppd": FLIP_PPD, "relmse_eps": RELMSE_EPS,
@@ -663,7 +767,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
     return results, failures
 
 
-def write_strip(a, scene: str, preset: str, light: str, images: dict) -> None:
+def write_strip(a, name: str, images: dict) -> None:
     """reference | native | explicit, side by side on one exposure (the reference's); a missing or failed
     method is a grey panel. Small images are enlarged (whole pixels) to at least 320 pixels a panel."""
     import matplotlib.image
@@ -675,36 +779,44 @@ def write_strip(a, scene: str, preset: str, light: str, images: dict) -> None:
         panels += [display(images[k], x) if k in images else np.full_like(ref, 0.5), gap]
     strip = np.clip(np.concatenate(panels[:-1], axis=1), 0.0, 1.0)
     k = max(1, math.ceil(320 / ref.shape[1]))
-    matplotlib.image.imsave(os.path.join(a.out, "strips", f"{scene}_{preset}_{light}.png"),
+    matplotlib.image.imsave(os.path.join(a.out, "strips", f"{name}.png"),
                             np.repeat(np.repeat(strip, k, axis=0), k, axis=1))
 
 
 def contact_sheet(out: str, results: dict) -> str:
-    """DIR/strips.png: every (scene, preset, light) strip in one picture, a row per preset and a column per
-    light, each titled. Returns its path."""
+    """DIR/strips.png: every (scene, preset, light, distance) strip in one picture, a row per preset (and
+    distance) and a column per light, each titled. Returns its path."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.image
     import matplotlib.pyplot as plt
     presets, lights = results["presets"], list(results["lights"])
     scenes = sorted({r["scene"] for r in results["references"]})
-    cells = [(sc, p, l) for sc in scenes for p in presets for l in lights]
-    fig, axes = plt.subplots(len(scenes) * len(presets), len(lights), squeeze=False,
-                             figsize=(3.2 * len(lights), 0.9 * len(scenes) * len(presets) + 0.4))
-    for k, (sc, p, l) in enumerate(cells):
-        ax = axes[k // len(lights)][k % len(lights)]
-        path = os.path.join(out, "strips", f"{sc}_{p}_{l}.png")
-        if os.path.isfile(path):
-            ax.imshow(matplotlib.image.imread(path))
-        ax.set_xticks([])
-        ax.set_yticks([])
-        ax.set_title(f"{p}, {l}", fontsize=8)
+    distances = results["settings"].get("distances", [CLOSEUP_DISTANCE])
+    rows = [(sc, p, d) for sc in scenes for p in presets for d in distances]
+    fig, axes = plt.subplots(len(rows), len(lights), squeeze=False,
+                             figsize=(3.2 * len(lights), 0.9 * len(rows) + 0.4))
+    for i, (sc, p, d) in enumerate(rows):
+        for j, l in enumerate(lights):
+            ax = axes[i][j]
+            path = os.path.join(out, "strips", f"{tag(sc, p, l, d)}.png")
+            if os.path.isfile(path):
+                ax.imshow(matplotlib.image.imread(path))
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_title(f"{p}, {l}" + (f", distance {d:g}" if len(distances) > 1 else ""), fontsize=8)
     fig.suptitle("reference | native | explicit (one exposure per strip: the reference's)", fontsize=9)
     fig.tight_layout()
     path = os.path.join(out, "strips.png")
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def scene_label(r: dict) -> str:
+    """A record's scene in the tables: `closeup`, or `closeup d48` at another camera distance."""
+    d = r.get("distance", CLOSEUP_DISTANCE)
+    return r["scene"] if r["scene"] != "closeup" or d in (None, CLOSEUP_DISTANCE) else f"{r['scene']} d{d:g}"
 
 
 def summary(results: dict) -> str:
@@ -716,16 +828,17 @@ def summary(results: dict) -> str:
              f"{' (dirty)' if results['git']['dirty'] else ''}; {results['machine']['cpu']}, "
              f"{results['machine']['cores']} cores, {s['threads']} threads.",
              "",
-             "Errors over the central region of the ply, against reference A; noise floor: reference B against A. "
-             "Mean over seeds.",
+             "Errors over the central region of the ply (the whole frame where the ply is under 3 rows), against "
+             "reference A; noise floor: reference B against A. Mean over seeds. `closeup d48`: the close-up's camera "
+             "at 48 ply radii.",
              "",
              "| scene | preset | light | method | spp | R % | G % | B % | lum % | lum floor % | FLIP | FLIP floor "
              "| render s | load s | peak MB | failed |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    floors = {(f["scene"], f["preset"], f["light"]): f for f in results["noise_floor"]}
+    floors = {(scene_label(f), f["preset"], f["light"]): f for f in results["noise_floor"]}
     groups: dict = {}
     for r in results["runs"]:
-        groups.setdefault((r["scene"], r["preset"], r["light"], r["method"], r["spp"]), []).append(r)
+        groups.setdefault((scene_label(r), r["preset"], r["light"], r["method"], r["spp"]), []).append(r)
 
     def mean(vals):
         vals = [v for v in vals if v is not None]
@@ -735,18 +848,20 @@ def summary(results: dict) -> str:
         return format(v, spec) if v is not None else "-"
 
     for (scene, preset, light, method, spp), rs in groups.items():
-        ok = [r for r in rs if not r["failed"]]
+        cost = [r for r in rs if not r["failed"]]
+        ok = [r for r in cost if r["flip"] is not None]  # measured against a reference
         fl = floors[(scene, preset, light)]
         rgb = [mean([r["mean_colour_error"][c] for r in ok]) for c in range(3)]
         pct = [fmt(100 * v if v is not None else None, "+.1f") for v in rgb]
-        failed = "; ".join(sorted({str(r["failed"]) for r in rs if r["failed"]})) or ""
+        failed = "; ".join(sorted({str(r["failed"]) for r in rs if r["failed"]} |
+                                  {"no reference" for r in cost if r.get("no_reference")})) or ""
         lines.append(
             f"| {scene} | {preset} | {light} | {method} | {spp} | {' | '.join(pct)} | "
             f"{fmt(100 * mean([r['mean_luminance_error'] for r in ok]) if ok else None, '+.1f')} | "
             f"{fmt(100 * fl['mean_luminance_error'] if fl['mean_luminance_error'] is not None else None, '+.1f')} | "
             f"{fmt(mean([r['flip'] for r in ok]), '.3f')} | {fmt(fl['flip'], '.3f')} | "
-            f"{fmt(mean([r['seconds_render'] for r in ok]), '.2f')} | {fmt(mean([r['seconds_load'] for r in ok]), '.2f')} | "
-            f"{fmt(mean([r['peak_rss_mb'] for r in ok]), '.0f')} | {failed.replace('|', '/')[:80]} |")
+            f"{fmt(mean([r['seconds_render'] for r in cost]), '.2f')} | {fmt(mean([r['seconds_load'] for r in cost]), '.2f')} | "
+            f"{fmt(mean([r['peak_rss_mb'] for r in cost]), '.0f')} | {failed.replace('|', '/')[:80]} |")
     if results.get("baselines"):
         lines += ["", "Baselines' colours (fitted to reference A's central-region mean under the environment):", "",
                   "| scene | preset | method | colour | error R / G / B % | renders | failed |", "|---|---|---|---|---|---|---|"]
@@ -782,6 +897,7 @@ def main(argv: list[str]) -> int:
     contact_sheet(a.out, results)
     if len(a.spp) > 1:
         error_time_charts(a.out, results)
+    error_distance_charts(a.out, results)
     print(table, end="")
     log(f"wrote {os.path.join(a.out, 'results.json')}, summary.md, strips/, strips.png in {time.monotonic() - t0:.0f} s"
         + (f"; {failures} render(s) FAILED" if failures else ""))

@@ -4,7 +4,10 @@
 speed-ups at equal error and the charts.
 
 A method's curve in a (scene, preset, light) group is its points over the samples per pixel: render seconds
-and mean HDR-FLIP against reference A, each the mean over seeds (FLIP's spread over seeds kept). The time a
+and mean HDR-FLIP against reference A, FLIP the mean over seeds (its spread over seeds kept). Render seconds
+are spp times the method's time per sample, measured on its renders of the most samples (the median over
+seeds of render seconds / spp): Cycles' cost is linear in the samples, and the render part of a few-sample
+render of a small image is shorter than the noise of the wall time it is measured by (wall minus load). The time a
 method needs to reach an error level is read off its curve by interpolating log time against log FLIP
 between the first point at or below the level and the one before it; at or below the level at its first
 point, the first point's time is an upper bound; never below it, there is no time.
@@ -15,7 +18,7 @@ that is the level where it stops improving; explicit fibers keep improving. Spee
 ratio of render times at each spp both have (their median). Memory ratio: peak memory above the empty
 scene's, explicit over the method (median over the groups; Cycles' own memory is the baseline).
 
-    .venv/bin/python scripts/evaluate_charts.py DIR    redraws DIR/charts and prints the summary of DIR/results.json
+    .venv/bin/python scripts/evaluate_charts.py DIR    recomputes DIR/results.json's summary, redraws DIR/charts, prints it
 """
 from __future__ import annotations
 
@@ -27,27 +30,47 @@ import sys
 import numpy as np
 
 REFERENCE_METHOD = "explicit"
-#: Render times below this are timing noise on the log axis (a few-sample render of a small image).
-MIN_SECONDS = 0.01
+#: The artist's stock closures (evaluate.py's --list-baselines), against which the neural model is compared.
+BASELINES = ("chiang", "huang", "sheen")
+CLOSEUP_DISTANCE = 12.0
+#: The log axis's floor for render times (a method whose time per sample rounds to nothing).
+MIN_SECONDS = 1e-4
+
+
+def group_of(r: dict) -> tuple:
+    """(scene, preset, light, camera distance) of a run or noise-floor record."""
+    return r["scene"], r["preset"], r["light"], r.get("distance") or CLOSEUP_DISTANCE
+
+
+def label(group: tuple) -> str:
+    """`closeup`, or `closeup d48` at another camera distance (as evaluate.py's tables)."""
+    return group[0] if group[0] != "closeup" or group[3] == CLOSEUP_DISTANCE else f"{group[0]} d{group[3]:g}"
+
+
+def stem(group: tuple) -> str:
+    return "_".join(group[:3]) + ("" if group[0] != "closeup" or group[3] == CLOSEUP_DISTANCE else f"_d{group[3]:g}")
 
 
 def curves(results: dict) -> dict:
-    """(scene, preset, light) -> method -> list of {"spp", "seconds", "flip", "flip_sd", "seeds"} sorted by spp,
+    """(scene, preset, light, distance) -> method -> list of {"spp", "seconds", "flip", "flip_sd", "seeds"} sorted by spp,
     from the runs that did not fail."""
     acc: dict = {}
     for r in results["runs"]:
         if r["failed"] or r["flip"] is None or r["seconds_render"] is None:
             continue
-        acc.setdefault((r["scene"], r["preset"], r["light"]), {}).setdefault(r["method"], {}).setdefault(
+        acc.setdefault(group_of(r), {}).setdefault(r["method"], {}).setdefault(
             r["spp"], []).append(r)
     out: dict = {}
     for group, methods in acc.items():
         for method, by_spp in methods.items():
+            top = max(by_spp)
+            per_sample = float(np.median([x["seconds_render"] / top for x in by_spp[top]]))
             pts = []
             for spp in sorted(by_spp):
                 rs = by_spp[spp]
                 flips = [x["flip"] for x in rs]
-                pts.append({"spp": spp, "seconds": max(MIN_SECONDS, float(np.mean([x["seconds_render"] for x in rs]))),
+                pts.append({"spp": spp, "seconds": max(MIN_SECONDS, spp * per_sample),
+                            "seconds_measured": float(np.mean([x["seconds_render"] for x in rs])),
                             "flip": float(np.mean(flips)), "flip_sd": float(np.std(flips)), "seeds": len(rs)})
             out.setdefault(group, {})[method] = pts
     return out
@@ -81,8 +104,33 @@ def equal_flip_speedup(method_curve: list[dict], reference_curve: list[dict]) ->
     return {"flip": level, "seconds_reference": t_r, "seconds_method": t_m, "speedup": t_r / t_m, "bound": bound}
 
 
+def flip_at(curve: list[dict], seconds: float) -> float:
+    """The curve's FLIP at a render time: log-log interpolation between its points, its end points' FLIP
+    beyond them (a method given more time than its longest render is taken at that render's error)."""
+    if seconds <= curve[0]["seconds"]:
+        return curve[0]["flip"]
+    for q, p in zip(curve, curve[1:]):
+        if seconds <= p["seconds"]:
+            w = math.log(seconds / q["seconds"]) / math.log(p["seconds"] / q["seconds"])
+            return math.exp(math.log(q["flip"]) + w * (math.log(p["flip"]) - math.log(q["flip"])))
+    return curve[-1]["flip"]
+
+
+def against_others_at_equal_time(curve: list[dict], others: dict) -> dict | None:
+    """At each point of `curve`, its FLIP over the best of `others` (method -> curve) at the same render time:
+    {"worst_ratio" (the largest: below 1, closer at every time), "best_other" (the method of the worst point)}."""
+    if not curve or not others:
+        return None
+    worst, who = 0.0, None
+    for p in curve:
+        best = min((flip_at(c, p["seconds"]), m) for m, c in others.items())
+        if p["flip"] / best[0] > worst:
+            worst, who = p["flip"] / best[0], best[1]
+    return {"worst_ratio": worst, "best_other": who}
+
+
 def memory_above_baseline(results: dict, group: tuple, method: str) -> float | None:
-    rs = [r for r in results["runs"] if (r["scene"], r["preset"], r["light"]) == group and r["method"] == method
+    rs = [r for r in results["runs"] if group_of(r) == group and r["method"] == method
           and not r["failed"] and r["peak_rss_mb"] and r["baseline_rss_mb"]]
     if not rs:
         return None
@@ -90,12 +138,12 @@ def memory_above_baseline(results: dict, group: tuple, method: str) -> float | N
 
 
 def speed_summary(results: dict) -> dict:
-    """results.json's `summary`: per scene, per method other than explicit fibers, `speedup_equal_flip` and
+    """results.json's `summary`: per scene (and distance: `closeup d48`), per method other than explicit fibers, `speedup_equal_flip` and
     `speedup_equal_spp` (the median over groups, and every group's value), and `memory_ratio`."""
     cs = curves(results)
     summary: dict = {}
     for group, methods in sorted(cs.items()):
-        scene = group[0]
+        scene = label(group)
         ref = methods.get(REFERENCE_METHOD)
         if not ref:
             continue
@@ -108,7 +156,10 @@ def speed_summary(results: dict) -> dict:
             ref_t = {p["spp"]: p["seconds"] for p in ref}
             at_spp = [ref_t[p["spp"]] / p["seconds"] for p in curve if p["spp"] in ref_t]
             mem = memory_above_baseline(results, group, method)
+            baselines = {m: c for m, c in methods.items() if m in BASELINES}
             entry["groups"].append({
+                "against_baselines_equal_time": against_others_at_equal_time(curve, baselines)
+                if method not in BASELINES else None,
                 "preset": group[1], "light": group[2], "equal_flip": eq,
                 "speedup_equal_spp": float(np.median(at_spp)) if at_spp else None,
                 "memory_ratio": ref_mem / mem if ref_mem is not None and mem and mem > 0 else None})
@@ -128,7 +179,8 @@ def summary_table(results: dict) -> str:
     """Markdown: per group and method, the equal-FLIP level, both times and the speed-ups; then per scene."""
     summ = results.get("summary") or {}
     lines = ["| scene | preset | light | method | equal FLIP | explicit s | method s | speed-up at equal FLIP "
-             "| speed-up at equal spp | memory ratio |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "| speed-up at equal spp | memory ratio | FLIP / best baseline's at equal time (worst) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     mark = {"lower": "≥ ", "upper": "≤ ", "unknown": "~ ", None: ""}
 
     def fmt(v, spec):
@@ -141,7 +193,10 @@ def summary_table(results: dict) -> str:
                 lines.append(f"| {scene} | {g['preset']} | {g['light']} | {method} | {fmt(q.get('flip'), '.3f')} | "
                              f"{fmt(q.get('seconds_reference'), '.2f')} | {fmt(q.get('seconds_method'), '.2f')} | "
                              f"{mark[q.get('bound')] if q else ''}{fmt(q.get('speedup'), '.1f')} | "
-                             f"{fmt(g['speedup_equal_spp'], '.1f')} | {fmt(g['memory_ratio'], '.2f')} |")
+                             f"{fmt(g['speedup_equal_spp'], '.1f')} | {fmt(g['memory_ratio'], '.2f')} | "
+                             + (f"{g['against_baselines_equal_time']['worst_ratio']:.2f} "
+                                f"({g['against_baselines_equal_time']['best_other']}) |"
+                                if g.get("against_baselines_equal_time") else "- |"))
     lines += ["", "| scene | method | speed-up at equal FLIP (median) | at equal spp (median) | memory ratio (median) |",
               "|---|---|---|---|---|"]
     for scene, methods in summ.items():
@@ -169,7 +224,7 @@ def error_time_charts(out: str, results: dict) -> list[str]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     cs = curves(results)
-    floors = {(f["scene"], f["preset"], f["light"]): f["flip"] for f in results["noise_floor"]}
+    floors = {group_of(f): f["flip"] for f in results["noise_floor"]}
     os.makedirs(os.path.join(out, "charts"), exist_ok=True)
     methods = sorted({m for g in cs.values() for m in g}, key=lambda m: (m != REFERENCE_METHOD, m))
     colour = {m: plt.get_cmap("tab10")(k) for k, m in enumerate(methods)}
@@ -197,7 +252,8 @@ def error_time_charts(out: str, results: dict) -> list[str]:
             ax.axhline(floors[group], color="grey", ls=":", lw=1, label="reference noise floor")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_title(f"{group[1]}, {group[2]}", fontsize=8)
+        ax.set_title(f"{group[1]}, {group[2]}" + ("" if stem(group) == "_".join(group[:3]) else f", distance {group[3]:g}"),
+                     fontsize=8)
         ax.tick_params(labelsize=6)
         if legend:
             ax.legend(fontsize=6)
@@ -208,18 +264,18 @@ def error_time_charts(out: str, results: dict) -> list[str]:
         ax.set_xlabel("render seconds (load excluded)")
         ax.set_ylabel("mean HDR-FLIP against the reference")
         fig.tight_layout()
-        path = os.path.join(out, "charts", f"{group[0]}_{group[1]}_{group[2]}_flip_time.png")
+        path = os.path.join(out, "charts", f"{stem(group)}_flip_time.png")
         fig.savefig(path, dpi=120)
         plt.close(fig)
         paths.append(path)
     if groups:
         lights = sorted({g[2] for g in groups}, key=[g[2] for g in groups].index)
-        rows = sorted({(g[0], g[1]) for g in groups}, key=[(g[0], g[1]) for g in groups].index)
+        rows = sorted({(g[0], g[1], g[3]) for g in groups}, key=[(g[0], g[1], g[3]) for g in groups].index)
         fig, axes = plt.subplots(len(rows), len(lights), squeeze=False,
                                  figsize=(3.0 * len(lights), 2.4 * len(rows) + 0.5))
         for i, row in enumerate(rows):
             for j, light in enumerate(lights):
-                group = (*row, light)
+                group = (row[0], row[1], light, row[2])
                 if group in cs:
                     draw(axes[i][j], group, i == 0 and j == 0)
                 else:
@@ -233,6 +289,58 @@ def error_time_charts(out: str, results: dict) -> list[str]:
     return paths
 
 
+def error_distance_charts(out: str, results: dict) -> list[str]:
+    """With two or more camera distances: DIR/charts/<scene>_<preset>_<light>_distance.png, FLIP and the mean
+    luminance error (of the central region, or the frame where the ply is under 3 rows) at the highest spp
+    against the ply's width in pixels, one line per method, the references' noise floor dotted. Returns the
+    paths."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    widths = {(sc, float(d)): v["ply_pixels"] for sc, cam in results.get("scenes", {}).items()
+              for d, v in cam.get("distances", {}).items()}
+    by: dict = {}
+    for r in results["runs"]:
+        if r["failed"] or r["flip"] is None:
+            continue
+        g = group_of(r)
+        by.setdefault(g[:3], {}).setdefault(r["method"], {}).setdefault(g[3], {}).setdefault(r["spp"], []).append(r)
+    floors = {group_of(f): f for f in results["noise_floor"]}
+    os.makedirs(os.path.join(out, "charts"), exist_ok=True)
+    paths = []
+    for base, methods in sorted(by.items()):
+        if len({d for m in methods.values() for d in m}) < 2:
+            continue
+        fig, (ax_f, ax_l) = plt.subplots(1, 2, figsize=(9, 3.4))
+        for k, (method, per_d) in enumerate(sorted(methods.items(), key=lambda kv: (kv[0] != REFERENCE_METHOD, kv[0]))):
+            ds = sorted(per_d, key=lambda d: -widths.get((base[0], d), 0.0))
+            px = [widths.get((base[0], d), float("nan")) for d in ds]
+            top = [per_d[d][max(per_d[d])] for d in ds]
+            flip = [float(np.mean([x["flip"] for x in rs])) for rs in top]
+            lum = [100 * abs(float(np.mean([x["mean_luminance_error"] for x in rs]))) for rs in top]
+            c = plt.get_cmap("tab10")(k)
+            ax_f.plot(px, flip, "o-", color=c, ms=3, label=f"{method} ({max(per_d[ds[0]])} spp)")
+            ax_l.plot(px, lum, "o-", color=c, ms=3, label=method)
+        fl = sorted((widths.get((base[0], g[3]), float("nan")), f) for g, f in floors.items() if g[:3] == base)
+        ax_f.plot([w for w, _ in fl], [f["flip"] for _, f in fl], ":", color="grey", label="reference noise floor")
+        ax_l.plot([w for w, _ in fl], [100 * abs(f["mean_luminance_error"]) for _, f in fl], ":", color="grey")
+        for ax, name in ((ax_f, "mean HDR-FLIP"), (ax_l, "|mean luminance error| %")):
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.invert_xaxis()
+            ax.set_xlabel("ply width, pixels (camera farther to the right)")
+            ax.set_ylabel(name)
+            ax.tick_params(labelsize=7)
+        ax_f.legend(fontsize=6)
+        fig.suptitle(f"{base[1]}, {base[2]}: error against the ply's size on screen", fontsize=9)
+        fig.tight_layout()
+        path = os.path.join(out, "charts", f"{'_'.join(base)}_distance.png")
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
 def main(argv: list[str]) -> int:
     if len(argv) != 1 or not os.path.isfile(os.path.join(argv[0], "results.json")):
         print("usage: evaluate_charts.py DIR (with DIR/results.json)", file=sys.stderr)
@@ -240,7 +348,9 @@ def main(argv: list[str]) -> int:
     with open(os.path.join(argv[0], "results.json")) as f:
         results = json.load(f)
     results["summary"] = speed_summary(results)
-    for p in error_time_charts(argv[0], results):
+    with open(os.path.join(argv[0], "results.json"), "w") as f:
+        json.dump(results, f, indent=1)
+    for p in error_time_charts(argv[0], results) + error_distance_charts(argv[0], results):
         print(f"wrote {p}", file=sys.stderr)
     print(summary_table(results), end="")
     return 0

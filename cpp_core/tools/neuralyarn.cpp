@@ -221,6 +221,18 @@ int main(int argc, char **argv)
                     "Cloth layers: sheets of plies side by side, stacked away from the camera (1: the single ply)")
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
+  scene->add_option("--plies", s_opt.plies,
+                    "Instead of the straight ply: these ply centrelines (a \"neuralyarn-plies 1\" JSON file, e.g. "
+                    "from scripts/garment.py); the explicit version sweeps each ply's fibers along its curve")
+      ->check(CLI::ExistingFile);
+  scene->add_option("--light-scale", s_opt.light_scale,
+                    "Point lights' positions and sizes times this, their power times its square (a larger scene)")
+      ->check(finite_range(1e-6, 1e6))
+      ->capture_default_str();
+  scene->add_option("--segments-per-turn", s_opt.segments_per_turn,
+                    "Explicit version: curve keys per helix turn of a fiber (Cycles interpolates between them)")
+      ->check(CLI::Range(3, 256))
+      ->capture_default_str();
   scene->add_option("--seed", s_opt.seed, "Cycles' integrator seed: renders with other seeds have independent noise")
       ->check(CLI::Range(0, 2147483647))
       ->capture_default_str();

@@ -403,3 +403,75 @@ TEST(CyclesSceneBaselines, StockClosuresOnTheAggregatedGeometryWithTheirColour)
   o.model = std::string(NY_TEST_DATA_DIR) + "/../../models/fleece.json";
   EXPECT_THROW(scene_text(o), std::runtime_error);
 }
+
+namespace {
+
+std::string write_plies(const std::string &body)
+{
+  const fs::path path = fs::temp_directory_path() / ("ny_plies_test_" + std::to_string(::getpid()) + ".json");
+  std::ofstream(path) << body;
+  return path.string();
+}
+
+}  // namespace
+
+TEST(CyclesScenePlies, CurvesFromAFileForBothVersionsAndLightsMovedOut)
+{
+  /* Two plies in units where the ply radius is 0.5: a straight one and a bent one. */
+  const std::string plies = write_plies(
+      R"({"format": "neuralyarn-plies 1", "ply_radius": 0.5,
+          "plies": [[0, 0, 0, 2, 0, 0, 4, 0, 0], [0, 2, 0, 1, 2, 1, 2, 2, 1.5, 3, 2, 1.7]]})");
+  PlySceneOptions o;
+  o.plies = plies;
+  o.model = std::string(NY_TEST_DATA_DIR) + "/../../models/fleece.json";
+  const std::string agg = scene_text(o);
+  /* One thick curve per ply through its points, scaled to ply radius 1. */
+  EXPECT_EQ(hair_attribute(agg, "nkeys"), (std::vector<double>{3, 4}));
+  const std::vector<double> p = hair_keys(agg);
+  ASSERT_EQ(p.size(), 21u);
+  EXPECT_DOUBLE_EQ(p[6], 8.0);
+  EXPECT_DOUBLE_EQ(p[20], 3.4);
+  /* Explicit: every ply's fibers (fleece's N per ply), each fiber at most a ply radius from its ply. */
+  o.model.clear();
+  const std::string fibers = scene_text(o);
+  const int N = neuralyarn::find_preset("fleece").N;
+  EXPECT_EQ(hair_attribute(fibers, "nkeys").size(), size_t(2 * N));
+  const std::vector<double> f = hair_keys(fibers);
+  for (size_t i = 0; i < size_t(N) * 3; i += 3) { /* the first ply's fibers: around the x axis */
+    EXPECT_LE(std::hypot(f[i + 1], f[i + 2]), 1.0 + 1e-5);
+  }
+  /* The key-rim's point lights moved out and brightened with light_scale; the default leaves them. */
+  const Attributes l1 = elements(fibers, "light").at(0);
+  o.light_scale = 10.0;
+  const Attributes l10 = elements(scene_text(o), "light").at(0);
+  EXPECT_NEAR(numbers(l10.at("tfm"))[3], 10.0 * numbers(l1.at("tfm"))[3], 1e-4);
+  EXPECT_NEAR(numbers(l10.at("strength"))[0], 100.0 * numbers(l1.at("strength"))[0], 1e-2);
+  EXPECT_NEAR(numbers(l10.at("size"))[0], 10.0 * numbers(l1.at("size"))[0], 1e-6);
+  fs::remove(plies);
+}
+
+TEST(CyclesScenePlies, BadFilesAndTooManyKeysAreRefusedBeforeWriting)
+{
+  PlySceneOptions o;
+  for (const char *body : {"not json", R"({"format": "other", "ply_radius": 1, "plies": [[0,0,0,1,0,0]]})",
+                           R"({"format": "neuralyarn-plies 1", "ply_radius": 0, "plies": [[0,0,0,1,0,0]]})",
+                           R"({"format": "neuralyarn-plies 1", "ply_radius": 1, "plies": []})",
+                           R"({"format": "neuralyarn-plies 1", "ply_radius": 1, "plies": [[0,0,0,1,0]]})",
+                           R"({"format": "neuralyarn-plies 1", "ply_radius": 1, "plies": [[0,0,0,"x",0,0]]})"})
+  {
+    o.plies = write_plies(body);
+    EXPECT_THROW(scene_text(o), std::runtime_error) << body;
+  }
+  /* A ply a million radii long: hundreds of millions of fiber keys. */
+  o.plies = write_plies(R"({"format": "neuralyarn-plies 1", "ply_radius": 1, "plies": [[0,0,0,1e6,0,0]]})");
+  try {
+    scene_text(o);
+    FAIL() << "too many keys accepted";
+  }
+  catch (const std::runtime_error &e) {
+    EXPECT_NE(std::string(e.what()).find("curve keys"), std::string::npos) << e.what();
+  }
+  o.layers = 2;
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  fs::remove(o.plies);
+}

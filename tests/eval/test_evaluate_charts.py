@@ -63,10 +63,52 @@ def test_speed_summary_and_charts(tmp_path):
     assert native["speedup_equal_spp"] == pytest.approx(10.0)  # 1/0.1, 4/0.4, 16/1.6
     assert native["memory_ratio"] == pytest.approx(40.0)  # (500 - 100) / (110 - 100)
     assert "explicit" not in s["closeup"]
-    c = ec.curves(res)[("closeup", "fleece", "grazing")]["explicit"]
+    c = ec.curves(res)[("closeup", "fleece", "grazing", 12.0)]["explicit"]
     assert [p["seeds"] for p in c] == [2, 2, 2] and c[0]["flip_sd"] == pytest.approx(0.01)
     res["summary"] = s
     assert "| closeup | native | 6.9 | 10.0 | 40.00 |" in ec.summary_table(res)
     paths = ec.error_time_charts(str(tmp_path), res)
     assert [os.path.basename(p) for p in paths] == ["closeup_fleece_grazing_flip_time.png", "flip_time.png"]
     assert all(os.path.getsize(p) > 10000 for p in paths)
+
+
+def test_error_against_distance_chart(tmp_path):
+    """Two camera distances: one chart per (scene, preset, light), the ply's width read from the scenes."""
+    res = results_of({"explicit": EXPLICIT, "native": BIASED}, {"explicit": 500.0, "native": 110.0})
+    far = [{**r, "distance": 96.0} for r in res["runs"]]
+    res["runs"] += far
+    res["noise_floor"].append({**res["noise_floor"][0], "distance": 96.0, "mean_luminance_error": 0.01})
+    res["noise_floor"][0]["mean_luminance_error"] = 0.02
+    for r in res["runs"]:
+        r["mean_luminance_error"] = 0.05
+    res["scenes"] = {"closeup": {"distances": {"12": {"ply_pixels": 13.8}, "96": {"ply_pixels": 1.7}}}}
+    paths = ec.error_distance_charts(str(tmp_path), res)
+    assert [os.path.basename(p) for p in paths] == ["closeup_fleece_grazing_distance.png"]
+    assert os.path.getsize(paths[0]) > 10000
+    # The far groups are their own curves, labelled with the distance.
+    assert ("closeup", "fleece", "grazing", 96.0) in ec.curves(res)
+    assert "closeup d96" in ec.speed_summary(res)
+    # One distance: no chart.
+    assert ec.error_distance_charts(str(tmp_path / "one"), results_of({"native": BIASED}, {"native": 110.0})) == []
+
+
+def test_curve_times_are_spp_times_the_time_per_sample_of_the_longest_renders():
+    """A 4-sample render's measured time is noise (here 0, wall time below the load's); the curve's time is
+    4 x the time per sample of the 16-sample renders."""
+    res = results_of({"explicit": EXPLICIT}, {"explicit": 500.0})
+    for r in res["runs"]:
+        if r["spp"] == 4:
+            r["seconds_render"] = 0.0
+    c = ec.curves(res)[("closeup", "fleece", "grazing", 12.0)]["explicit"]
+    assert [p["seconds"] for p in c] == pytest.approx([1.0, 4.0, 16.0])
+    assert c[1]["seconds_measured"] == 0.0
+
+
+def test_against_the_baselines_at_equal_render_time():
+    chiang = [{"spp": 4, "seconds": 0.05, "flip": 0.25}, {"spp": 16, "seconds": 0.2, "flip": 0.2}]
+    assert ec.flip_at(chiang, 0.1) == pytest.approx(math.sqrt(0.25 * 0.2))  # log-log between its points
+    assert ec.flip_at(chiang, 10.0) == 0.2 and ec.flip_at(chiang, 0.01) == 0.25  # its ends beyond them
+    q = ec.against_others_at_equal_time(BIASED, {"chiang": chiang})
+    # Worst at the biased method's first point (0.3 at 0.1 s against chiang's 0.224 then).
+    assert q == {"worst_ratio": pytest.approx(0.3 / math.sqrt(0.05)), "best_other": "chiang"}
+    assert ec.against_others_at_equal_time(BIASED, {}) is None

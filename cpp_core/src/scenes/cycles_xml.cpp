@@ -12,6 +12,8 @@
 #include <Eigen/Geometry>
 
 #include "neuralyarn/geometry/ply.h"
+#include "neuralyarn/geometry/sweep.h"
+#include "neuralyarn/scenes/ply_curves.h"
 #include "neuralyarn/model/model.h"
 
 namespace neuralyarn::scenes {
@@ -196,6 +198,14 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
   if (o.layers < 1 || o.layers > 256) {
     throw std::runtime_error("layers must be in [1, 256], got " + std::to_string(o.layers));
   }
+  if (!(o.light_scale > 0.0 && o.light_scale <= 1e6)) {
+    throw std::runtime_error("light_scale must be in (0, 1e6], got " + std::to_string(o.light_scale));
+  }
+  if (!o.plies.empty() && o.layers != 1) {
+    throw std::runtime_error("a scene of ply curves has its own geometry: no layers");
+  }
+  /* Read (and refuse a bad file) before anything is written. */
+  const PlyCurves curves_in = o.plies.empty() ? PlyCurves{} : read_ply_curves(o.plies);
   const BounceLimits limits = o.artist_bounces ? BounceLimits::blender_addon()
                                                : BounceLimits{o.max_bounce, o.max_bounce, o.max_bounce,
                                                               o.max_bounce, o.max_bounce};
@@ -263,7 +273,52 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
   }
   const double s = o.unit_scale;
   geometry::CurveSet curves;
-  if (!aggregated) {
+  if (!aggregated && !curves_in.plies.empty()) {
+    /* Each ply's fibers swept along its centreline, each ply another orientation of the cross-section. */
+    const geometry::PlyParams pp{preset.N, preset.rho, preset.alpha, 1.0};
+    /* Refuse before any work a scene that cannot be rendered here: sweep_fibers' key count, estimated. */
+    double keys = 0.0;
+    const double pitch = 2.0 / std::max(preset.alpha, 1e-12);
+    for (const auto &ply : curves_in.plies) {
+      double length = 0.0;
+      for (size_t i = 1; i < ply.size(); i++) {
+        length += (ply[i] - ply[i - 1]).norm();
+      }
+      keys += double(preset.N) *
+              (std::max({length / pitch * o.segments_per_turn, length, double(ply.size()) - 1.0}) + 1.0);
+    }
+    if (keys > double(kMaxExplicitKeys)) {
+      throw std::runtime_error("explicit fibers of these plies would be about " + std::to_string(int64_t(keys)) +
+                               " curve keys, more than " + std::to_string(kMaxExplicitKeys) +
+                               " (tens of GB in Cycles): fewer plies, or fewer --segments-per-turn");
+    }
+    const geometry::PlyCrossSection cs = geometry::pack_cross_section(pp, o.packing_seed);
+    curves.offsets = {0};
+    for (size_t k = 0; k < curves_in.plies.size(); k++) {
+      geometry::PlyCrossSection turned = cs;
+      const double a = (o.ply_rotation_deg + 137.5 * double(k)) * kDegToRad;
+      for (Eigen::Vector2d &c : turned.centers) {
+        c = Eigen::Rotation2Dd(a) * c;
+      }
+      std::vector<Eigen::Vector3d> axis = curves_in.plies[k];
+      for (Eigen::Vector3d &p : axis) {
+        p *= s;
+      }
+      geometry::PlyParams scaled = pp;
+      scaled.R = s;
+      for (Eigen::Vector2d &c : turned.centers) {
+        c *= s;
+      }
+      turned.R *= s, turned.r *= s;
+      const geometry::CurveSet one = geometry::sweep_fibers(geometry::Ply(scaled, turned), axis, o.segments_per_turn);
+      for (int c = 0; c < one.num_curves(); c++) {
+        curves.radii.push_back(one.radii[size_t(c)]);
+        curves.offsets.push_back(curves.offsets.back() + (one.offsets[size_t(c) + 1] - one.offsets[size_t(c)]));
+      }
+      curves.points.insert(curves.points.end(), one.points.begin(), one.points.end());
+    }
+  }
+  else if (!aggregated) {
     /* Only the explicit version packs fibers. */
     const geometry::PlyParams pp{preset.N, preset.rho, preset.alpha, 1.0};
     const geometry::Ply ply(pp, geometry::pack_cross_section(pp, o.packing_seed));
@@ -325,9 +380,9 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
       if (l.kind == RigLight::Kind::point) {
         /* Cycles 4.3 lights are placed by their own 3x4 transform (rows; translation in the last column);
          * the enclosing <transform> does not apply to them. Scaled scenes scale the power with the area. */
-        const double w = l.strength * s * s;
-        x << "  <light light_type=\"point\" tfm=\"1 0 0 " << l.x * s << " 0 1 0 " << l.y * s << " 0 0 1 " << l.z * s
-          << "\" strength=\"" << w << " " << w << " " << w << "\" size=\"" << l.size * s << "\" />\n";
+        const double ls = s * o.light_scale, w = l.strength * ls * ls;
+        x << "  <light light_type=\"point\" tfm=\"1 0 0 " << l.x * ls << " 0 1 0 " << l.y * ls << " 0 0 1 " << l.z * ls
+          << "\" strength=\"" << w << " " << w << " " << w << "\" size=\"" << l.size * ls << "\" />\n";
       }
       else {
         /* A distant light shines along -Z of its transform (Light::get_dir() is minus the third column; the
@@ -359,16 +414,32 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
         << "  <connect from=\"y bsdf\" to=\"output surface\" />\n";
     }
     x << "</shader>\n";
-    const int keys = 17;
     x << "<state shader=\"yarn\">\n<hair nkeys=\"";
-    for (size_t i = 0; i < plies.size(); i++) {
-      x << (i ? " " : "") << keys;
+    if (!curves_in.plies.empty()) {
+      /* The ply curves themselves. */
+      for (size_t i = 0; i < curves_in.plies.size(); i++) {
+        x << (i ? " " : "") << curves_in.plies[i].size();
+      }
+      x << "\" radius=\"" << s << "\"\n  P=\"";
+      bool first = true;
+      for (const auto &ply : curves_in.plies) {
+        for (const Eigen::Vector3d &p : ply) {
+          x << (first ? "" : " ") << s * p.x() << " " << s * p.y() << " " << s * p.z();
+          first = false;
+        }
+      }
     }
-    x << "\" radius=\"" << s << "\"\n  P=\"";
-    for (size_t i = 0; i < plies.size(); i++) {
-      for (int k = 0; k < keys; k++) {
-        x << (i || k ? " " : "") << s * (-0.5 * o.ply_length + o.ply_length * k / (keys - 1)) << " "
-          << s * plies[i].y << " " << s * plies[i].z;
+    else {
+      const int keys = 17;
+      for (size_t i = 0; i < plies.size(); i++) {
+        x << (i ? " " : "") << keys;
+      }
+      x << "\" radius=\"" << s << "\"\n  P=\"";
+      for (size_t i = 0; i < plies.size(); i++) {
+        for (int k = 0; k < keys; k++) {
+          x << (i || k ? " " : "") << s * (-0.5 * o.ply_length + o.ply_length * k / (keys - 1)) << " "
+            << s * plies[i].y << " " << s * plies[i].z;
+        }
       }
     }
     x << "\" />\n</state>\n</cycles>\n";

@@ -75,6 +75,10 @@ struct PlySceneOptions {
   double unit_scale = 1.0;       /* every length (ply, camera, lights) times this: a ply of radius 1e-3 or 1e3 */
   int layers = 1;                /* > 1: cloth layers, each a sheet of parallel plies side by side (along y),
                                   * stacked away from the camera (+z) — light through all of them */
+  std::string plies;             /* instead of the straight ply: these ply centrelines (scenes/ply_curves.h, e.g. a
+                                  * garment); explicit: each ply's fibers swept along it (geometry/sweep.h) */
+  double light_scale = 1.0;      /* point lights' positions and sizes times this, their power times its square
+                                  * (a scene larger than the close-up keeps the rig's look) */
   int seed = 0;                  /* Cycles' integrator seed: independent noise per value */
   std::string model;             /* aggregated version: the model file (written relative to the scene) */
   bool embed_model = false;      /* write the model's JSON into the scene (model_json), not its path */
@@ -89,6 +93,10 @@ struct Baseline {
 /* chiang, huang (Principled Hair, Blender's defaults but for the colour: "Direct coloring", and for Huang a
  * round cross-section), sheen (Principled BSDF with sheen 1 and Blender's default specular). */
 const std::vector<Baseline> &baselines();
+
+/* The most curve keys an explicit-fiber scene of ply curves may have (about 1.4 GB of scene text, ~6 GB in
+ * Cycles: docs/benchmarks.md); more is refused before anything is written. */
+constexpr int64_t kMaxExplicitKeys = 50'000'000;
 
 /* Writes the scene; throws std::runtime_error naming the path when it cannot be written. */
 void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &options, const std::string &path);

@@ -1,0 +1,25 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// A ply's fibers along a curved centreline (a knitted or woven ply): the straight ply's helices (ply.h)
+// laid out in the centreline's rotation-minimising frame, so that the twist w = pi alpha / R is relative to
+// the ply itself — a bent ply adds no twist of its own (as yarn.h's torsion term for helical plies).
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "neuralyarn/geometry/ply.h"
+
+namespace neuralyarn::geometry {
+
+/* The fibers of `ply` along `centreline` (a polyline in the ply's units, at least two points, not all the
+ * same), resampled evenly in arc length with max(turns * segments_per_turn, length / R, points - 1)
+ * segments. The frame starts with the normal closest to +y (+z where the tangent is near y) and is carried
+ * by double reflection (Wang et al. 2008); a fiber at cross-section centre (y, z) sits at
+ *     C(s) + (y cos ws - z sin ws) N(s) + (y sin ws + z cos ws) B(s),  B = T x N,
+ * so a straight centreline along +x from the origin gives export_fibers(ply, 0, length). Throws
+ * ParameterError for a degenerate or non-finite centreline. */
+CurveSet sweep_fibers(const Ply &ply, const std::vector<Eigen::Vector3d> &centreline, int segments_per_turn = 32);
+
+}  // namespace neuralyarn::geometry

@@ -1,0 +1,80 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
+"""The garment-scale scene's geometry: a plain-knit sleeve of 3-ply yarn, as ply centrelines for
+`neuralyarn cycles-scene --plies` (a "neuralyarn-plies 1" file, docs/file_formats.md).
+
+    .venv/bin/python scripts/garment.py --rows 40 --stitches 40 --out plies.json
+
+rows x stitches of Crane's plain knit (the add-on's geometry package: addon/geometry/knit.py, default
+shape), each yarn three S-twisted plies (alpha_yarn 0.5, as the examples' patches), wrapped into a tube whose
+circumference is the courses' length (a sleeve; the seam at the back), axis vertical (y), the knit's face
+outward; in ply radii (ply radius 1), the tube's front at z = 0 facing a camera on -z, centred on the origin
+vertically and across. Deterministic (no random numbers). Prints one line: rows, stitches, plies, points,
+tube radius and height in ply radii.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+
+import numpy as np
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
+sys.path.insert(0, os.path.join(ROOT, "addon"))
+import geometry  # noqa: E402  (addon/geometry: pure numpy)
+
+PLIES_PER_YARN = 3
+ALPHA_YARN = 0.5
+SAMPLES_PER_LOOP = 24
+SAMPLES_PER_TURN = 16
+
+
+def garment_plies(rows: int, stitches: int) -> dict:
+    """The plies file's content: {"format", "ply_radius" (1), "plies", "rows", "stitches", "tube_radius",
+    "height", "width"} (lengths in ply radii). Raises geometry.GeometryError for bad sizes."""
+    yarns = geometry.plain_knit(rows, stitches, samples_per_loop=SAMPLES_PER_LOOP)
+    plies = []
+    for y in yarns:
+        plies += geometry.twist_plies(y, PLIES_PER_YARN, alpha_yarn=ALPHA_YARN, samples_per_turn=SAMPLES_PER_TURN)
+    r_ply = float(np.mean([p.radius.mean() for p in plies]))
+    course = 2.0 * math.pi * stitches / r_ply  # one stitch is 2 pi wide (Crane's units)
+    tube = course / (2.0 * math.pi)
+    pts = [p.points / r_ply for p in plies]
+    y_mid = 0.5 * (min(p[:, 1].min() for p in pts) + max(p[:, 1].max() for p in pts))
+    x_mid = 0.5 * course
+    out = []
+    for p in pts:
+        theta = (p[:, 0] - x_mid) / tube
+        r = tube + p[:, 2]  # the knit's face (+z) outward
+        q = np.stack([r * np.sin(theta), p[:, 1] - y_mid, tube - r * np.cos(theta)], axis=1)
+        out.append([round(float(v), 4) for v in q.ravel()])
+    height = max(p[:, 1].max() for p in pts) - min(p[:, 1].min() for p in pts)
+    return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "rows": rows, "stitches": stitches,
+            "tube_radius": tube, "height": float(height), "width": 2.0 * tube + 2.0 * (1.0 + ALPHA_YARN),
+            "plies": out}
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rows", type=int, default=40)
+    ap.add_argument("--stitches", type=int, default=40)
+    ap.add_argument("--out", required=True)
+    a = ap.parse_args(argv)
+    try:
+        g = garment_plies(a.rows, a.stitches)
+    except geometry.GeometryError as e:
+        print(f"garment: error: {e}", file=sys.stderr)
+        return 1
+    with open(a.out, "w") as f:
+        json.dump(g, f, separators=(",", ":"))
+    print(f"{a.rows} rows x {a.stitches} stitches: {len(g['plies'])} plies, "
+          f"{sum(len(p) for p in g['plies']) // 3} points, tube radius {g['tube_radius']:.1f}, "
+          f"height {g['height']:.1f} ply radii")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,79 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The garment scene (scripts/garment.py and evaluate.sh --scenes garment): the knitted sleeve's ply curves are
+a tube of the right size, deterministic, refused for bad sizes; the harness renders a small one with explicit
+fibers and the native closure against the same curves, and a garment whose explicit fibers would not fit is
+recorded as failed while the native closure's cost is still measured."""
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir, os.pardir))
+sys.path.insert(0, os.path.join(ROOT, "scripts"))
+import garment  # noqa: E402
+
+EVALUATE = os.path.join(ROOT, "scripts", "evaluate.sh")
+
+
+def test_the_sleeve_is_a_tube_of_knitted_plies():
+    g = garment.garment_plies(3, 4)
+    assert g["format"] == "neuralyarn-plies 1" and g["ply_radius"] == 1.0
+    assert len(g["plies"]) == 3 * garment.PLIES_PER_YARN
+    pts = np.concatenate([np.reshape(p, (-1, 3)) for p in g["plies"]])
+    # Around the vertical axis through (0, ., tube): within the knit's thickness of the tube radius (the loops
+    # rise a couple of yarn radii off the tube), the front at z ~ 0 facing the camera on -z.
+    r = np.hypot(pts[:, 0], pts[:, 2] - g["tube_radius"])
+    assert np.all(np.abs(r - g["tube_radius"]) < 12.0), (r.min(), r.max())
+    assert abs(pts[:, 2].min()) < 12.0 and pts[:, 2].max() > 1.8 * g["tube_radius"]
+    # Four stitches go once around: the courses' length is the circumference.
+    assert g["tube_radius"] == pytest.approx(4 * 2 * math.pi / garment_ply_radius() / (2 * math.pi), rel=1e-6)
+    assert abs(pts[:, 1].mean()) < 0.2 * g["height"]
+    assert garment.garment_plies(3, 4) == g  # deterministic
+    with pytest.raises(garment.geometry.GeometryError):
+        garment.garment_plies(0, 4)
+
+
+def garment_ply_radius():
+    """The ply radius in Crane's units (the yarn radius 0.5 split into 3 plies)."""
+    y = garment.geometry.plain_knit(1, 1, samples_per_loop=garment.SAMPLES_PER_LOOP)[0]
+    plies = garment.geometry.twist_plies(y, garment.PLIES_PER_YARN, alpha_yarn=garment.ALPHA_YARN,
+                                         samples_per_turn=garment.SAMPLES_PER_TURN)
+    return float(np.mean([p.radius.mean() for p in plies]))
+
+
+def test_a_small_garment_in_the_harness(tmp_path):
+    r = subprocess.run(["bash", EVALUATE, "--quick", "--scenes", "garment", "--garment-stitches", "2", "--lights",
+                        "grazing", "--methods", "explicit", "native", "--out", str(tmp_path)],
+                       capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-3000:]
+    res = json.load(open(tmp_path / "results.json"))
+    runs = {x["method"]: x for x in res["runs"]}
+    assert set(runs) == {"explicit", "native"}
+    for m, x in runs.items():
+        assert x["failed"] is False and x["scene"] == "garment" and x["flip"] is not None, (m, x)
+        assert x["distance"] == res["scenes"]["garment"]["distance"] > 12.0
+    # Same plies: the native scene has one curve per ply, the explicit one every ply's fibers.
+    n_plies = 2 * garment.PLIES_PER_YARN
+    assert runs["native"]["curve_keys"] == sum(len(p) // 3 for p in json.load(
+        open(tmp_path / "scenes" / "garment_2x2.json"))["plies"])
+    assert runs["explicit"]["curve_keys"] > 100 * runs["native"]["curve_keys"]
+    # Under the grazing light the aggregated sleeve is not far from the fibers (a wrong light scale or
+    # frame would be off by far more).
+    assert abs(runs["native"]["mean_luminance_error"]) < 0.5, runs["native"]
+    assert n_plies == len(json.load(open(tmp_path / "scenes" / "garment_2x2.json"))["plies"])
+
+
+def test_a_garment_too_large_for_explicit_fibers_still_measures_the_native_cost(tmp_path):
+    r = subprocess.run(["bash", EVALUATE, "--quick", "--scenes", "garment", "--garment-stitches", "40", "--lights",
+                        "grazing", "--methods", "explicit", "native", "--ref-spp", "2", "--ref-rotations", "1",
+                        "--out", str(tmp_path)], capture_output=True, text=True, timeout=900)
+    assert r.returncode == 2, r.stderr[-3000:]  # some renders failed
+    res = json.load(open(tmp_path / "results.json"))
+    runs = {x["method"]: x for x in res["runs"]}
+    assert "curve keys" in runs["explicit"]["failed"]
+    assert runs["native"]["failed"] is False and runs["native"]["seconds_render"] is not None
+    assert runs["native"]["flip"] is None and "curve keys" in runs["native"]["no_reference"]
