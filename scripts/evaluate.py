@@ -66,15 +66,16 @@ import re
 import signal
 import subprocess
 import sys
+import functools
 import tempfile
 import time
-
 import types
 
 import numpy as np
 
+from evaluate_charts import (CLOSEUP_DISTANCE, REFERENCE_METHOD, error_distance_charts, error_time_charts, label,
+                             group_of, speed_summary, stem, summary_table)
 from garment import garment_plies
-from evaluate_charts import error_distance_charts, error_time_charts, speed_summary, summary_table
 from images import LUMINANCE, display, display_ssim, exposure_of, read_exr, write_exr
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
@@ -98,7 +99,6 @@ FALLBACKS = ("osl", "nodes")
 #: relative error per channel of the central-region mean that ends it.
 BASELINE_FIT = {"spp": 64, "renders": 8, "tolerance": 0.005}
 FALLBACK_RENDER = os.path.join(ROOT, "scripts", "fallback_render.py")
-REFERENCE_METHOD = "explicit"
 # Cycles integrator seeds: the runs use 1..--seeds, the references two seeds of their own.
 REFERENCE_SEEDS = {"A": 1001, "B": 1002}
 # A reference is the mean of renders of the explicit ply turned about its axis to evenly spaced angles (A at
@@ -111,7 +111,7 @@ PLY_RADIUS = 1.0  # cycles-scene's unit
 # frame is 23 radii wide at the ply, 2:1) and far enough from the central region that light entering through
 # an end cap does not reach it (the axis rig: with 16, the central region of the explicit ply is 7 % brighter).
 CLOSEUP_PLY_LENGTH = 48.0
-CLOSEUP_DISTANCE = 12.0  # cycles-scene's default camera distance (ply radii)
+CLOSEUP_FOV = 0.9  # cycles-scene's field of view (radians, of the image's shorter side)
 FLIP_PPD = 67.0
 RELMSE_EPS = 0.01
 RELMSE_DISCARD = 0.001
@@ -276,15 +276,15 @@ def light_rigs() -> dict[str, str]:
 def ply_length(distance: float, a) -> float:
     """The close-up's ply length at a camera distance: 48 at the close-up's 12, growing with the frame's width
     at the ply (its ends out of the frame and far from the central region)."""
-    fov = 0.9  # cycles-scene's, of the shorter side
-    across = 2.0 * distance * math.tan(0.5 * fov) * max(a.width, a.height) / min(a.width, a.height)
+    across = 2.0 * distance * math.tan(0.5 * CLOSEUP_FOV) * max(a.width, a.height) / min(a.width, a.height)
     return round(max(CLOSEUP_PLY_LENGTH, 2.1 * across), 1)
 
 
-def tag(scene: str, preset: str, light: str, distance: float | None = CLOSEUP_DISTANCE) -> str:
-    """The file-name stem of a (scene, preset, light, distance) group (the close-up's distance, and the
-    garment's own, None, unnamed)."""
-    return f"{scene}_{preset}_{light}" + ("" if distance in (None, CLOSEUP_DISTANCE) else f"_d{distance:g}")
+def scene_path(a, scene: str, method: str, preset: str, light: str, seed: int, rotation: float = 0.0,
+               distance: float | None = CLOSEUP_DISTANCE) -> str:
+    """Where write_scene writes the scene of one render."""
+    turned = f"_rot{rotation:g}" if rotation else ""
+    return os.path.join(a.out, "scenes", f"{stem((scene, preset, light, distance))}_{method}_seed{seed}{turned}.xml")
 
 
 def for_scene(a, scene: str):
@@ -296,32 +296,29 @@ def for_scene(a, scene: str):
 
 
 def garment_scene_args(a) -> list[str]:
-    """cycles-scene's arguments for the garment: its plies file (DIR/scenes/garment_SxS.json, written once),
-    the camera that frames the whole tube, the point lights moved out with it."""
-    n = a.garment_stitches
-    path = os.path.join(a.out, "scenes", f"garment_{n}x{n}.json")
-    meta_path = path[:-5] + ".meta.json"
-    if not (os.path.isfile(path) and os.path.isfile(meta_path)):
-        g = garment_plies(n, n)
-        with open(path, "w") as f:
-            json.dump(g, f, separators=(",", ":"))
-        with open(meta_path, "w") as f:
-            json.dump({k: v for k, v in g.items() if k != "plies"}, f)
-    with open(meta_path) as f:
-        meta = json.load(f)
-    t = math.tan(0.45)  # cycles-scene's field of view (0.9) is the shorter side's: the height here
+    return list(_garment_scene_args(a.out, a.garment_stitches))
+
+
+@functools.lru_cache(maxsize=None)
+def _garment_scene_args(out: str, n: int) -> tuple[str, ...]:
+    """cycles-scene's arguments for the garment: its plies file (DIR/scenes/garment_SxS.json, written once a
+    run), the camera that frames the whole tube, the point lights moved out with it."""
+    path = os.path.join(out, "scenes", f"garment_{n}x{n}.json")
+    g = garment_plies(n, n)
+    with open(path, "w") as f:
+        json.dump(g, f, separators=(",", ":"))
+    t = math.tan(0.5 * CLOSEUP_FOV)  # the shorter side's: the height here
     aspect = GARMENT["width"] / GARMENT["height"]
-    d = GARMENT["margin"] * max(0.5 * meta["height"] / t, 0.5 * meta["width"] / (t * aspect))
-    return ["--plies", path, "--camera-distance", f"{d:.4f}", "--light-scale", f"{d / CLOSEUP_DISTANCE:.6g}",
-            "--segments-per-turn", str(GARMENT["segments_per_turn"])]
+    d = GARMENT["margin"] * max(0.5 * g["height"] / t, 0.5 * g["width"] / (t * aspect))
+    return ("--plies", path, "--camera-distance", f"{d:.4f}", "--light-scale", f"{d / CLOSEUP_DISTANCE:.6g}",
+            "--segments-per-turn", str(GARMENT["segments_per_turn"]))
 
 
 def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, rotation: float = 0.0,
                 colour: list[float] | None = None, distance: float = CLOSEUP_DISTANCE) -> str:
     """The scene file of one render (`neuralyarn cycles-scene`: the close-up, or with `--plies` the garment);
     `rotation` turns the explicit ply (each ply) about its axis (degrees); a baseline method needs its `colour`."""
-    turned = f"_rot{rotation:g}" if rotation else ""
-    path = os.path.join(a.out, "scenes", f"{tag(scene, preset, light, distance)}_{method}_seed{seed}{turned}.xml")
+    path = scene_path(a, scene, method, preset, light, seed, rotation, distance)
     args = ["cycles-scene", *yarn_args(a.yarns, preset), "--lights", light, "--seed", str(seed), "--width", str(a.width),
             "--height", str(a.height), "--out", path]
     if scene == "garment":
@@ -346,7 +343,7 @@ def empty_scene(a) -> str:
     with open(path, "w") as f:
         f.write('<?xml version="1.0"?>\n<cycles>\n'
                 f'<camera width="{a.width}" height="{a.height}" />\n'
-                '<transform translate="0 0 -12">\n  <camera type="perspective" fov="0.9" />\n</transform>\n'
+                f'<transform translate="0 0 -12">\n  <camera type="perspective" fov="{CLOSEUP_FOV}" />\n</transform>\n'
                 '<background>\n  <background name="bg" strength="0" color="1 1 1" />\n'
                 '  <connect from="bg background" to="output surface" />\n</background>\n</cycles>\n')
     return path
@@ -508,7 +505,7 @@ def reference(a, scene: str, preset: str, light: str, which: str, what: str,
     k_count, spp = a.ref_rotations, a.ref_spp // a.ref_rotations
     parts = reference_parts(which, k_count)
     xmls = [write_scene(a, scene, REFERENCE_METHOD, preset, light, seed, rot, distance=distance) for seed, rot in parts]
-    name = f"{tag(scene, preset, light, distance)}_{which}"
+    name = f"{stem((scene, preset, light, distance))}_{which}"
     exr = os.path.join(a.out, "refs", name + ".exr")
     meta_path = os.path.join(a.out, "refs", name + ".json")
     key = {"scene_sha256": hashlib.sha256("".join(sha256(x) for x in xmls).encode()).hexdigest(),
@@ -556,7 +553,8 @@ def fit_baseline(a, scene: str, preset: str, method: str, env_ref: dict, what: s
         log(f"{what}: cached")
         return {**table[name]["fit"], "cached": True}
     ref = read_exr(os.path.join(a.out, env_ref["image"]))
-    xml = write_scene(a, scene, REFERENCE_METHOD, preset, "environment", REFERENCE_SEEDS["A"])
+    # The camera of the reference's own scene (reference() wrote it).
+    xml = scene_path(a, scene, REFERENCE_METHOD, preset, "environment", REFERENCE_SEEDS["A"])
     region = central_region(*camera(xml), a.width, a.height)
     target = ref[region].mean(axis=(0, 1))
     colour = np.clip(target, 1e-3, 1.0)  # the environment is white: the mean is an albedo
@@ -611,7 +609,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         baseline, failures = None, failures + 1
         log(f"the empty scene: FAILED, {e}")
 
-    # The baselines' colours, from the environment's reference A of each (scene, preset).
+    # The baselines' colours (preset, method) -> RGB, from the close-up's reference A under the environment.
     colours, baseline_fits = {}, []
     for scene, preset in fits:
         what = progress(f"reference A {scene} {preset} environment {a.ref_spp} spp (for the baselines' colours)")
@@ -628,7 +626,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                 if env_ref is None:
                     raise RenderFailed("the environment's reference failed")
                 fit = fit_baseline(a, scene, preset, method, env_ref, what)
-                colours[(scene, preset, method)] = fit["colour"]
+                colours[(preset, method)] = fit["colour"]
                 rec.update(fit)
             except RenderFailed as e:
                 failures += 1
@@ -637,10 +635,11 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
             baseline_fits.append(rec)
 
     references, noise_floor, runs, cameras = [], [], [], {}
+    settings = a
     for scene, preset, light, distance in groups:
-        a_all, a = a, for_scene(a, scene)
+        a = for_scene(settings, scene)
         group = {"scene": scene, "preset": preset, "light": light, "distance": distance}
-        name = tag(scene, preset, light, distance)
+        name = stem((scene, preset, light, distance))
         at = f"{scene} {preset} {light}" + (f" distance {distance:g}" if distance not in (None, CLOSEUP_DISTANCE) else "")
         refs, failed = {}, {}
         for which in ("A", "B"):
@@ -657,8 +656,8 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                            **{f"seconds_{w}": r["seconds"] for w, r in refs.items()}})
         ref_failed = failed.get("A")  # the runs need reference A only, the noise floor both
         ref_img, region, region_name = None, None, None
-        ref_scene = os.path.join(a.out, "scenes", f"{name}_{REFERENCE_METHOD}_seed{REFERENCE_SEEDS['A']}.xml")
-        if os.path.isfile(ref_scene):
+        ref_scene = scene_path(a, scene, REFERENCE_METHOD, preset, light, REFERENCE_SEEDS["A"], distance=distance)
+        if os.path.isfile(ref_scene):  # (reference() writes it even when it cannot render)
             cam_distance, fov = camera(ref_scene)
             if distance is None:  # the garment's own camera
                 group["distance"] = distance = cam_distance
@@ -691,7 +690,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
             # Load cost: a 1-sample render of the same scene (seed 1), once per method.
             xml, load, load_failed = None, None, None
             what = progress(f"{method} {at} 1 spp (load)")
-            colour = colours.get(("closeup", preset, method))
+            colour = colours.get((preset, method))
             try:
                 if method in a.baselines and colour is None:
                     raise RenderFailed("no colour (its fit failed)")
@@ -740,7 +739,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                         strip[method] = img
         if ref_img is not None:
             write_strip(a, name, strip)
-        a = a_all
+    a = settings
 
     results = {
         "format": "neuralyarn-evaluate 1",
@@ -793,30 +792,25 @@ def contact_sheet(out: str, results: dict) -> str:
     presets, lights = results["presets"], list(results["lights"])
     scenes = sorted({r["scene"] for r in results["references"]})
     distances = results["settings"].get("distances", [CLOSEUP_DISTANCE])
-    rows = [(sc, p, d) for sc in scenes for p in presets for d in distances]
+    rows = [(sc, p, d) for sc in scenes for p in presets for d in (distances if sc == "closeup" else [None])]
     fig, axes = plt.subplots(len(rows), len(lights), squeeze=False,
                              figsize=(3.2 * len(lights), 0.9 * len(rows) + 0.4))
     for i, (sc, p, d) in enumerate(rows):
         for j, l in enumerate(lights):
             ax = axes[i][j]
-            path = os.path.join(out, "strips", f"{tag(sc, p, l, d)}.png")
+            path = os.path.join(out, "strips", f"{stem((sc, p, l, d))}.png")
             if os.path.isfile(path):
                 ax.imshow(matplotlib.image.imread(path))
             ax.set_xticks([])
             ax.set_yticks([])
-            ax.set_title(f"{p}, {l}" + (f", distance {d:g}" if len(distances) > 1 else ""), fontsize=8)
+            ax.set_title(f"{sc}, {p}, {l}" if d is None else f"{p}, {l}" + (f", distance {d:g}" if len(distances) > 1 else ""),
+                         fontsize=8)
     fig.suptitle("reference | native | explicit (one exposure per strip: the reference's)", fontsize=9)
     fig.tight_layout()
     path = os.path.join(out, "strips.png")
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
-
-
-def scene_label(r: dict) -> str:
-    """A record's scene in the tables: `closeup`, or `closeup d48` at another camera distance."""
-    d = r.get("distance", CLOSEUP_DISTANCE)
-    return r["scene"] if r["scene"] != "closeup" or d in (None, CLOSEUP_DISTANCE) else f"{r['scene']} d{d:g}"
 
 
 def summary(results: dict) -> str:
@@ -835,10 +829,10 @@ def summary(results: dict) -> str:
              "| scene | preset | light | method | spp | R % | G % | B % | lum % | lum floor % | FLIP | FLIP floor "
              "| render s | load s | peak MB | failed |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    floors = {(scene_label(f), f["preset"], f["light"]): f for f in results["noise_floor"]}
+    floors = {(label(group_of(f)), f["preset"], f["light"]): f for f in results["noise_floor"]}
     groups: dict = {}
     for r in results["runs"]:
-        groups.setdefault((scene_label(r), r["preset"], r["light"], r["method"], r["spp"]), []).append(r)
+        groups.setdefault((label(group_of(r)), r["preset"], r["light"], r["method"], r["spp"]), []).append(r)
 
     def mean(vals):
         vals = [v for v in vals if v is not None]

@@ -30,9 +30,7 @@ import sys
 import numpy as np
 
 REFERENCE_METHOD = "explicit"
-#: The artist's stock closures (evaluate.py's --list-baselines), against which the neural model is compared.
-BASELINES = ("chiang", "huang", "sheen")
-CLOSEUP_DISTANCE = 12.0
+CLOSEUP_DISTANCE = 12.0  # cycles-scene's default camera distance (ply radii)
 #: The log axis's floor for render times (a method whose time per sample rounds to nothing).
 MIN_SECONDS = 1e-4
 
@@ -42,13 +40,19 @@ def group_of(r: dict) -> tuple:
     return r["scene"], r["preset"], r["light"], r.get("distance") or CLOSEUP_DISTANCE
 
 
+def at_own_distance(group: tuple) -> bool:
+    """Whether a group's camera is its scene's own (the close-up's 12, or any garment's framing)."""
+    return group[0] != "closeup" or group[3] in (None, CLOSEUP_DISTANCE)
+
+
 def label(group: tuple) -> str:
-    """`closeup`, or `closeup d48` at another camera distance (as evaluate.py's tables)."""
-    return group[0] if group[0] != "closeup" or group[3] == CLOSEUP_DISTANCE else f"{group[0]} d{group[3]:g}"
+    """The scene in the tables: `closeup`, or `closeup d48` at another camera distance."""
+    return group[0] if at_own_distance(group) else f"{group[0]} d{group[3]:g}"
 
 
 def stem(group: tuple) -> str:
-    return "_".join(group[:3]) + ("" if group[0] != "closeup" or group[3] == CLOSEUP_DISTANCE else f"_d{group[3]:g}")
+    """The file-name stem of a group's scenes, references, strips and charts."""
+    return "_".join(group[:3]) + ("" if at_own_distance(group) else f"_d{group[3]:g}")
 
 
 def curves(results: dict) -> dict:
@@ -141,6 +145,8 @@ def speed_summary(results: dict) -> dict:
     """results.json's `summary`: per scene (and distance: `closeup d48`), per method other than explicit fibers, `speedup_equal_flip` and
     `speedup_equal_spp` (the median over groups, and every group's value), and `memory_ratio`."""
     cs = curves(results)
+    # The artist's stock closures the run fitted (evaluate.py), against which the neural model is compared.
+    baseline_methods = {b["method"] for b in results.get("baselines", [])}
     summary: dict = {}
     for group, methods in sorted(cs.items()):
         scene = label(group)
@@ -156,10 +162,10 @@ def speed_summary(results: dict) -> dict:
             ref_t = {p["spp"]: p["seconds"] for p in ref}
             at_spp = [ref_t[p["spp"]] / p["seconds"] for p in curve if p["spp"] in ref_t]
             mem = memory_above_baseline(results, group, method)
-            baselines = {m: c for m, c in methods.items() if m in BASELINES}
+            baselines = {m: c for m, c in methods.items() if m in baseline_methods}
             entry["groups"].append({
                 "against_baselines_equal_time": against_others_at_equal_time(curve, baselines)
-                if method not in BASELINES else None,
+                if method not in baseline_methods else None,
                 "preset": group[1], "light": group[2], "equal_flip": eq,
                 "speedup_equal_spp": float(np.median(at_spp)) if at_spp else None,
                 "memory_ratio": ref_mem / mem if ref_mem is not None and mem and mem > 0 else None})
@@ -252,7 +258,7 @@ def error_time_charts(out: str, results: dict) -> list[str]:
             ax.axhline(floors[group], color="grey", ls=":", lw=1, label="reference noise floor")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_title(f"{group[1]}, {group[2]}" + ("" if stem(group) == "_".join(group[:3]) else f", distance {group[3]:g}"),
+        ax.set_title(f"{group[1]}, {group[2]}" + ("" if at_own_distance(group) else f", distance {group[3]:g}"),
                      fontsize=8)
         ax.tick_params(labelsize=6)
         if legend:

@@ -187,16 +187,20 @@ int main(int argc, char **argv)
   scene->add_flag("--white-furnace", s_opt.white_furnace,
                   "Uniform white background, no lights (the environment rig) and no Russian roulette")
       ->excludes(s_opt_lights);
-  /* Runs while parsing, before the check for the required --out: `cycles-scene --list-lights` alone works. */
-  scene->add_flag_callback(
-      "--list-lights",
-      [] {
-        for (const auto &r : scenes::light_rigs()) {
-          std::printf("%-12s %s\n", r.name.c_str(), r.description.c_str());
-        }
-        throw CLI::Success();
-      },
-      "Print the light rigs (name, description; one a line) and exit");
+  /* A flag that prints a table (name, description; one a line) and exits. It runs while parsing, before the
+   * check for the required --out: `cycles-scene --list-lights` alone works. */
+  const auto list_flag = [&](const std::string &flag, const auto &table, const std::string &what) {
+    scene->add_flag_callback(
+        flag,
+        [&table] {
+          for (const auto &row : table) {
+            std::printf("%-12s %s\n", row.name.c_str(), row.description.c_str());
+          }
+          throw CLI::Success();
+        },
+        "Print the " + what + " (name, description; one a line) and exit");
+  };
+  list_flag("--list-lights", scenes::light_rigs(), "light rigs");
   scene->add_option("--ply-rotation", s_opt.ply_rotation_deg,
                     "Explicit version: turn the fibers by this many degrees about the ply axis (another "
                     "orientation of the same cross-section; references average over several)")
@@ -245,15 +249,7 @@ int main(int argc, char **argv)
   scene->add_option("--baseline-colour", s_baseline_colour, "With --baseline: its colour R G B, each in [0, 1]")
       ->expected(3)
       ->needs(s_opt_baseline);
-  scene->add_flag_callback(
-      "--list-baselines",
-      [] {
-        for (const auto &b : scenes::baselines()) {
-          std::printf("%-12s %s\n", b.name.c_str(), b.description.c_str());
-        }
-        throw CLI::Success();
-      },
-      "Print the baselines (name, description; one a line) and exit");
+  list_flag("--list-baselines", scenes::baselines(), "baselines");
   scene->add_flag("--embed-model", s_opt.embed_model,
                   "With --model: write the model's JSON into the scene (a self-contained file; cycles_patch 0003)");
   std::vector<int> s_region;

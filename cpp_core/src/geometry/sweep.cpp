@@ -11,6 +11,14 @@
 
 namespace neuralyarn::geometry {
 
+int64_t sweep_segments(const PlyParams &params, double length, size_t points, int segments_per_turn)
+{
+  /* Helix pitch 2R / alpha (ply.h); an untwisted ply is sampled once per ply radius. */
+  const double turns = params.alpha > 0.0 ? length / (2.0 * params.R / params.alpha) : 0.0;
+  return std::max({int64_t(std::ceil(turns * segments_per_turn)), int64_t(std::ceil(length / params.R)),
+                   int64_t(points) - 1});
+}
+
 CurveSet sweep_fibers(const Ply &ply, const std::vector<Eigen::Vector3d> &centreline, int segments_per_turn)
 {
   if (centreline.size() < 2) {
@@ -33,9 +41,7 @@ CurveSet sweep_fibers(const Ply &ply, const std::vector<Eigen::Vector3d> &centre
   if (!(length > 1e-9 * R)) {
     throw ParameterError("centreline", "the ply centreline has no length");
   }
-  const double turns = std::isfinite(ply.pitch()) ? length / ply.pitch() : 0.0;
-  const int segments = std::max({int(std::ceil(turns * segments_per_turn)), int(std::ceil(length / R)),
-                                 int(centreline.size()) - 1});
+  const int segments = int(sweep_segments(ply.params(), length, centreline.size(), segments_per_turn));
   /* Even arc-length samples of the polyline. */
   std::vector<Eigen::Vector3d> C(size_t(segments) + 1);
   size_t k = 0;

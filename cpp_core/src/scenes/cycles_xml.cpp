@@ -276,19 +276,17 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
   if (!aggregated && !curves_in.plies.empty()) {
     /* Each ply's fibers swept along its centreline, each ply another orientation of the cross-section. */
     const geometry::PlyParams pp{preset.N, preset.rho, preset.alpha, 1.0};
-    /* Refuse before any work a scene that cannot be rendered here: sweep_fibers' key count, estimated. */
-    double keys = 0.0;
-    const double pitch = 2.0 / std::max(preset.alpha, 1e-12);
+    /* Refuse before any work a scene that cannot be rendered here. */
+    int64_t keys = 0;
     for (const auto &ply : curves_in.plies) {
       double length = 0.0;
       for (size_t i = 1; i < ply.size(); i++) {
         length += (ply[i] - ply[i - 1]).norm();
       }
-      keys += double(preset.N) *
-              (std::max({length / pitch * o.segments_per_turn, length, double(ply.size()) - 1.0}) + 1.0);
+      keys += int64_t(preset.N) * (geometry::sweep_segments(pp, length, ply.size(), o.segments_per_turn) + 1);
     }
-    if (keys > double(kMaxExplicitKeys)) {
-      throw std::runtime_error("explicit fibers of these plies would be about " + std::to_string(int64_t(keys)) +
+    if (keys > kMaxExplicitKeys) {
+      throw std::runtime_error("explicit fibers of these plies would be " + std::to_string(keys) +
                                " curve keys, more than " + std::to_string(kMaxExplicitKeys) +
                                " (tens of GB in Cycles): fewer plies, or fewer --segments-per-turn");
     }
@@ -296,26 +294,19 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
     curves.offsets = {0};
     for (size_t k = 0; k < curves_in.plies.size(); k++) {
       geometry::PlyCrossSection turned = cs;
-      const double a = (o.ply_rotation_deg + 137.5 * double(k)) * kDegToRad;
+      const Eigen::Rotation2Dd turn((o.ply_rotation_deg + 137.5 * double(k)) * kDegToRad);
       for (Eigen::Vector2d &c : turned.centers) {
-        c = Eigen::Rotation2Dd(a) * c;
+        c = turn * c;
       }
-      std::vector<Eigen::Vector3d> axis = curves_in.plies[k];
-      for (Eigen::Vector3d &p : axis) {
-        p *= s;
-      }
-      geometry::PlyParams scaled = pp;
-      scaled.R = s;
-      for (Eigen::Vector2d &c : turned.centers) {
-        c *= s;
-      }
-      turned.R *= s, turned.r *= s;
-      const geometry::CurveSet one = geometry::sweep_fibers(geometry::Ply(scaled, turned), axis, o.segments_per_turn);
+      const geometry::CurveSet one =
+          geometry::sweep_fibers(geometry::Ply(pp, turned), curves_in.plies[k], o.segments_per_turn);
       for (int c = 0; c < one.num_curves(); c++) {
-        curves.radii.push_back(one.radii[size_t(c)]);
+        curves.radii.push_back(one.radii[size_t(c)] * float(s));
         curves.offsets.push_back(curves.offsets.back() + (one.offsets[size_t(c) + 1] - one.offsets[size_t(c)]));
       }
-      curves.points.insert(curves.points.end(), one.points.begin(), one.points.end());
+      for (const Eigen::Vector3f &p : one.points) {
+        curves.points.push_back(float(s) * p);
+      }
     }
   }
   else if (!aggregated) {
@@ -414,32 +405,28 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
         << "  <connect from=\"y bsdf\" to=\"output surface\" />\n";
     }
     x << "</shader>\n";
-    x << "<state shader=\"yarn\">\n<hair nkeys=\"";
-    if (!curves_in.plies.empty()) {
-      /* The ply curves themselves. */
-      for (size_t i = 0; i < curves_in.plies.size(); i++) {
-        x << (i ? " " : "") << curves_in.plies[i].size();
-      }
-      x << "\" radius=\"" << s << "\"\n  P=\"";
-      bool first = true;
-      for (const auto &ply : curves_in.plies) {
-        for (const Eigen::Vector3d &p : ply) {
-          x << (first ? "" : " ") << s * p.x() << " " << s * p.y() << " " << s * p.z();
-          first = false;
+    /* The ply curves as given, or each straight ply as 17 keys along x. */
+    std::vector<std::vector<Eigen::Vector3d>> axes = curves_in.plies;
+    if (axes.empty()) {
+      const int keys = 17;
+      for (const Placement &pl : plies) {
+        std::vector<Eigen::Vector3d> axis;
+        for (int k = 0; k < keys; k++) {
+          axis.emplace_back(-0.5 * o.ply_length + o.ply_length * k / (keys - 1), pl.y, pl.z);
         }
+        axes.push_back(std::move(axis));
       }
     }
-    else {
-      const int keys = 17;
-      for (size_t i = 0; i < plies.size(); i++) {
-        x << (i ? " " : "") << keys;
-      }
-      x << "\" radius=\"" << s << "\"\n  P=\"";
-      for (size_t i = 0; i < plies.size(); i++) {
-        for (int k = 0; k < keys; k++) {
-          x << (i || k ? " " : "") << s * (-0.5 * o.ply_length + o.ply_length * k / (keys - 1)) << " "
-            << s * plies[i].y << " " << s * plies[i].z;
-        }
+    x << "<state shader=\"yarn\">\n<hair nkeys=\"";
+    for (size_t i = 0; i < axes.size(); i++) {
+      x << (i ? " " : "") << axes[i].size();
+    }
+    x << "\" radius=\"" << s << "\"\n  P=\"";
+    bool first = true;
+    for (const auto &axis : axes) {
+      for (const Eigen::Vector3d &p : axis) {
+        x << (first ? "" : " ") << s * p.x() << " " << s * p.y() << " " << s * p.z();
+        first = false;
       }
     }
     x << "\" />\n</state>\n</cycles>\n";

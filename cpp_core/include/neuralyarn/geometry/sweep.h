@@ -5,6 +5,7 @@
 // the ply itself — a bent ply adds no twist of its own (as yarn.h's torsion term for helical plies).
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include <Eigen/Core>
@@ -21,5 +22,9 @@ namespace neuralyarn::geometry {
  * so a straight centreline along +x from the origin gives export_fibers(ply, 0, length). Throws
  * ParameterError for a degenerate or non-finite centreline. */
 CurveSet sweep_fibers(const Ply &ply, const std::vector<Eigen::Vector3d> &centreline, int segments_per_turn = 32);
+
+/* The segments sweep_fibers gives each fiber of a ply with these parameters along a centreline of `length`
+ * and `points` points (so a scene can count its keys, N (segments + 1) a ply, before sweeping). */
+int64_t sweep_segments(const PlyParams &params, double length, size_t points, int segments_per_turn);
 
 }  // namespace neuralyarn::geometry
