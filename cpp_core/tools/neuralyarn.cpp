@@ -263,6 +263,10 @@ int main(int argc, char **argv)
                     "With --predict-region: predict under these rigs (default: the scene's), each map file "
                     "loaded once for all of them")
       ->delimiter(',');
+  bool s_predict_fallback = false;
+  scene->add_flag("--predict-fallback", s_predict_fallback,
+                  "With --predict-region and --model: also predict the model's stock-Blender fallback (its "
+                  "fallback tables, as Blender renders them)");
   scene->add_option("--predict-maps", s_predict_maps,
                     "With --predict-region: also predict with these radiance distribution maps (.nyrdm) as the "
                     "ply's scattering (the tabulated far field)")
@@ -308,12 +312,23 @@ int main(int argc, char **argv)
           rigs.push_back(scenes::find_light_rig(name));
         }
         const scenes::PixelRegion region{s_opt.width, s_opt.height, s_region[0], s_region[1], s_region[2], s_region[3]};
-        /* One line per prediction: "predicted model R G B RIG", "predicted maps R G B RIG PATH". */
+        /* One line per prediction: "predicted model R G B RIG", "predicted fallback R G B RIG", "predicted maps
+         * R G B RIG PATH". */
         if (!s_opt.model.empty()) {
           const scenes::FarField f = scenes::model_far_field(model::load_model(s_opt.model));
           for (const scenes::LightRig &rig : rigs) {
             const scenes::Rgb3 a = scenes::predict_closeup(f, rig, region);
             std::printf("predicted model %.5f %.5f %.5f %s\n", a.r, a.g, a.b, rig.name.c_str());
+          }
+        }
+        if (s_predict_fallback) {
+          if (s_opt.model.empty()) {
+            throw std::runtime_error("--predict-fallback needs --model");
+          }
+          const scenes::FarField f = scenes::fallback_far_field(model::load_model(s_opt.model));
+          for (const scenes::LightRig &rig : rigs) {
+            const scenes::Rgb3 a = scenes::predict_closeup(f, rig, region);
+            std::printf("predicted fallback %.5f %.5f %.5f %s\n", a.r, a.g, a.b, rig.name.c_str());
           }
         }
         for (const std::string &path : s_predict_maps) {
@@ -325,8 +340,8 @@ int main(int argc, char **argv)
           }
         }
       }
-      else if (!s_predict_maps.empty() || !s_predict_lights.empty()) {
-        throw std::runtime_error("--predict-maps and --predict-lights need --predict-region");
+      else if (!s_predict_maps.empty() || !s_predict_lights.empty() || s_predict_fallback) {
+        throw std::runtime_error("--predict-maps, --predict-lights and --predict-fallback need --predict-region");
       }
       return 0;
     }

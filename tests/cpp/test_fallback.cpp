@@ -451,3 +451,67 @@ TEST(Fallback, FittedWeightsKeepTheEnergyAndFollowTheModel)
                                        << err_flat;
   }
 }
+
+/* The fallback as stock Blender renders it (fallback_at / fallback_eval / fallback_albedo: the instrument of
+ * `cycles-scene --predict-fallback`). At a cell centre it is that cell's weights on the lobes in the
+ * surface-fiber frame of the kernel (yarn_to_surface_fiber: a sign error in the twist's tilt fails here on
+ * fleece, tilt 37 degrees), under uniform light it returns the model's albedo there (the fit's constraint),
+ * and between centres the weights are the bilinear mix of the four cells around the view. */
+TEST(Fallback, RenderedFallbackIsTheTablesLookedUpAsTheShadersDo)
+{
+  namespace cl = model::cycles_lobes;
+  const model::YarnModel m = model::load_model(model::builtin_model_path("fleece"));
+  ASSERT_TRUE(m.fallback.has_value());
+  const model::FallbackTables &f = *m.fallback;
+  ASSERT_GT(f.twist_tilt_rad, 0.3);
+  const std::vector<float> flat = m.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  const size_t K = f.lobes.size();
+  auto dir = [](const ny::Vec3 &w) { return cl::Dir{w.x, w.y, w.z}; };
+  for (const auto &[i, j] : kCells) {
+    const size_t k = size_t(i) * size_t(f.phi_bins) + size_t(j);
+    const ny::Vec3 wv = view(f, i, j);
+    const model::FallbackAt at = model::fallback_at(f, dir(wv));
+    EXPECT_NEAR(at.P_T, f.P_T[k], 1e-6);
+    for (size_t q = 0; q < K * 3; q++) {
+      EXPECT_NEAR(at.W[q], f.W[k * K * 3 + q], 1e-6 * (1.0 + f.W[k * K * 3 + q]));
+    }
+    const auto albedo = model::fallback_albedo(f, dir(wv));
+    for (int c = 0; c < 3; c++) {
+      const double E = double(f.P_T[k]) + f.E_R[k * 3 + size_t(c)] + f.E_M_up[k * 3 + size_t(c)] +
+                       f.E_M_down[k * 3 + size_t(c)];
+      EXPECT_NEAR(albedo[size_t(c)], E, 1e-3 * E + 1e-6) << "cell " << i << "," << j << " channel " << c;
+    }
+    /* Lights around the sphere, in the yarn frame. */
+    for (int a = 0; a < 12; a++) {
+      const double th = -1.4 + 2.8 * a / 11.0, ph = 0.5 + 2.0 * kPi * a / 12.0;
+      const ny::Vec3 wl = ny::make_vec3(float(std::sin(th)), float(std::cos(th) * std::sin(ph)),
+                                        float(std::cos(th) * std::cos(ph)));
+      const ny::Vec3 vf = ny::yarn_to_surface_fiber(p.twist, wv), lf = ny::yarn_to_surface_fiber(p.twist, wl);
+      double expect[3] = {0.0, 0.0, 0.0};
+      for (size_t q = 0; q < K; q++) {
+        const double e = model::fallback_lobe_eval(f.lobes[q], dir(vf), dir(lf));
+        for (int c = 0; c < 3; c++) {
+          expect[c] += double(f.W[(k * K + q) * 3 + size_t(c)]) * e;
+        }
+      }
+      const auto got = model::fallback_eval(f, dir(wv), dir(wl));
+      for (int c = 0; c < 3; c++) {
+        EXPECT_NEAR(got[size_t(c)], expect[c], 1e-4 * expect[c] + 1e-7) << "cell " << i << "," << j << " light " << a;
+      }
+    }
+  }
+  /* Halfway between cell centres (4, 12) and (5, 13) in both angles: the mean of the four cells. */
+  const ny::Vec3 mid = ny::direction_from_angles(float(0.5 * (f.theta_center(4) + f.theta_center(5))),
+                                                 float(0.5 * (f.phi_center(12) + f.phi_center(13))));
+  const model::FallbackAt at = model::fallback_at(f, dir(mid));
+  const size_t cells[4] = {4u * 18u + 12u, 4u * 18u + 13u, 5u * 18u + 12u, 5u * 18u + 13u};
+  ASSERT_EQ(f.phi_bins, 18);
+  for (size_t q = 0; q < K * 3; q++) {
+    double mean = 0.0;
+    for (size_t c : cells) {
+      mean += 0.25 * f.W[c * K * 3 + q];
+    }
+    EXPECT_NEAR(at.W[q], mean, 1e-5 * (1.0 + mean)) << "weight " << q;
+  }
+}

@@ -270,9 +270,9 @@ double fallback_lobe_eval(const FallbackLobe &L, const cycles_lobes::Dir &v, con
   return L.closure == "diffuse" ? cycles_lobes::diffuse_eval(o) : cycles_lobes::translucent_eval(o);
 }
 
-double fallback_lobe_albedo(const FallbackLobe &L, const cycles_lobes::Dir &v)
+double fallback_lobe_albedo(const FallbackLobe &L, const cycles_lobes::Dir &v, int n)
 {
-  return L.closure == "ggx" ? cycles_lobes::ggx_albedo(L.alpha_x, L.alpha_y, v) : 1.0; /* diffuse, translucent: 1 */
+  return L.closure == "ggx" ? cycles_lobes::ggx_albedo(L.alpha_x, L.alpha_y, v, n) : 1.0; /* diffuse, translucent: 1 */
 }
 
 std::vector<FallbackLobe> fallback_lobes(const FallbackTables &f)
@@ -287,6 +287,76 @@ std::vector<FallbackLobe> fallback_lobes(const FallbackTables &f)
           {"ggx", alpha(2.5 * aM), 1.0},
           {"diffuse", 0.0, 0.0},
           {"translucent", 0.0, 0.0}};
+}
+
+namespace {
+/* The OSL template's ny_cell: angle x between the n cell centres -> lower cell, upper cell, upper weight. */
+void cell_of(double x, int n, int *i0, int *i1, double *w)
+{
+  const double f = std::clamp((x + 0.5 * kPi) * n / kPi - 0.5, 0.0, n - 1.0);
+  *i0 = std::min(int(std::floor(f)), n - 1);
+  *i1 = std::min(*i0 + 1, n - 1);
+  *w = f - *i0;
+}
+
+/* A yarn-frame direction in the surface fibers' frame (the kernel's rotation by the stored tilt). */
+cycles_lobes::Dir to_surface_fiber(const FallbackTables &f, const cycles_lobes::Dir &w)
+{
+  const ny::TwistRotation r{float(std::cos(f.twist_tilt_rad)), float(std::sin(f.twist_tilt_rad))};
+  const ny::Vec3 v = ny::yarn_to_surface_fiber(r, ny::make_vec3(float(w.x), float(w.y), float(w.z)));
+  return {v.x, v.y, v.z};
+}
+}  // namespace
+
+FallbackAt fallback_at(const FallbackTables &f, const cycles_lobes::Dir &view)
+{
+  const double theta = std::asin(std::clamp(view.x, -1.0, 1.0)), phi = std::atan2(view.y, view.z);
+  int i0, i1, j0, j1;
+  double a, b;
+  cell_of(theta, f.theta_bins, &i0, &i1, &a);
+  cell_of(phi, f.phi_bins, &j0, &j1, &b);
+  const size_t cell[4] = {size_t(i0 * f.phi_bins + j0), size_t(i0 * f.phi_bins + j1), size_t(i1 * f.phi_bins + j0),
+                          size_t(i1 * f.phi_bins + j1)};
+  const double wgt[4] = {(1 - a) * (1 - b), (1 - a) * b, a * (1 - b), a * b};
+  const size_t K = f.lobes.size();
+  FallbackAt at;
+  at.W.assign(K * 3, 0.0);
+  for (int q = 0; q < 4; q++) {
+    at.P_T += wgt[q] * f.P_T[cell[q]];
+    for (size_t k = 0; k < K * 3; k++) {
+      at.W[k] += wgt[q] * f.W[cell[q] * K * 3 + k];
+    }
+  }
+  return at;
+}
+
+std::array<double, 3> fallback_eval(const FallbackTables &f, const cycles_lobes::Dir &view,
+                                    const cycles_lobes::Dir &light)
+{
+  const FallbackAt at = fallback_at(f, view);
+  const cycles_lobes::Dir v = to_surface_fiber(f, view), o = to_surface_fiber(f, light);
+  std::array<double, 3> out{0.0, 0.0, 0.0};
+  for (size_t k = 0; k < f.lobes.size(); k++) {
+    const double e = fallback_lobe_eval(f.lobes[k], v, o);
+    for (int c = 0; c < 3; c++) {
+      out[size_t(c)] += at.W[k * 3 + size_t(c)] * e;
+    }
+  }
+  return out;
+}
+
+std::array<double, 3> fallback_albedo(const FallbackTables &f, const cycles_lobes::Dir &view, int n)
+{
+  const FallbackAt at = fallback_at(f, view);
+  const cycles_lobes::Dir v = to_surface_fiber(f, view);
+  std::array<double, 3> out{at.P_T, at.P_T, at.P_T};
+  for (size_t k = 0; k < f.lobes.size(); k++) {
+    const double a = fallback_lobe_albedo(f.lobes[k], v, n);
+    for (int c = 0; c < 3; c++) {
+      out[size_t(c)] += at.W[k * 3 + size_t(c)] * a;
+    }
+  }
+  return out;
 }
 
 double FallbackTables::theta_center(int i) const { return -0.5 * kPi + (i + 0.5) * kPi / theta_bins; }

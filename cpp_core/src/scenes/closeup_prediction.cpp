@@ -91,6 +91,26 @@ FarField maps_far_field(const rdm::RdmMaps &maps)
   return f;
 }
 
+FarField fallback_far_field(const model::YarnModel &model)
+{
+  if (!model.fallback) {
+    throw std::runtime_error("the model has no fallback tables: run `neuralyarn fallback MODEL`");
+  }
+  auto f = std::make_shared<model::FallbackTables>(*model.fallback);
+  auto dir = [](const ny::Vec3 &w) { return model::cycles_lobes::Dir{w.x, w.y, w.z}; };
+  FarField out;
+  out.eval = [f, dir](const ny::Vec3 &wi, const ny::Vec3 &wo) {
+    const auto v = model::fallback_eval(*f, dir(wi), dir(wo));
+    return Rgb3{v[0], v[1], v[2]};
+  };
+  /* 32 x 32 samples per GGX albedo: per pixel sample this is the cost; well within the image noise. */
+  out.albedo = [f, dir](const ny::Vec3 &wi) {
+    const auto v = model::fallback_albedo(*f, dir(wi), 32);
+    return Rgb3{v[0], v[1], v[2]};
+  };
+  return out;
+}
+
 Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &r)
 {
   if (!(r.width > 0 && r.height > 0 && r.w > 0 && r.h > 0 && r.x >= 0 && r.y >= 0 && r.x + r.w <= r.width &&

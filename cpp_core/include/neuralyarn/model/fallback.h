@@ -109,7 +109,23 @@ std::vector<FallbackLobe> fallback_lobes(const FallbackTables &scalars);
 /* A lobe's eval (f |cos theta_o|, Cycles' convention) and directional albedo, view v and light o in the
  * lobe frame (x = t_f, z = n): the fit's and the tests' one dispatch over the closures. */
 double fallback_lobe_eval(const FallbackLobe &lobe, const cycles_lobes::Dir &v, const cycles_lobes::Dir &o);
-double fallback_lobe_albedo(const FallbackLobe &lobe, const cycles_lobes::Dir &v);
+/* n: the GGX albedo's quadrature (cycles_lobes::ggx_albedo). */
+double fallback_lobe_albedo(const FallbackLobe &lobe, const cycles_lobes::Dir &v, int n = 256);
+
+/* The fallback as stock Blender renders it (osl/neural_yarn_fallback.osl.in and the add-on's node body do
+ * the same): the weights at the view interpolated bilinearly between cell centres and clamped at the
+ * edges, each lobe in the surface fibers' frame (x = t_f, z = n). Directions in the yarn frame, both away
+ * from the surface, `view` toward the viewer. */
+struct FallbackAt {
+  double P_T = 0.0;
+  std::vector<double> W; /* [lobe][rgb] */
+};
+FallbackAt fallback_at(const FallbackTables &f, const cycles_lobes::Dir &view);
+/* sum_k W_k(view) lobe_k(view, light): f |cos theta_light| per channel, as the renderer evaluates it. */
+std::array<double, 3> fallback_eval(const FallbackTables &f, const cycles_lobes::Dir &view,
+                                    const cycles_lobes::Dir &light);
+/* What the fallback returns under a uniform white environment: P_T + sum_k W_k(view) albedo_k(view). */
+std::array<double, 3> fallback_albedo(const FallbackTables &f, const cycles_lobes::Dir &view, int n = 256);
 
 /* FNV-1a 64 of a float array's bytes, as 16 lowercase hex digits. */
 std::string fnv1a64_hex(const std::vector<float> &values);

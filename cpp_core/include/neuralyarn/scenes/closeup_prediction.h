@@ -45,6 +45,10 @@ FarField model_far_field(const model::YarnModel &model);
  * outlive the returned functions. */
 FarField maps_far_field(const rdm::RdmMaps &maps);
 
+/* The model's stock-Blender fallback (its "fallback" tables, model/fallback.h) as Blender renders it:
+ * transparent() and the weighted built-in lobes. Throws std::runtime_error when the model has none. */
+FarField fallback_far_field(const model::YarnModel &model);
+
 /* A pixel rectangle [x, x + w) x [y, y + h) of a width x height render of the close-up. */
 struct PixelRegion {
   int width = 0, height = 0, x = 0, y = 0, w = 0, h = 0;
