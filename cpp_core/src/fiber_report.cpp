@@ -10,12 +10,11 @@
 
 #include "neuralyarn/kernel/fiber_bsdf.h"
 #include "neuralyarn/random.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
 }  // namespace
 
 std::vector<AlbedoRow> fiber_albedo_table(const FiberPreset &preset, const std::vector<double> &theta_i_deg,

@@ -7,13 +7,12 @@
 
 #include <nlohmann/json.hpp>
 
+#include "neuralyarn/units.h"
 #include "presets_data.h" /* generated: kPresetsJson, the text of cpp_core/data/presets.json */
 
 namespace neuralyarn {
 
 namespace {
-
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 std::string fmt(double v)
 {
@@ -88,9 +87,9 @@ ny::FiberBsdfParams FiberPreset::fiber_params() const
   ny::FiberBsdfParams p;
   p.C_R = ny::make_rgb(float(C_R[0]), float(C_R[1]), float(C_R[2]));
   p.C_TT = ny::make_rgb(float(C_TT[0]), float(C_TT[1]), float(C_TT[2]));
-  p.beta_R = float(beta_R_deg * kDegToRad);
-  p.beta_TT = float(beta_TT_deg * kDegToRad);
-  p.gamma_TT = float(gamma_TT_deg * kDegToRad);
+  p.beta_R = float(beta_R_deg * kDeg);
+  p.beta_TT = float(beta_TT_deg * kDeg);
+  p.gamma_TT = float(gamma_TT_deg * kDeg);
   return p;
 }
 

@@ -15,6 +15,7 @@
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/model/r_shape.h"
 #include "neuralyarn/rdm/map_file.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::cli {
 
@@ -74,7 +75,7 @@ void print_network(const char *name, const model::NetworkRecord &n)
 
 void print_proxy(const model::YarnModel &m)
 {
-  const double deg = 180.0 / 3.14159265358979323846;
+  const double deg = 1.0 / kDeg;
   std::printf("sampling proxy   kappa_R %.4f, beta_M %.2f deg, gamma_M %.2f deg, kappa_M %.4f", m.proxy.kappa_R,
               m.proxy.beta_M * deg, m.proxy.gamma_M * deg, m.proxy.kappa_M);
   if (m.provenance.contains("proxy_fit")) {
@@ -429,8 +430,8 @@ class Commands : public ModelCommands {
     const model::FurnaceMax f =
         model::white_furnace_max(p, model::furnace_directions(bins, furnace_inside_ ? 3 : 1, furnace_inside_));
     std::printf("white furnace max %.5f at theta_i %.2f deg, phi_i %.1f deg (%s)\n", f.value,
-                std::acos(std::clamp(double(f.wi.z), -1.0, 1.0)) * 180.0 / 3.14159265358979323846,
-                std::atan2(double(f.wi.y), double(f.wi.x)) * 180.0 / 3.14159265358979323846,
+                std::acos(std::clamp(double(f.wi.z), -1.0, 1.0)) / kDeg,
+                std::atan2(double(f.wi.y), double(f.wi.x)) / kDeg,
                 furnace_inside_ ? "3 x 3 directions inside each of 22 x 90 incident bins, and theta_i 89.975 deg"
                                 : "22 x 90 incident bin centres");
     if (!std::isfinite(f.value)) {

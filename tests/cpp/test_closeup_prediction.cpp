@@ -11,6 +11,10 @@
 
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/scenes/closeup_prediction.h"
+#include "neuralyarn/units.h"
+
+using neuralyarn::kPi;
+using neuralyarn::kDeg;
 
 namespace {
 
@@ -22,8 +26,6 @@ using neuralyarn::scenes::maps_far_field;
 using neuralyarn::scenes::PixelRegion;
 using neuralyarn::scenes::predict_closeup;
 using neuralyarn::scenes::Rgb3;
-
-constexpr double kPi = 3.14159265358979323846;
 
 FarField constant_far_field(double albedo)
 {
@@ -106,9 +108,9 @@ TEST(CloseupPrediction, MapsAreLookedUpInTheirBins)
   };
   /* theta_i 50 deg (bin 2 of 4 over [0, 90]), phi_i 100 deg (bin 6 of 8 over [-180, 180)); theta_o 100 deg
    * (bin 3 of 6 over [0, 180]), phi_o -170 deg (bin 0 of 12). */
-  const ny::Vec3 wi = dir(50.0 * kPi / 180.0, 100.0 * kPi / 180.0);
-  EXPECT_EQ(f.eval(wi, dir(100.0 * kPi / 180.0, -170.0 * kPi / 180.0)).g, code(2, 6, 3, 0));
-  EXPECT_EQ(f.eval(wi, dir(5.0 * kPi / 180.0, 179.0 * kPi / 180.0)).b, code(2, 6, 0, 11));
+  const ny::Vec3 wi = dir(50.0 * kDeg, 100.0 * kDeg);
+  EXPECT_EQ(f.eval(wi, dir(100.0 * kDeg, -170.0 * kDeg)).g, code(2, 6, 3, 0));
+  EXPECT_EQ(f.eval(wi, dir(5.0 * kDeg, 179.0 * kDeg)).b, code(2, 6, 0, 11));
   EXPECT_EQ(f.albedo(wi).r, 26.0);
 }
 

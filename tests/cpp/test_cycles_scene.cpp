@@ -18,6 +18,10 @@
 
 #include "neuralyarn/presets.h"
 #include "neuralyarn/scenes/cycles_xml.h"
+#include "neuralyarn/units.h"
+
+using neuralyarn::kPi;
+using neuralyarn::kDeg;
 
 namespace {
 
@@ -26,8 +30,6 @@ using neuralyarn::scenes::find_light_rig;
 using neuralyarn::scenes::light_rigs;
 using neuralyarn::scenes::PlySceneOptions;
 using neuralyarn::scenes::RigLight;
-
-constexpr double kPi = 3.14159265358979323846;
 
 using Attributes = std::map<std::string, std::string>;
 
@@ -178,7 +180,7 @@ TEST(CyclesScene, DistantRigsPointWhereTheyAreNamed)
     EXPECT_NEAR(e.toward == 'y' ? d.x : d.y, 0.0, 1e-7);
     EXPECT_GT(e.toward == 'y' ? d.y : d.x, 0.1);
     /* Angular diameter 2 degrees, in radians; irradiance pi; MIS on; not seen by camera rays. */
-    EXPECT_NEAR(std::stod(lights[0].at("angle")), 2.0 * kPi / 180.0, 1e-6);
+    EXPECT_NEAR(std::stod(lights[0].at("angle")), 2.0 * kDeg, 1e-6);
     EXPECT_EQ(numbers(lights[0].at("strength")), (std::vector<double>(3, std::stod(lights[0].at("strength")))));
     EXPECT_NEAR(std::stod(lights[0].at("strength")), kPi, 1e-5);
     EXPECT_EQ(lights[0].at("use_mis"), "true");

@@ -24,6 +24,7 @@
 #include "neuralyarn/model/cycles_lobes.h"
 #include "neuralyarn/model/fallback.h"
 #include "neuralyarn/model/model.h"
+#include "neuralyarn/units.h"
 #include "quadrature.h"
 #include "synthetic_model.h"
 
@@ -32,9 +33,6 @@ using neuralyarn::testing::synthetic_model;
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-
 
 ny::Vec3 view(const model::FallbackTables &f, int i, int j)
 {
@@ -60,8 +58,8 @@ TEST(Fallback, TablesAreTheKernelsValuesAtCellCentres)
   ASSERT_EQ(f.phi_bins, 18);
   ASSERT_EQ(f.P_T.size(), 324u);
   ASSERT_EQ(f.E_R.size(), 972u);
-  EXPECT_NEAR(f.theta_center(0), -85.0 * kPi / 180.0, 1e-12);
-  EXPECT_NEAR(f.phi_center(17), 85.0 * kPi / 180.0, 1e-12);
+  EXPECT_NEAR(f.theta_center(0), -85.0 * kDeg, 1e-12);
+  EXPECT_NEAR(f.phi_center(17), 85.0 * kDeg, 1e-12);
   const std::vector<float> flat = m.kernel_flat();
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
   for (int i = 0; i < f.theta_bins; i++) {

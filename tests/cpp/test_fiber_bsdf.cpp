@@ -16,12 +16,13 @@
 #include "chi2.h"
 #include "neuralyarn/kernel/fiber_bsdf.h"
 #include "neuralyarn/presets.h"
+#include "neuralyarn/units.h"
 #include "quadrature.h"
 
-namespace {
+using neuralyarn::kPi;
+using neuralyarn::kDeg;
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
+namespace {
 
 const char *const kPresets[] = {"fleece", "silk", "polyester", "cotton", "gabardine"};
 

@@ -8,10 +8,11 @@
 
 #include "neuralyarn/kernel/frames.h"
 #include "neuralyarn/random.h"
+#include "neuralyarn/units.h"
+
+using neuralyarn::kPi;
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 void expect_vec_near(ny::Vec3 a, ny::Vec3 b, float tol, const char *what)
 {

@@ -25,6 +25,7 @@
 #include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/random.h"
+#include "neuralyarn/units.h"
 
 using namespace neuralyarn;
 
@@ -77,7 +78,7 @@ TEST(Furnace, TheMaximumIsTheLargestChannelOverTheDirections)
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
   const std::vector<ny::Vec3> dirs = model::furnace_directions({6, 8, 45, 90}, 1, true);
   ASSERT_EQ(dirs.size(), 6u * 8u + 8u);
-  EXPECT_NEAR(dirs.back().z, std::cos(89.975 * 3.14159265358979323846 / 180.0), 1e-6);
+  EXPECT_NEAR(dirs.back().z, std::cos(89.975 * kDeg), 1e-6);
   double want = 0.0;
   for (const ny::Vec3 &wi : dirs) {
     const ny::Rgb e = model::white_furnace(p, wi);

@@ -13,11 +13,11 @@
 #include "neuralyarn/model/calibration.h"
 #include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/model/model.h"
+#include "neuralyarn/units.h"
 
 using namespace neuralyarn;
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 
 const rdm::MapResolution kBins{4, 24, 30, 60};
 
@@ -131,7 +131,7 @@ TEST(LobeFidelity, EnergyRatiosPerExitBand)
   /* A model that transmits half of what the maps transmit and nothing near the ply axis. */
   auto half_transmission = [](int, int, int to, int po) {
     const double th = rdm::bin_center(to, 0, kPi, kBins.theta_o), ph = rdm::bin_center(po, -kPi, kPi, kBins.phi_o);
-    if (std::abs(std::sin(th) * std::cos(ph)) > std::cos(30.0 * kPi / 180.0)) {
+    if (std::abs(std::sin(th) * std::cos(ph)) > std::cos(30.0 * kDeg)) {
       return 0.0;
     }
     return th > 0.5 * kPi ? 0.5 : 1.0;

@@ -8,11 +8,12 @@
 #include <gtest/gtest.h>
 
 #include "neuralyarn/kernel/longitudinal.h"
+#include "neuralyarn/units.h"
 #include "quadrature.h"
 
-namespace {
+using neuralyarn::kPi;
 
-constexpr double kPi = 3.14159265358979323846;
+namespace {
 
 double reference_G(double mu, double beta)
 {

@@ -11,6 +11,9 @@
 #include "neuralyarn/geometry/ply.h"
 #include "neuralyarn/kernel/frames.h"
 #include "neuralyarn/presets.h"
+#include "neuralyarn/units.h"
+
+using neuralyarn::kPi;
 
 namespace {
 
@@ -198,7 +201,7 @@ TEST(PlyHelix, SurfaceFibersMatchTheKernelsSurfaceFiberFrame)
         const ny::Vec3 local = ny::to_local(yarn, ny::make_vec3(float(t.x()), float(t.y()), float(t.z())));
         const ny::Vec3 in_fiber_frame = ny::yarn_to_surface_fiber(rot, local);
         /* Exact for d = R; the fiber's own tilt atan(pi alpha d / R) differs by at most 2.5 r / R. */
-        const double tilt_diff = std::fabs(std::atan(M_PI * p.alpha * d / p.R) - std::atan(M_PI * p.alpha));
+        const double tilt_diff = std::fabs(std::atan(kPi * p.alpha * d / p.R) - std::atan(kPi * p.alpha));
         EXPECT_NEAR(in_fiber_frame.x, 1.0, 1e-5 + tilt_diff * tilt_diff) << name << " fiber " << i;
         EXPECT_NEAR(in_fiber_frame.y, 0.0, 1e-5 + tilt_diff) << name << " fiber " << i;
         EXPECT_NEAR(in_fiber_frame.z, 0.0, 1e-5) << name << " fiber " << i;
@@ -299,7 +302,7 @@ TEST(Yarn, NeighbouringPliesTouchButDoNotOverlapIn3D)
       }
       EXPECT_GE(min_d, 2.0 * R * (1.0 - 1e-6)) << "K=" << K << " alpha_yarn=" << ay;
       EXPECT_LE(min_d, 2.0 * R * (1.0 + 1e-3)) << "K=" << K << " alpha_yarn=" << ay << ": plies not touching";
-      const double planar = R / std::sin(M_PI / K);
+      const double planar = R / std::sin(kPi / K);
       if (ay == 0.0) {
         EXPECT_NEAR(yarn.ply_distance(), planar, 1e-9);
       }

@@ -10,6 +10,9 @@
 #include <nlohmann/json.hpp>
 
 #include "neuralyarn/presets.h"
+#include "neuralyarn/units.h"
+
+using neuralyarn::kPi;
 
 namespace {
 
@@ -53,9 +56,9 @@ TEST(Presets, PolyesterTransmissionWidthFollowsThePaperNotTheCode)
 TEST(Presets, FiberParamsAreInRadians)
 {
   const ny::FiberBsdfParams p = neuralyarn::find_preset("fleece").fiber_params();
-  EXPECT_NEAR(p.beta_R, 7.238 * M_PI / 180, 1e-7);
-  EXPECT_NEAR(p.beta_TT, 10.0 * M_PI / 180, 1e-7);
-  EXPECT_NEAR(p.gamma_TT, 25.989 * M_PI / 180, 1e-7);
+  EXPECT_NEAR(p.beta_R, 7.238 * kPi / 180, 1e-7);
+  EXPECT_NEAR(p.beta_TT, 10.0 * kPi / 180, 1e-7);
+  EXPECT_NEAR(p.gamma_TT, 25.989 * kPi / 180, 1e-7);
 }
 
 TEST(Presets, UnknownNameListsTheKnownOnes)

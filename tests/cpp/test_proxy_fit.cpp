@@ -10,6 +10,7 @@
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/proxy_fit.h"
 #include "neuralyarn/train/dataset.h"
+#include "neuralyarn/units.h"
 
 using namespace neuralyarn;
 
@@ -29,15 +30,15 @@ TEST(ProxyFit, RecoversTheParametersOfItsOwnDensity)
     const float kvm = float(1.0 / (t.gamma * t.gamma));
     for (int ti = 0; ti < maps.bins.theta_i; ti++) {
       for (int pi = 0; pi < maps.bins.phi_i; pi++) {
-        const Eigen::Vector3f w = train::entry_direction(rdm::bin_center(ti, 0, M_PI / 2, maps.bins.theta_i),
-                                                         rdm::bin_center(pi, -M_PI, M_PI, maps.bins.phi_i));
+        const Eigen::Vector3f w = train::entry_direction(rdm::bin_center(ti, 0, kPi / 2, maps.bins.theta_i),
+                                                         rdm::bin_center(pi, -kPi, kPi, maps.bins.phi_i));
         const ny::Vec3 wi_f = ny::yarn_to_surface_fiber(twist, ny::make_vec3(w.x(), w.y(), w.z()));
         const ny::TruncatedNormal tn =
             ny::make_truncated_normal(-ny::theta_of(wi_f), float(t.beta), -ny::kHalfPi, ny::kHalfPi);
         for (int to = 0; to < maps.bins.theta_o; to++) {
           for (int po = 0; po < maps.bins.phi_o; po++) {
-            const Eigen::Vector3f v = train::entry_direction(rdm::bin_center(to, 0, M_PI, maps.bins.theta_o),
-                                                             rdm::bin_center(po, -M_PI, M_PI, maps.bins.phi_o));
+            const Eigen::Vector3f v = train::entry_direction(rdm::bin_center(to, 0, kPi, maps.bins.theta_o),
+                                                             rdm::bin_center(po, -kPi, kPi, maps.bins.phi_o));
             const ny::Vec3 wo_f = ny::yarn_to_surface_fiber(twist, ny::make_vec3(v.x(), v.y(), v.z()));
             const float pdf = ny::yarn_m_proxy_pdf(tn, kvm, float(t.kappa), wo_f);
             for (int c = 0; c < 3; c++) {

@@ -8,6 +8,7 @@
 
 #include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/model/r_shape.h"
+#include "neuralyarn/units.h"
 #include "synthetic_model.h"
 
 using namespace neuralyarn;
@@ -42,7 +43,7 @@ void expect_fit_recovers(const float tau[3])
   for (size_t i = 0; i < truth.r_shape.values.size(); i++) {
     const int k = int(i % size_t(stride));
     truth.r_shape.values[i] =
-        k < na ? float((1.0 + 0.8 * (k - 0.5 * (na - 1)) / (0.5 * (na - 1))) / 3.14159265358979323846) : tau[k - na];
+        k < na ? float((1.0 + 0.8 * (k - 0.5 * (na - 1)) / (0.5 * (na - 1))) / kPi) : tau[k - na];
   }
   const rdm::MapResolution bins{6, 12, 45, 90};
   const rdm::RdmMaps maps = r_maps_of(truth, bins);
@@ -54,7 +55,7 @@ void expect_fit_recovers(const float tau[3])
   fitted.r_shape = model::fit_r_shape(truth, maps, o); /* ignores truth's own table */
   ASSERT_EQ(fitted.r_shape.values.size(), truth.r_shape.values.size());
   double err_fit = 0, err_uniform = 0, tau_err = 0;
-  const float uniform = float(1.0 / 3.14159265358979323846);
+  const float uniform = float(1.0 / kPi);
   for (size_t i = 0; i < fitted.r_shape.values.size(); i++) {
     const int k = int(i % size_t(stride));
     if (k < na) {
@@ -95,7 +96,7 @@ void expect_fit_recovers(const float tau[3])
   for (size_t r = 0; r < fitted.r_shape.values.size() / size_t(stride); r++) {
     double s = 0;
     for (int k = 0; k < o.azimuth_bins; k++) {
-      s += fitted.r_shape.values[r * size_t(stride) + size_t(k)] * 3.14159265358979323846 / o.azimuth_bins;
+      s += fitted.r_shape.values[r * size_t(stride) + size_t(k)] * kPi / o.azimuth_bins;
     }
     EXPECT_NEAR(s, 1.0, 1e-5);
   }

@@ -28,15 +28,13 @@
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/rdm/map_file.h"
 #include "neuralyarn/rdm/ply_tracer.h"
+#include "neuralyarn/units.h"
 #include "quadrature.h"
 
 using namespace neuralyarn;
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
 
 /* Accumulates z-scores; p-value of their sum of squares against chi^2(n). */
 struct ZTest {

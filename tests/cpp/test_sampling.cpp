@@ -9,11 +9,12 @@
 
 #include "chi2.h"
 #include "neuralyarn/kernel/sampling.h"
+#include "neuralyarn/units.h"
 #include "quadrature.h"
 
-namespace {
+using neuralyarn::kPi;
 
-constexpr double kPi = 3.14159265358979323846;
+namespace {
 
 struct TnCase {
   double mu, sigma, a, b;

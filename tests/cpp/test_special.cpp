@@ -8,6 +8,9 @@
 #include <gtest/gtest.h>
 
 #include "neuralyarn/kernel/special.h"
+#include "neuralyarn/units.h"
+
+using neuralyarn::kPi;
 
 namespace {
 
@@ -74,7 +77,7 @@ TEST(Special, ScaledBesselI0MatchesBoost)
     }
     else {
       const double t = 1.0 / (8.0 * x);
-      want = (1.0 + t + 9.0 * t * t / 2.0 + 225.0 * t * t * t / 6.0) / std::sqrt(2.0 * M_PI * x);
+      want = (1.0 + t + 9.0 * t * t / 2.0 + 225.0 * t * t * t / 6.0) / std::sqrt(2.0 * kPi * x);
     }
     EXPECT_LT(rel_err(ny::bessel_i0e(float(x)), want), 1e-6) << "x = " << x;
   }

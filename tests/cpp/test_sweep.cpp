@@ -10,6 +10,9 @@
 
 #include "neuralyarn/geometry/sweep.h"
 #include "neuralyarn/presets.h"
+#include "neuralyarn/units.h"
+
+using neuralyarn::kPi;
 
 namespace {
 
@@ -40,7 +43,7 @@ TEST(SweepFibers, BentPlyKeepsEachFiberAtItsDistanceAndTwist)
    * in these units is not needed: the frame must only stay rotation-minimising). */
   const Ply ply = fleece_ply();
   std::vector<Eigen::Vector3d> arc;
-  const double rho = 20.0, pi = 3.14159265358979323846;
+  const double rho = 20.0, pi = kPi;
   for (int k = 0; k <= 400; k++) {
     const double t = pi * k / 400;
     arc.emplace_back(rho * std::sin(t), 0.0, rho * (1.0 - std::cos(t)));

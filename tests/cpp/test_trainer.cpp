@@ -12,6 +12,7 @@
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/train/dataset.h"
 #include "neuralyarn/train/trainer.h"
+#include "neuralyarn/units.h"
 
 using namespace neuralyarn;
 
@@ -48,7 +49,7 @@ TEST(Dataset, TransmissionSamplesAreUnitUniformAndSplit)
     ASSERT_NEAR(x * x + y * y + z * z, 1.0, 1e-5);
     ASSERT_GE(z, 0.0);
     mean_z += z;
-    const int ti = rdm::bin_of(std::acos(z), 0.0, M_PI / 2, 22), pi = rdm::bin_of(std::atan2(y, x), -M_PI, M_PI, 90);
+    const int ti = rdm::bin_of(std::acos(z), 0.0, kPi / 2, 22), pi = rdm::bin_of(std::atan2(y, x), -kPi, kPi, 90);
     ASSERT_FALSE(train::is_validation_bin(maps.bins, ti, pi));
     /* Bilinear between bin centres: within the range of the 3 x 3 neighbourhood of the bin. */
     float lo = 1.0f, hi = 0.0f;
@@ -65,8 +66,8 @@ TEST(Dataset, TransmissionSamplesAreUnitUniformAndSplit)
   /* Uniform in solid angle over the hemisphere: E[cos theta] = 1/2, standard error 0.29/sqrt(n). */
   EXPECT_NEAR(mean_z / tr.X.cols(), 0.5, 5 * 0.29 / std::sqrt(double(tr.X.cols())));
   for (int j = 0; j < va.X.cols(); j++) {
-    const int ti = rdm::bin_of(std::acos(double(va.X(2, j))), 0.0, M_PI / 2, 22);
-    const int pi = rdm::bin_of(std::atan2(double(va.X(1, j)), double(va.X(0, j))), -M_PI, M_PI, 90);
+    const int ti = rdm::bin_of(std::acos(double(va.X(2, j))), 0.0, kPi / 2, 22);
+    const int pi = rdm::bin_of(std::atan2(double(va.X(1, j)), double(va.X(0, j))), -kPi, kPi, 90);
     ASSERT_TRUE(train::is_validation_bin(maps.bins, ti, pi));
   }
 }
@@ -122,10 +123,10 @@ TEST(Dataset, MultipleScatteringSamplesCarryTheirBinsValue)
     const double zi = d.X(2, j), zo = d.X(5, j);
     ASSERT_GE(zi, 0.0);
     mean_zo += zo;
-    const int ti = rdm::bin_of(std::acos(zi), 0.0, M_PI / 2, 22);
-    const int pi = rdm::bin_of(std::atan2(double(d.X(1, j)), double(d.X(0, j))), -M_PI, M_PI, 90);
-    const int to = rdm::bin_of(std::acos(zo), 0.0, M_PI, 4);
-    const int po = rdm::bin_of(std::atan2(double(d.X(4, j)), double(d.X(3, j))), -M_PI, M_PI, 4);
+    const int ti = rdm::bin_of(std::acos(zi), 0.0, kPi / 2, 22);
+    const int pi = rdm::bin_of(std::atan2(double(d.X(1, j)), double(d.X(0, j))), -kPi, kPi, 90);
+    const int to = rdm::bin_of(std::acos(zo), 0.0, kPi, 4);
+    const int po = rdm::bin_of(std::atan2(double(d.X(4, j)), double(d.X(3, j))), -kPi, kPi, 4);
     ASSERT_EQ(d.Y(1, j), maps.m[maps.map_index(ti, pi, to, po) + 1]);
   }
   /* w_o uniform on the whole sphere: E[cos theta_o] = 0, standard deviation 1/sqrt(3). */

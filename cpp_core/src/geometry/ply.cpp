@@ -10,12 +10,12 @@
 
 #include "neuralyarn/presets.h" /* ParameterError */
 #include "neuralyarn/random.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::geometry {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 /* Pairs are pushed to 2 r (1 + kSeparationMargin) so that the final check d >= 2 r holds despite
  * rounding. */
 constexpr double kSeparationMargin = 1e-7;

@@ -9,12 +9,12 @@
 #include <Eigen/Geometry> /* cross() */
 
 #include "neuralyarn/presets.h" /* ParameterError, kMaxFibers */
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::geometry {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kMaxPlies = 64;
 
 double twist_rate(double d, double R_ply, double alpha_yarn) { return kPi * alpha_yarn / (d + R_ply); }

@@ -151,7 +151,7 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
   const train::Mlp<float> transmission = train::Mlp<float>::from_flat(m.T.flat);
   m.M = train_one("M", maps, o.M, ny::kMlpHeadExp, o.seed + 2, o.threads, stage("M"), &transmission);
   /* Mean M albedo over w_i uniform on the hemisphere (the renderer's closure-weight estimate). */
-  const std::vector<double> EM = train::map_energy(maps, maps.m);
+  const std::vector<double> EM = maps.energy(maps.m);
   double wsum = 0.0;
   const rdm::MapResolution &b = maps.bins;
   for (int ti = 0; ti < b.theta_i; ti++) {

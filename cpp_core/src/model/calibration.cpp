@@ -10,11 +10,11 @@
 
 #include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/train/dataset.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::model {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 
 ny::Vec3 vec(const Eigen::Vector3f &v) { return ny::make_vec3(v.x(), v.y(), v.z()); }
 
@@ -102,7 +102,7 @@ ny::Rgb m_lobe_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l)
 EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &maps, int threads)
 {
   const rdm::MapResolution &b = maps.bins;
-  const std::vector<double> ER = train::map_energy(maps, maps.r), EM = train::map_energy(maps, maps.m);
+  const std::vector<double> ER = maps.energy(maps.r), EM = maps.energy(maps.m);
   const int n = int(b.incident());
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                             threads > 0 ? size_t(threads) : tbb::this_task_arena::max_concurrency());

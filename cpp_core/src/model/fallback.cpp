@@ -14,13 +14,13 @@
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/cycles_lobes.h"
 #include "neuralyarn/model/model.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::model {
 
 using nlohmann::json;
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 
 /* Upper bound of a stored energy (the loader's check; physical albedos are <= 1, the networks may
  * overshoot a little). */

@@ -13,13 +13,13 @@
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/calibration.h"
 #include "neuralyarn/train/dataset.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::model {
 
 using nlohmann::json;
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 
 ny::Vec3 vec(const Eigen::Vector3f &v) { return ny::make_vec3(v.x(), v.y(), v.z()); }
 
@@ -53,7 +53,7 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps_a, c
   const std::vector<float> flat = model.kernel_flat();
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
   const rdm::MapResolution &b = maps.bins;
-  const std::vector<double> ER = train::map_energy(maps, maps.r), EM = train::map_energy(maps, maps.m);
+  const std::vector<double> ER = maps.energy(maps.r), EM = maps.energy(maps.m);
 
   struct Row {
     double w = 0, a_abs = 0, a_rel = 0, a_max = 0, t2 = 0, r_rel = 0, m_rel = 0;
@@ -165,8 +165,8 @@ void write_comparison_image(const YarnModel &model, const rdm::RdmMaps &maps, do
   const std::vector<float> flat = model.kernel_flat();
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
   const rdm::MapResolution &b = maps.bins;
-  const int ti = rdm::bin_of(theta_i_deg * kPi / 180.0, 0.0, 0.5 * kPi, b.theta_i);
-  const int pi = rdm::bin_of(phi_i_deg * kPi / 180.0, -kPi, kPi, b.phi_i);
+  const int ti = rdm::bin_of(theta_i_deg * kDeg, 0.0, 0.5 * kPi, b.theta_i);
+  const int pi = rdm::bin_of(phi_i_deg * kDeg, -kPi, kPi, b.phi_i);
   const ny::Vec3 wi = vec(train::entry_direction(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i),
                                                  rdm::bin_center(pi, -kPi, kPi, b.phi_i)));
   const ny::YarnLobes l = ny::yarn_lobes(p, wi);

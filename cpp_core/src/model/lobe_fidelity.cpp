@@ -11,14 +11,13 @@
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/presets.h" /* ParameterError */
 #include "neuralyarn/train/dataset.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::model {
 
 using nlohmann::json;
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
 
 int cells_for(double range_deg, int bins, double cell_deg)
 {

@@ -7,6 +7,7 @@
 
 #include "neuralyarn/io.h"
 #include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/units.h"
 #include "neuralyarn/version.h"
 
 #ifndef NEURALYARN_SOURCE_DIR
@@ -96,8 +97,6 @@ double finite_in(const json &j, const char *key, double lo, double hi, const std
   return v;
 }
 
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
-
 /* Ratios far outside this range mean a broken table, not a calibration (bake clamps to [0.01, 100]). */
 constexpr double kMaxCalibration = 1000.0;
 
@@ -176,7 +175,7 @@ RShapeTable r_shape_from(const json &j, const std::vector<float> &flat, const st
     }
     t.values = rows;
   }
-  const double d = 3.14159265358979323846 / t.azimuth_bins;
+  const double d = kPi / t.azimuth_bins;
   for (size_t r = 0; r < t.values.size() / size_t(t.stride()); r++) {
     double sum = 0;
     for (int k = 0; k < t.azimuth_bins; k++) {

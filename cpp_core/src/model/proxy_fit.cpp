@@ -11,11 +11,11 @@
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/train/dataset.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::model {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 
 /* Uniform in solid angle within a (theta, phi) bin. */
 ny::Vec3 jitter(double t_lo, double t_hi, double p_lo, double p_hi, double u1, double u2)
@@ -112,7 +112,7 @@ template<class F> std::array<double, 3> nelder_mead(F f, std::array<double, 3> x
 }
 
 /* Parameter vector <-> proxy: widths kept within [0.2 deg, 170 deg] by construction. */
-constexpr double kMinWidth = 0.2 * kPi / 180.0, kMaxWidth = 170.0 * kPi / 180.0;
+constexpr double kMinWidth = 0.2 * kDeg, kMaxWidth = 170.0 * kDeg;
 double width_of(double x) { return kMinWidth + (kMaxWidth - kMinWidth) * logistic(x); }
 double width_param(double w) { const double t = (w - kMinWidth) / (kMaxWidth - kMinWidth); return std::log(t / (1.0 - t)); }
 
@@ -189,7 +189,7 @@ double m_proxy_nll(const DirectionPairs &pairs, double alpha, double beta_M, dou
 
 double global_kappa_R(const rdm::RdmMaps &maps)
 {
-  const std::vector<double> ER = train::map_energy(maps, maps.r), EM = train::map_energy(maps, maps.m);
+  const std::vector<double> ER = maps.energy(maps.r), EM = maps.energy(maps.m);
   double r = 0.0, m = 0.0;
   for (int ti = 0; ti < maps.bins.theta_i; ti++) {
     const double w = maps.incident_solid_angle(ti);

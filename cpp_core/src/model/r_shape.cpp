@@ -11,11 +11,11 @@
 #include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/presets.h" /* ParameterError */
 #include "neuralyarn/train/dataset.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::model {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kMaxDensityRatio = 20.0;
 }  // namespace
 

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "neuralyarn/rdm/fiber_lobe_sampler.h"
+#include "neuralyarn/units.h"
 
 #include <algorithm>
 #include <cmath>
@@ -10,8 +11,7 @@ using ny::Rgb;
 using ny::Vec3;
 
 namespace {
-constexpr double kPiD = 3.14159265358979323846;
-constexpr double kHalfPiD = 0.5 * kPiD;
+constexpr double kHalfPiD = 0.5 * kPi;
 
 /* 40-point Gauss-Legendre nodes on [-1, 1] by Newton on P_40 (computed once). */
 struct GaussLegendre40 {
@@ -20,7 +20,7 @@ struct GaussLegendre40 {
   {
     const int n = 40;
     for (int i = 0; i < n; i++) {
-      double z = std::cos(kPiD * (i + 0.75) / (n + 0.5));
+      double z = std::cos(kPi * (i + 0.75) / (n + 0.5));
       double dp = 0.0;
       for (int it = 0; it < 100; it++) {
         double p0 = 1.0, p1 = z;
@@ -64,7 +64,7 @@ double cos2_integral(double mu, double beta, double lo, double hi)
       sum += g.w[i] * std::exp(-0.5 * z * z) * c * c;
     }
   }
-  return sum * 0.5 * h / (beta * std::sqrt(2.0 * kPiD));
+  return sum * 0.5 * h / (beta * std::sqrt(2.0 * kPi));
 }
 }  // namespace
 

@@ -16,6 +16,7 @@
 
 #include "neuralyarn/geometry/ply.h"
 #include "neuralyarn/rdm/fiber_lobe_sampler.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::rdm {
 
@@ -25,7 +26,6 @@ using ny::make_vec3;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 /* Paths per work item: large enough to amortise scheduling, small enough for a smooth progress bar. */
 constexpr uint64_t kChunk = 8192;
 /* Fixed-point scale of the accumulators: weights are added as round(w * 2^32). */
@@ -422,6 +422,26 @@ double RdmMaps::incident_solid_angle(int ti) const
 {
   const double t0 = 0.5 * kPi * ti / bins.theta_i, t1 = 0.5 * kPi * (ti + 1) / bins.theta_i;
   return (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / bins.phi_i;
+}
+
+std::vector<double> RdmMaps::energy(const std::vector<float> &map) const
+{
+  std::vector<double> e(bins.incident() * 3, 0.0);
+  for (int ti = 0; ti < bins.theta_i; ti++) {
+    for (int pi = 0; pi < bins.phi_i; pi++) {
+      double *out = &e[incident_index(ti, pi) * 3];
+      for (int to = 0; to < bins.theta_o; to++) {
+        const double dO = outgoing_solid_angle(to);
+        for (int po = 0; po < bins.phi_o; po++) {
+          const float *v = &map[map_index(ti, pi, to, po)];
+          for (int c = 0; c < 3; c++) {
+            out[c] += double(v[c]) * dO;
+          }
+        }
+      }
+    }
+  }
+  return e;
 }
 
 MapResolution parse_resolution(const std::string &text)

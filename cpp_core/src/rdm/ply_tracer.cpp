@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "neuralyarn/rdm/ply_tracer.h"
+#include "neuralyarn/units.h"
 
 #include <algorithm>
 #include <cmath>
@@ -74,7 +75,7 @@ PlyTracer::PlyTracer(const geometry::Ply &ply, const TracerOptions &options)
       const double x = -2.0 * r + (double(L_) + 4.0 * r) * k / 32.0;
       const Eigen::Vector3d c = A + D * (x / D.x());
       for (int j = 0; j < 64; j++) {
-        const double t = 2.0 * M_PI * j / 64.0;
+        const double t = 2.0 * kPi * j / 64.0;
         const Eigen::Vector3d q = c + r * (std::cos(t) * e1 + std::sin(t) * e2);
         if (q.x() >= 0.0 && q.x() <= double(L_)) {
           bound = std::max(bound, std::hypot(q.y(), q.z()));
@@ -157,14 +158,14 @@ void PlyTracer::canonicalize(SlabRay *ray) const
 Vec3 PlyTracer::to_world_point(Vec3 p, int64_t slab) const
 {
   const double X = double(slab) * double(L_);
-  const double angle = std::fmod(w_ * X, 2.0 * M_PI);
+  const double angle = std::fmod(w_ * X, 2.0 * kPi);
   const double c = std::cos(angle), s = std::sin(angle);
   return make_vec3(float(double(p.x) + X), float(c * p.y - s * p.z), float(s * p.y + c * p.z));
 }
 
 Vec3 PlyTracer::to_world_dir(Vec3 d, int64_t slab) const
 {
-  const double angle = std::fmod(w_ * double(slab) * double(L_), 2.0 * M_PI);
+  const double angle = std::fmod(w_ * double(slab) * double(L_), 2.0 * kPi);
   const double c = std::cos(angle), s = std::sin(angle);
   return make_vec3(d.x, float(c * d.y - s * d.z), float(s * d.y + c * d.z));
 }

@@ -11,11 +11,11 @@
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/calibration.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::scenes {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 
 Rgb3 to_rgb3(const ny::Rgb &c) { return {c.r, c.g, c.b}; }
 
@@ -42,7 +42,7 @@ void pixel_filter(int n, std::vector<double> *offset, std::vector<double> *weigh
 std::vector<Eigen::Vector3d> disc_directions(const Eigen::Vector3d &z, double deg, int n)
 {
   const Eigen::Vector3d u = z.unitOrthogonal(), v = z.cross(u);
-  const double cos_max = std::cos(0.5 * deg * kPi / 180.0);
+  const double cos_max = std::cos(0.5 * deg * kDeg);
   std::vector<Eigen::Vector3d> out;
   for (int a = 0; a < n; a++) {
     for (int b = 0; b < n; b++) {

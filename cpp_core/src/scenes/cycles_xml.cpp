@@ -15,22 +15,22 @@
 #include "neuralyarn/geometry/sweep.h"
 #include "neuralyarn/scenes/ply_curves.h"
 #include "neuralyarn/model/model.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::scenes {
 
 namespace {
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 /* Distant lights: the sun's angular diameter (small, yet not a delta: BSDF samples can hit it and MIS
  * works, which matters for the 1-degree R lobes of silk and cotton), and its strength: irradiance pi on a
  * plane facing it, so a white Lambertian surface facing the light renders 1 (the key-rim key light gives
  * 2000 W / (4 pi 9.4^2) = 1.8). */
-constexpr double kSunAngleDeg = 2.0, kSunStrength = 3.14159265358979323846;
+constexpr double kSunAngleDeg = 2.0, kSunStrength = kPi;
 
 /* The distant light `deg` degrees from the view direction (from the ply toward the camera, -z), tilted
  * toward the unit axis (ax, ay, 0) perpendicular to it. */
 RigLight sun(double deg, double ax, double ay)
 {
-  const double t = deg * kDegToRad;
+  const double t = deg * kDeg;
   RigLight l;
   l.kind = RigLight::Kind::distant;
   l.x = std::sin(t) * ax, l.y = std::sin(t) * ay, l.z = -std::cos(t);
@@ -294,7 +294,7 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
     curves.offsets = {0};
     for (size_t k = 0; k < curves_in.plies.size(); k++) {
       geometry::PlyCrossSection turned = cs;
-      const Eigen::Rotation2Dd turn((o.ply_rotation_deg + 137.5 * double(k)) * kDegToRad);
+      const Eigen::Rotation2Dd turn((o.ply_rotation_deg + 137.5 * double(k)) * kDeg);
       for (Eigen::Vector2d &c : turned.centers) {
         c = turn * c;
       }
@@ -319,7 +319,7 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
     for (const Placement &pl : plies) {
       /* The fibers turned about the ply axis: another orientation of the same random cross-section. */
       const Eigen::Matrix3f turn =
-          Eigen::AngleAxisf(float(pl.turn_deg * kDegToRad), Eigen::Vector3f::UnitX()).toRotationMatrix();
+          Eigen::AngleAxisf(float(pl.turn_deg * kDeg), Eigen::Vector3f::UnitX()).toRotationMatrix();
       const Eigen::Vector3f at(0.0f, float(pl.y), float(pl.z));
       for (const Eigen::Vector3f &p : one.points) {
         curves.points.push_back(float(s) * (turn * p + at));
@@ -388,7 +388,7 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
           x << (r ? " " : "") << u[r] + 0.0 << " " << v[r] + 0.0 << " " << z[r] + 0.0 << " 0";
         }
         x << "\" strength=\"" << l.strength << " " << l.strength << " " << l.strength
-          << "\" angle=\"" << l.size * kDegToRad << "\" use_mis=\"true\" use_camera=\"false\" />\n";
+          << "\" angle=\"" << l.size * kDeg << "\" use_mis=\"true\" use_camera=\"false\" />\n";
       }
     }
     x << "</state>\n";
@@ -434,8 +434,8 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
   else {
     x << "<shader name=\"fiber\">\n  <khungurn_fiber_bsdf name=\"f\" C_R=\"" << preset.C_R[0] << " " << preset.C_R[1]
       << " " << preset.C_R[2] << "\" C_TT=\"" << preset.C_TT[0] << " " << preset.C_TT[1] << " " << preset.C_TT[2]
-      << "\" beta_R=\"" << preset.beta_R_deg * kDegToRad << "\" beta_TT=\"" << preset.beta_TT_deg * kDegToRad
-      << "\" gamma_TT=\"" << preset.gamma_TT_deg * kDegToRad << "\" />\n"
+      << "\" beta_R=\"" << preset.beta_R_deg * kDeg << "\" beta_TT=\"" << preset.beta_TT_deg * kDeg
+      << "\" gamma_TT=\"" << preset.gamma_TT_deg * kDeg << "\" />\n"
       << "  <connect from=\"f bsdf\" to=\"output surface\" />\n</shader>\n";
     x << "<state shader=\"fiber\">\n<hair nkeys=\"";
     for (int c = 0; c < curves.num_curves(); c++) {

@@ -7,11 +7,11 @@
 #include "neuralyarn/kernel/fiber_bsdf.h"
 #include "neuralyarn/kernel/frames.h"
 #include "neuralyarn/presets.h" /* ParameterError */
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::train {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 
 void check_count(int n)
 {
@@ -110,31 +110,10 @@ Dataset sample_transmission(const rdm::RdmMaps &maps, int n, uint64_t seed, bool
   return sample_incident_table(maps, maps.p_t, 1, n, seed, validation, true);
 }
 
-std::vector<double> map_energy(const rdm::RdmMaps &maps, const std::vector<float> &map)
-{
-  const rdm::MapResolution &b = maps.bins;
-  std::vector<double> e(b.incident() * 3, 0.0);
-  for (int ti = 0; ti < b.theta_i; ti++) {
-    for (int pi = 0; pi < b.phi_i; pi++) {
-      double *out = &e[maps.incident_index(ti, pi) * 3];
-      for (int to = 0; to < b.theta_o; to++) {
-        const double dO = maps.outgoing_solid_angle(to);
-        for (int po = 0; po < b.phi_o; po++) {
-          const float *v = &map[maps.map_index(ti, pi, to, po)];
-          for (int c = 0; c < 3; c++) {
-            out[c] += double(v[c]) * dO;
-          }
-        }
-      }
-    }
-  }
-  return e;
-}
-
 std::vector<float> reflection_scale_table(const rdm::RdmMaps &maps)
 {
   const rdm::MapResolution &b = maps.bins;
-  const std::vector<double> E = map_energy(maps, maps.r);
+  const std::vector<double> E = maps.energy(maps.r);
   const ny::TwistRotation twist = ny::make_twist_rotation(float(maps.preset.alpha));
   const ny::FiberBsdfParams fiber = maps.preset.fiber_params();
   std::vector<float> rho(b.incident(), 0.0f);

@@ -19,9 +19,9 @@
 #include <algorithm>
 #include <cmath>
 
-namespace neuralyarn::model::cycles_lobes {
+#include "neuralyarn/units.h"
 
-constexpr double kPi = 3.14159265358979323846;
+namespace neuralyarn::model::cycles_lobes {
 
 struct Dir {
   double x, y, z;

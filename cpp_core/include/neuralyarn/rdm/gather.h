@@ -104,6 +104,9 @@ struct RdmMaps {
   /* Solid angle of outgoing bin theta_o index `to` (any phi_o), and of incident bin `ti` (any phi_i). */
   double outgoing_solid_angle(int to) const;
   double incident_solid_angle(int ti) const;
+  /* Energy of a map (r or m) per incident bin, channel by channel: sum over w_o of value * solid angle.
+   * Row-major [theta_i][phi_i][rgb]. */
+  std::vector<double> energy(const std::vector<float> &map) const;
 };
 
 /* Gathers the maps of one fiber preset (its N, rho, alpha and shading) for a ply of radius 1. Throws

@@ -47,8 +47,4 @@ Dataset sample_multiple_scattering(const rdm::RdmMaps &maps, int n, uint64_t see
 /* The unit vector of polar angle theta (from the normal) and azimuth phi = atan2(y, x) in the entry frame. */
 Eigen::Vector3f entry_direction(double theta, double phi);
 
-/* Energy of the R and M maps per incident bin, channel by channel: sum over w_o of value * solid angle.
- * Row-major [theta_i][phi_i][rgb]. */
-std::vector<double> map_energy(const rdm::RdmMaps &maps, const std::vector<float> &map);
-
 }  // namespace neuralyarn::train
