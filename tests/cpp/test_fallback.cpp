@@ -68,8 +68,10 @@ TEST(Fallback, TablesAreTheKernelsValuesAtCellCentres)
       const ny::Vec3 wi = view(f, i, j);
       float dP_T;
       ny::Rgb c_R, c_M;
-      ny::yarn_calibration(p, wi, &dP_T, &c_R, &c_M);
-      const float pt = std::clamp(ny::yarn_transmission(p, wi) + dP_T, 0.0f, 1.0f);
+      /* Energies at the kernel's energy direction (w_i itself but past the table's last theta_i centre). */
+      const ny::Vec3 we = ny::yarn_energy_direction(p, wi);
+      ny::yarn_calibration(p, we, &dP_T, &c_R, &c_M);
+      const float pt = std::clamp(ny::yarn_transmission(p, we) + dP_T, 0.0f, 1.0f);
       EXPECT_NEAR(f.P_T[k], pt, 1e-6) << i << " " << j;
       const ny::Rgb em = model::m_lobe_energy(p, ny::yarn_lobes(p, wi));
       for (int c = 0; c < 3; c++) {

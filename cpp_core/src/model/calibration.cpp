@@ -33,7 +33,7 @@ float ratio(double map, double net)
 ny::Rgb white_furnace(const ny::YarnBsdfParams &p, const ny::Vec3 &wi)
 {
   const ny::YarnLobes l = ny::yarn_lobes(p, wi);
-  return ny::make_rgb(l.P_T) + l.weight_R * 0.5f + m_lobe_energy(p, l);
+  return ny::make_rgb(l.P_T) + ny::yarn_energy_R(l) + m_lobe_energy(p, l);
 }
 
 std::vector<ny::Vec3> furnace_directions(const rdm::MapResolution &bins, int sub, bool edge)
@@ -156,9 +156,10 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
     const ny::YarnLobes l = ny::yarn_lobes(p, incident(k));
     P_T[size_t(k)] = double(l.P_T);
     const ny::Rgb e_m = m_lobe_energy(p, l);
-    net_R[size_t(k) * 3] = 0.5 * l.weight_R.r;
-    net_R[size_t(k) * 3 + 1] = 0.5 * l.weight_R.g;
-    net_R[size_t(k) * 3 + 2] = 0.5 * l.weight_R.b;
+    const ny::Rgb e_r = ny::yarn_energy_R(l);
+    net_R[size_t(k) * 3] = e_r.r;
+    net_R[size_t(k) * 3 + 1] = e_r.g;
+    net_R[size_t(k) * 3 + 2] = e_r.b;
     net_M[size_t(k) * 3] = e_m.r;
     net_M[size_t(k) * 3 + 1] = e_m.g;
     net_M[size_t(k) * 3 + 2] = e_m.b;

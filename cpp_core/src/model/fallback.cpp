@@ -412,7 +412,7 @@ FallbackTables compute_fallback(const YarnModel &model, const FallbackOptions &o
     double up[3], down[3];
     m_energy_split(p, l, o.quad_theta, o.quad_phi, up, down);
     f.P_T[size_t(k)] = l.P_T;
-    const ny::Rgb er = l.weight_R * 0.5f; /* the R lobe's exact energy (kernel/yarn_bsdf.h) */
+    const ny::Rgb er = ny::yarn_energy_R(l);
     const float ers[3] = {er.r, er.g, er.b};
     for (int c = 0; c < 3; c++) {
       f.E_R[size_t(k) * 3 + size_t(c)] = std::max(0.0f, ers[c]);

@@ -70,7 +70,7 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps_a, c
                                                    rdm::bin_center(pi, -kPi, kPi, b.phi_i)));
     const ny::YarnLobes l = ny::yarn_lobes(p, wi);
     const ny::Rgb e_m = m_lobe_energy(p, l);
-    const ny::Rgb e_r = l.weight_R * 0.5f;
+    const ny::Rgb e_r = ny::yarn_energy_R(l);
     const double pt = l.P_T - maps.p_t[size_t(k)];
     row.t2 = pt * pt;
     for (int c = 0; c < 3; c++) {

@@ -66,7 +66,8 @@ FarField model_far_field(const model::YarnModel &model)
   f.albedo = [flat, p](const ny::Vec3 &wi) {
     const ny::YarnLobes l = ny::yarn_lobes(p, wi);
     const ny::Rgb e = model::m_lobe_energy(p, l);
-    return Rgb3{l.P_T + 0.5 * l.weight_R.r + e.r, l.P_T + 0.5 * l.weight_R.g + e.g, l.P_T + 0.5 * l.weight_R.b + e.b};
+    const ny::Rgb r = ny::yarn_energy_R(l);
+    return Rgb3{l.P_T + double(r.r) + e.r, l.P_T + double(r.g) + e.g, l.P_T + double(r.b) + e.b};
   };
   return f;
 }

@@ -278,6 +278,7 @@ NY_KERNEL_FN void yarn_calibration(const YarnBsdfParams &p, Vec3 wi, float *dP_T
 struct YarnLobes {
   bool valid;     /* w_i strictly above the surface; otherwise the BSDF is zero */
   Vec3 wi;        /* yarn frame            */
+  Vec3 we;        /* yarn_energy_direction(w_i): the M network's w_i input */
   Vec3 wi_f;      /* surface-fiber frame   */
   float P_T;      /* P(T | w_i)            */
   Rgb weight_R;   /* c_R rho_R F(theta~_i): the R lobe's energy is half of it (upper half of azimuths) */
@@ -316,22 +317,42 @@ constexpr float kYarnMinEscape = 0.02f;
 
 NY_KERNEL_FN float yarn_escape(float P_T) { return fmaxf(1.0f - P_T, kYarnMinEscape); }
 
+/* The direction whose energies (P_T, the R lobe's weight, the M network's input and scale) serve w_i: w_i
+ * itself, but beyond the calibration table's last theta_i centre that centre's direction at the same
+ * azimuth. The table bounds the white furnace at its centres; past the last one it is constant while the
+ * networks and the Fresnel factor keep changing toward grazing, where the sum reached 1.2 x the light
+ * received (docs/benchmarks.md, "White furnace"). The lobes' shapes keep the true w_i. */
+NY_KERNEL_FN Vec3 yarn_energy_direction(const YarnBsdfParams &p, Vec3 wi)
+{
+  if (!p.cal || !(wi.z > 0.0f)) {
+    return wi;
+  }
+  const float cos_c = cosf(((float)p.cal_theta_bins - 0.5f) * kHalfPi / (float)p.cal_theta_bins);
+  const float t2 = wi.x * wi.x + wi.y * wi.y;
+  if (wi.z >= cos_c || !(t2 > 0.0f)) {
+    return wi;
+  }
+  const float s = sqrtf((1.0f - cos_c * cos_c) / t2);
+  return make_vec3(wi.x * s, wi.y * s, cos_c);
+}
+
 /* `with_eval` = false skips the cos^2 normaliser of the R lobe, which only eval needs. */
 NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_eval = true)
 {
   YarnLobes l;
   l.wi = wi;
+  l.we = yarn_energy_direction(p, wi);
   l.wi_f = yarn_to_surface_fiber(p.twist, wi);
   l.valid = wi.z > 0.0f;
   float dP_T = 0.0f;
   Rgb c_R = make_rgb(0.0f), c_M = make_rgb(0.0f);
   if (l.valid) {
-    yarn_calibration(p, wi, &dP_T, &c_R, &c_M);
+    yarn_calibration(p, l.we, &dP_T, &c_R, &c_M);
   }
-  l.P_T = l.valid ? clampf(yarn_transmission(p, wi) + dP_T, 0.0f, 1.0f) : 0.0f;
+  l.P_T = l.valid ? clampf(yarn_transmission(p, l.we) + dP_T, 0.0f, 1.0f) : 0.0f;
   const float theta_i = theta_of(l.wi_f);
-  const Rgb F = schlick_fresnel(p.fiber.C_R, cos_theta(l.wi_f));
-  l.weight_R = l.valid ? F * c_R * yarn_reflection_scale(p, wi) : make_rgb(0.0f);
+  const Rgb F = schlick_fresnel(p.fiber.C_R, cos_theta(yarn_to_surface_fiber(p.twist, l.we)));
+  l.weight_R = l.valid ? F * c_R * yarn_reflection_scale(p, l.we) : make_rgb(0.0f);
   l.scale_M = c_M * yarn_escape(l.P_T);
   l.p_T = l.P_T;
   l.p_R = (1.0f - l.P_T) * p.kappa_R;
@@ -380,6 +401,10 @@ NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_ev
   return l;
 }
 
+/* The R lobe's energy from w_i, exactly: half of weight_R = c_R rho_R F, the half of the fiber's R lobe whose
+ * azimuths leave the surface (each of its parts integrates to it, yarn_eval_R_parts). */
+NY_KERNEL_FN Rgb yarn_energy_R(const YarnLobes &l) { return l.weight_R * 0.5f; }
+
 /* pi nu(phi~_o | w_i): the R lobe's azimuthal density relative to the uniform 1 / pi (1 without a table). */
 NY_KERNEL_FN float yarn_r_azimuth(const YarnLobes &l, float phi)
 {
@@ -427,7 +452,7 @@ NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 w
   if (!l.valid) {
     return make_rgb(0.0f);
   }
-  const float in[6] = {l.wi.x, l.wi.y, l.wi.z, wo.x, wo.y, wo.z};
+  const float in[6] = {l.we.x, l.we.y, l.we.z, wo.x, wo.y, wo.z};
   float out[3];
   mlp_forward(p.net_M, in, out);
   return make_rgb(out[0], out[1], out[2]) * l.scale_M;
@@ -583,7 +608,7 @@ NY_KERNEL_FN Rgb yarn_albedo_estimate(const YarnBsdfParams &p, const YarnLobes &
   if (!l.valid) {
     return make_rgb(0.0f);
   }
-  return make_rgb(l.P_T) + l.weight_R * 0.5f + p.albedo_M;
+  return make_rgb(l.P_T) + yarn_energy_R(l) + p.albedo_M;
 }
 
 }  // namespace ny
