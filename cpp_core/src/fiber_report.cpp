@@ -14,9 +14,6 @@
 
 namespace neuralyarn {
 
-namespace {
-}  // namespace
-
 std::vector<AlbedoRow> fiber_albedo_table(const FiberPreset &preset, const std::vector<double> &theta_i_deg,
                                           int samples, uint64_t seed)
 {

@@ -312,32 +312,27 @@ int main(int argc, char **argv)
           rigs.push_back(scenes::find_light_rig(name));
         }
         const scenes::PixelRegion region{s_opt.width, s_opt.height, s_region[0], s_region[1], s_region[2], s_region[3]};
-        /* One line per prediction: "predicted model R G B RIG", "predicted fallback R G B RIG", "predicted maps
-         * R G B RIG PATH". */
-        if (!s_opt.model.empty()) {
-          const scenes::FarField f = scenes::model_far_field(model::load_model(s_opt.model));
+        /* One line per prediction and rig: "predicted model R G B RIG", "predicted fallback R G B RIG",
+         * "predicted maps R G B RIG PATH". */
+        const auto print = [&](const scenes::FarField &f, const char *what, const std::string &suffix) {
           for (const scenes::LightRig &rig : rigs) {
             const scenes::Rgb3 a = scenes::predict_closeup(f, rig, region);
-            std::printf("predicted model %.5f %.5f %.5f %s\n", a.r, a.g, a.b, rig.name.c_str());
+            std::printf("predicted %s %.5f %.5f %.5f %s%s\n", what, a.r, a.g, a.b, rig.name.c_str(), suffix.c_str());
           }
+        };
+        if (s_predict_fallback && s_opt.model.empty()) {
+          throw std::runtime_error("--predict-fallback needs --model");
         }
-        if (s_predict_fallback) {
-          if (s_opt.model.empty()) {
-            throw std::runtime_error("--predict-fallback needs --model");
-          }
-          const scenes::FarField f = scenes::fallback_far_field(model::load_model(s_opt.model));
-          for (const scenes::LightRig &rig : rigs) {
-            const scenes::Rgb3 a = scenes::predict_closeup(f, rig, region);
-            std::printf("predicted fallback %.5f %.5f %.5f %s\n", a.r, a.g, a.b, rig.name.c_str());
+        if (!s_opt.model.empty()) {
+          const model::YarnModel m = model::load_model(s_opt.model);
+          print(scenes::model_far_field(m), "model", "");
+          if (s_predict_fallback) {
+            print(scenes::fallback_far_field(m), "fallback", "");
           }
         }
         for (const std::string &path : s_predict_maps) {
           const rdm::RdmMaps maps = rdm::load_maps(path);
-          const scenes::FarField f = scenes::maps_far_field(maps);
-          for (const scenes::LightRig &rig : rigs) {
-            const scenes::Rgb3 a = scenes::predict_closeup(f, rig, region);
-            std::printf("predicted maps %.5f %.5f %.5f %s %s\n", a.r, a.g, a.b, rig.name.c_str(), path.c_str());
-          }
+          print(scenes::maps_far_field(maps), "maps", " " + path);
         }
       }
       else if (!s_predict_maps.empty() || !s_predict_lights.empty() || s_predict_fallback) {

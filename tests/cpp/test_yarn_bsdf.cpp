@@ -11,14 +11,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <random>
 
 #include <boost/math/distributions/chi_squared.hpp>
-#include <tbb/parallel_for.h>
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/model.h"

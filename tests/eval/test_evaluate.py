@@ -193,11 +193,12 @@ def test_the_predicted_fallback_is_what_blender_renders(tmp_path, light):
     import sys
     import numpy as np
     sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    from evaluate import CLOSEUP_DISTANCE, CLOSEUP_FOV, central_region
     from images import LUMINANCE, read_exr
 
     cli = os.path.join(os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build")), "cpp_core", "neuralyarn")
     scene, exr = str(tmp_path / "s.xml"), str(tmp_path / "s.exr")
-    rows, cols = slice(34, 46), slice(40, 120)  # evaluate.central_region(12, 0.9, 160, 80)
+    rows, cols = central_region(CLOSEUP_DISTANCE, CLOSEUP_FOV, 160, 80)
     pred = subprocess.run([cli, "cycles-scene", "--preset", "fleece", "--model", os.path.join(ROOT, "models", "fleece.json"),
                            "--lights", light, "--width", "160", "--height", "80", "--ply-length", "48",
                            "--predict-region", str(cols.start), str(rows.start), str(cols.stop - cols.start),

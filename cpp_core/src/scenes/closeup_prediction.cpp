@@ -63,12 +63,7 @@ FarField model_far_field(const model::YarnModel &model)
   f.eval = [flat, p](const ny::Vec3 &wi, const ny::Vec3 &wo) {
     return to_rgb3(ny::yarn_eval_lobes(p, ny::yarn_lobes(p, wi), wo));
   };
-  f.albedo = [flat, p](const ny::Vec3 &wi) {
-    const ny::YarnLobes l = ny::yarn_lobes(p, wi);
-    const ny::Rgb e = model::m_lobe_energy(p, l);
-    const ny::Rgb r = ny::yarn_energy_R(l);
-    return Rgb3{l.P_T + double(r.r) + e.r, l.P_T + double(r.g) + e.g, l.P_T + double(r.b) + e.b};
-  };
+  f.albedo = [flat, p](const ny::Vec3 &wi) { return to_rgb3(model::white_furnace(p, wi)); };
   return f;
 }
 
