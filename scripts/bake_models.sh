@@ -7,14 +7,23 @@
 #   bash scripts/bake_models.sh                 # all five, 4e7 paths each (~17 min on 2 cores)
 #   bash scripts/bake_models.sh silk cotton     # some
 #   NY_BAKE_PATHS=1e8 bash scripts/bake_models.sh
+#   NY_LEVEL=yarn bash scripts/bake_models.sh   # yarn-level models models/<preset>_yarn.json: paths through
+#                                                # the 3-ply yarn at ply twist 0.5 (the add-on's and the
+#                                                # garment's plying), 2e7 paths + 1e7 check (~45 min)
 #
 # Everything is seeded (paths, packing, training, fit), so a rerun reproduces the files up to the
 # "created" date and code version in their provenance.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD="${NY_BUILD_DIR:-$ROOT/build}"
-PATHS="${NY_BAKE_PATHS:-4e7}"
-CHECK_PATHS="${NY_CHECK_PATHS:-2e7}"
+LEVEL="${NY_LEVEL:-ply}"
+case "$LEVEL" in
+  ply) PATHS="${NY_BAKE_PATHS:-4e7}"; CHECK_PATHS="${NY_CHECK_PATHS:-2e7}"; SUFFIX=""; LEVEL_ARGS=() ;;
+  # The yarn's walks cost 3-9x the ply's (Embree on an explicit yarn, docs/benchmarks.md): half the paths.
+  yarn) PATHS="${NY_BAKE_PATHS:-2e7}"; CHECK_PATHS="${NY_CHECK_PATHS:-1e7}"; SUFFIX="_yarn"
+        LEVEL_ARGS=(--level yarn --plies 3 --ply-twist 0.5) ;;
+  *) echo "bake_models.sh: NY_LEVEL must be ply or yarn" >&2; exit 2 ;;
+esac
 CLI="$BUILD/cpp_core/neuralyarn"
 [ -x "$CLI" ] || { echo "bake_models.sh: $CLI not built; run scripts/setup.sh --no-run first" >&2; exit 1; }
 PRESETS=("$@")
@@ -24,8 +33,8 @@ mkdir -p "$ROOT/models" "$ROOT/docs/images"
 # docs/decisions.md D22 shows it pays (gabardine: the axis light's fitting error 45 -> 10 %).
 m_widths() { case "$1" in gabardine) echo 6-32-32-3 ;; *) echo 6-21-21-3 ;; esac; }
 for p in "${PRESETS[@]}"; do
-  echo "=== $p (M $(m_widths "$p"))"
+  echo "=== $p$SUFFIX (M $(m_widths "$p"))"
   /usr/bin/time -f "bake wall %e s, peak RSS %M KB" \
-    "$CLI" bake --preset "$p" --paths "$PATHS" --check-paths "$CHECK_PATHS" --m-widths "$(m_widths "$p")" \
-    --out "$ROOT/models/$p.json" --image "$ROOT/docs/images/model_$p.png"
+    "$CLI" bake --preset "$p" "${LEVEL_ARGS[@]}" --paths "$PATHS" --check-paths "$CHECK_PATHS" \
+    --m-widths "$(m_widths "$p")" --out "$ROOT/models/$p$SUFFIX.json" --image "$ROOT/docs/images/model_$p$SUFFIX.png"
 done

@@ -19,9 +19,12 @@ scripts/garment.py, seen whole at 320 x 240, the point lights moved out with the
 the middle half of the frame, all fabric; explicit fibers only up to ~50 M curve keys, a 10 x 10 piece for
 fleece, larger pieces are refused and recorded as failed), and `closeup`, the single-ply close-up of `neuralyarn cycles-scene` (ply radius 1 along x, camera at
 distance 12 — or each of --distances, in ply radii: the ply is about height / (0.483 distance) pixels wide —
-the ply 48 long, or longer with the distance, so that its ends are out of the frame). Methods: `explicit` (the fibers
+the ply 48 long, or longer with the distance, so that its ends are out of the frame), and `yarn` (on request), the
+same close-up of one straight 3-ply yarn (scripts/garment.py straight_yarn_plies: the garment's plying; the
+camera distances are in ply radii, the yarn is 2.33 of them thick). Methods: `explicit` (the fibers
 themselves, the reference's method, at the test's samples), `native` (`--model models/<preset>.json`:
-one thick curve with the neural_yarn_bsdf closure), on request `osl` and `nodes`: the add-on's
+one thick curve with the neural_yarn_bsdf closure), on request `yarns` (the yarn level, D27: on the yarn and
+the garment, each yarn one thick curve with `--model models/<preset>_yarn.json`), `osl` and `nodes`: the add-on's
 stock-Blender fallbacks on the native method's scene, rendered by the bpy wheel's Cycles
 (scripts/fallback_render.py rebuilds the scene in Blender; presets only), and the baselines an artist would
 use instead, on the native method's geometry (`neuralyarn cycles-scene --list-baselines`: `chiang`, `huang`
@@ -75,7 +78,7 @@ import numpy as np
 
 from evaluate_charts import (CLOSEUP_DISTANCE, REFERENCE_METHOD, error_distance_charts, error_time_charts, label,
                              group_of, speed_summary, stem, summary_table)
-from garment import garment_plies
+from garment import garment_plies, straight_yarn_plies
 from images import LUMINANCE, display, display_ssim, exposure_of, read_exr, write_exr
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
@@ -85,13 +88,15 @@ CYCLES = os.path.join(BUILD, "cycles", "bin", "cycles")
 MODELS = os.path.join(ROOT, "models")
 
 PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
-SCENES = ["closeup", "garment"]
+SCENES = ["closeup", "yarn", "garment"]
+#: Scenes seen from --distances (the others frame themselves).
+DISTANCE_SCENES = ("closeup", "yarn")
 DEFAULT_SCENES = ["closeup"]
 #: The garment (scripts/garment.py: a plain-knit sleeve of 3-ply yarn): image size, explicit fibers' keys per
 #: helix turn (the examples' patches use as many), the frame's margin around the tube, references of one
 #: orientation (its plies already show the cross-section turned by the golden angle from ply to ply).
 GARMENT = {"width": 320, "height": 240, "segments_per_turn": 12, "margin": 1.08, "ref_rotations": 1}
-METHODS = ["explicit", "native", "osl", "nodes"]  # + the baselines of the CLI (cli_table)
+METHODS = ["explicit", "native", "yarns", "osl", "nodes"]  # + the baselines of the CLI (cli_table)
 DEFAULT_METHODS = ["explicit", "native"]
 #: Methods rendered by Blender (the bpy wheel) from the native method's scene.
 FALLBACKS = ("osl", "nodes")
@@ -231,12 +236,26 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
         for p in a.presets:
             if not os.path.isfile(model_path(a.yarns, p)):
                 raise Usage(f"method native: model '{model_path(a.yarns, p)}' is missing (scripts/bake_models.sh makes it)")
+    if "yarns" in a.methods:
+        if a.yarns:
+            raise Usage("method yarns renders the presets only (their yarn-level models)")
+        if "closeup" in a.scenes:
+            raise Usage("method yarns draws yarns: scenes yarn and garment (the close-up is one ply)")
+        for p in a.presets:
+            if not os.path.isfile(yarn_model_path(p)):
+                raise Usage(f"method yarns: model '{yarn_model_path(p)}' is missing "
+                            "(NY_LEVEL=yarn scripts/bake_models.sh makes it)")
     return a
 
 
 def model_path(yarns: dict, preset: str) -> str:
     """The model of a preset (models/), or of a --yarn (`yarns`: name -> {"params", "model"})."""
     return yarns[preset]["model"] if preset in yarns else os.path.join(MODELS, f"{preset}.json")
+
+
+def yarn_model_path(preset: str) -> str:
+    """A preset's yarn-level model (models/<preset>_yarn.json)."""
+    return os.path.join(MODELS, f"{preset}_yarn.json")
 
 
 def yarn_args(yarns: dict, preset: str) -> list[str]:
@@ -314,6 +333,15 @@ def _garment_scene_args(out: str, n: int) -> tuple[str, ...]:
             "--segments-per-turn", str(GARMENT["segments_per_turn"]))
 
 
+@functools.lru_cache(maxsize=None)
+def straight_yarn_file(out: str, length: float) -> str:
+    """The yarn close-up's plies file (DIR/scenes/yarn_L.json, written once a run)."""
+    path = os.path.join(out, "scenes", f"yarn_{length:g}.json")
+    with open(path, "w") as f:
+        json.dump(straight_yarn_plies(length), f, separators=(",", ":"))
+    return path
+
+
 def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, rotation: float = 0.0,
                 colour: list[float] | None = None, distance: float = CLOSEUP_DISTANCE) -> str:
     """The scene file of one render (`neuralyarn cycles-scene`: the close-up, or with `--plies` the garment);
@@ -323,6 +351,8 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
             "--height", str(a.height), "--out", path]
     if scene == "garment":
         args += garment_scene_args(a)
+    elif scene == "yarn":
+        args += ["--plies", straight_yarn_file(a.out, ply_length(distance, a)), "--camera-distance", f"{distance:g}"]
     else:
         args += ["--ply-length", f"{ply_length(distance, a):g}"]
         if distance != CLOSEUP_DISTANCE:
@@ -331,6 +361,8 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
         args += ["--ply-rotation", f"{rotation:g}"]
     if method == "native" or method in FALLBACKS:
         args += ["--model", model_path(a.yarns, preset)]
+    elif method == "yarns":
+        args += ["--level", "yarns", "--model", yarn_model_path(preset)]
     elif method in a.baselines:
         args += ["--baseline", method, "--baseline-colour", *(f"{c:.6f}" for c in colour)]
     run_cli(args)
@@ -595,7 +627,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
     for sub in ("scenes", "refs", "renders", "strips"):
         os.makedirs(os.path.join(a.out, sub), exist_ok=True)
     groups = [(s, p, l, d) for s in a.scenes for p in a.presets for l in a.lights
-              for d in (a.distances if s == "closeup" else [None])]
+              for d in (a.distances if s in DISTANCE_SCENES else [None])]
     n_runs = len(a.methods) * len(a.spp) * a.seeds
     # The baselines' colours are fitted on the close-up (one ply under even light) for every scene.
     fits = [("closeup", p) for p in a.presets] if a.baselines else []
@@ -662,11 +694,11 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
             if distance is None:  # the garment's own camera
                 group["distance"] = distance = cam_distance
             cameras.setdefault(scene, {"distance": CLOSEUP_DISTANCE, "fov": fov, "ply_length": CLOSEUP_PLY_LENGTH,
-                                       "distances": {}} if scene == "closeup" else
+                                       "distances": {}} if scene in DISTANCE_SCENES else
                                {"distance": cam_distance, "fov": fov, "stitches": a.garment_stitches,
                                 "width": a.width, "height": a.height, "distances": {}})
             cameras[scene]["distances"][f"{distance:g}"] = {
-                "ply_length": ply_length(distance, a) if scene == "closeup" else None,
+                "ply_length": ply_length(distance, a) if scene in DISTANCE_SCENES else None,
                 "ply_pixels": 2.0 * min(a.width, a.height) / (2.0 * cam_distance * math.tan(0.5 * fov))}
         if not ref_failed:
             ref_img = read_exr(os.path.join(a.out, refs["A"]["image"]))
@@ -674,8 +706,9 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                 if scene == "garment":  # the middle half of the frame: all fabric
                     region = (slice(a.height // 4, a.height - a.height // 4), slice(a.width // 4, a.width - a.width // 4))
                     region_name = "central"
-                else:
-                    region, region_name = central_region(cam_distance, fov, a.width, a.height), "central"
+                else:  # the ply's, or the yarn's bounding cylinder
+                    radius = straight_yarn_plies(1.0)["yarn_radius"] if scene == "yarn" else PLY_RADIUS
+                    region, region_name = central_region(cam_distance, fov, a.width, a.height, radius), "central"
             except RenderFailed:  # the ply is too thin for a central region: the whole frame
                 region, region_name = (slice(None), slice(None)), "frame"
         floor = {**group, "region": region_name, "failed": "; ".join(failed.values()) or False}
@@ -767,14 +800,14 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
 
 
 def write_strip(a, name: str, images: dict) -> None:
-    """reference | native | explicit, side by side on one exposure (the reference's); a missing or failed
-    method is a grey panel. Small images are enlarged (whole pixels) to at least 320 pixels a panel."""
+    """reference | native | explicit (| yarns, when rendered), side by side on one exposure (the reference's); a
+    missing or failed method is a grey panel. Small images are enlarged (whole pixels) to at least 320 pixels a panel."""
     import matplotlib.image
     ref = images["reference"]
     x = exposure_of(ref)
     gap = np.ones((ref.shape[0], 1, 3))
     panels = []
-    for k in ("reference", "native", "explicit"):
+    for k in ("reference", "native", "explicit") + (("yarns",) if "yarns" in images else ()):
         panels += [display(images[k], x) if k in images else np.full_like(ref, 0.5), gap]
     strip = np.clip(np.concatenate(panels[:-1], axis=1), 0.0, 1.0)
     k = max(1, math.ceil(320 / ref.shape[1]))

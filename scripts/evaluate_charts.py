@@ -41,8 +41,8 @@ def group_of(r: dict) -> tuple:
 
 
 def at_own_distance(group: tuple) -> bool:
-    """Whether a group's camera is its scene's own (the close-up's 12, or any garment's framing)."""
-    return group[0] != "closeup" or group[3] in (None, CLOSEUP_DISTANCE)
+    """Whether a group's camera is its scene's own (the close-ups' 12, or any garment's framing)."""
+    return group[0] not in ("closeup", "yarn") or group[3] in (None, CLOSEUP_DISTANCE)
 
 
 def label(group: tuple) -> str:

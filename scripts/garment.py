@@ -10,7 +10,9 @@ shape), each yarn three S-twisted plies (alpha_yarn 0.5, as the examples' patche
 circumference is the courses' length (a sleeve; the seam at the back), axis vertical (y), the knit's face
 outward; in ply radii (ply radius 1), the tube's front at z = 0 facing a camera on -z, centred on the origin
 vertically and across. Deterministic (no random numbers). Prints one line: rows, stitches, plies, points,
-tube radius and height in ply radii.
+tube radius and height in ply radii. The file also holds the yarns the plies were twisted from ("yarns",
+"yarn_radius", "plies_per_yarn", "ply_twist"): the yarn level draws those (docs/decisions.md D27).
+`straight_yarn_plies` is the harness's yarn close-up: one straight 3-ply yarn along x.
 """
 from __future__ import annotations
 
@@ -45,16 +47,37 @@ def garment_plies(rows: int, stitches: int) -> dict:
     pts = [p.points / r_ply for p in plies]
     y_mid = 0.5 * (min(p[:, 1].min() for p in pts) + max(p[:, 1].max() for p in pts))
     x_mid = 0.5 * course
-    out = []
-    for p in pts:
+
+    def wrapped(p: np.ndarray) -> list[float]:
         theta = (p[:, 0] - x_mid) / tube
         r = tube + p[:, 2]  # the knit's face (+z) outward
         q = np.stack([r * np.sin(theta), p[:, 1] - y_mid, tube - r * np.cos(theta)], axis=1)
-        out.append([round(float(v), 4) for v in q.ravel()])
+        return [round(float(v), 4) for v in q.ravel()]
+
     height = max(p[:, 1].max() for p in pts) - min(p[:, 1].min() for p in pts)
     return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "rows": rows, "stitches": stitches,
             "tube_radius": tube, "height": float(height), "width": 2.0 * tube + 2.0 * (1.0 + ALPHA_YARN),
-            "plies": out}
+            "plies": [wrapped(p) for p in pts], **_yarns([wrapped(y.points / r_ply) for y in yarns])}
+
+
+def _yarns(centrelines: list[list[float]]) -> dict:
+    """The plies file's yarn keys: the yarns' centrelines and their radius in ply radii (twist_plies fits the
+    plies inside the yarn: R_yarn = R_ply (1 + d / R_ply))."""
+    return {"yarns": centrelines, "plies_per_yarn": PLIES_PER_YARN, "ply_twist": ALPHA_YARN,
+            "yarn_radius": 1.0 + geometry.ply_center_distance(PLIES_PER_YARN, 1.0, ALPHA_YARN)}
+
+
+def straight_yarn_plies(length: float) -> dict:
+    """One straight yarn of PLIES_PER_YARN plies along x, centred on the origin, `length` ply radii long (ply
+    radius 1): the harness's yarn close-up."""
+    r_yarn = _yarns([])["yarn_radius"]
+    n = max(2, int(math.ceil(length / 0.25)) + 1)  # the plies are resampled per turn by twist_plies
+    axis = np.stack([np.linspace(-0.5 * length, 0.5 * length, n), np.zeros(n), np.zeros(n)], axis=1)
+    yarn = geometry.YarnCurve(axis, np.full(n, r_yarn))
+    plies = geometry.twist_plies(yarn, PLIES_PER_YARN, alpha_yarn=ALPHA_YARN, samples_per_turn=SAMPLES_PER_TURN)
+    return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": length,
+            "plies": [[round(float(v), 5) for v in p.points.ravel()] for p in plies],
+            **_yarns([[round(float(v), 5) for v in axis[[0, -1]].ravel()]])}
 
 
 def main(argv: list[str]) -> int:

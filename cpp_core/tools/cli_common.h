@@ -16,6 +16,7 @@
 #include <CLI/CLI.hpp>
 
 #include "neuralyarn/presets.h"
+#include "neuralyarn/rdm/yarn_tracer.h"
 
 namespace neuralyarn::cli {
 
@@ -50,6 +51,36 @@ inline void print_preset(const FiberPreset &p)
               "beta_R=%.3f beta_TT=%.3f gamma_TT=%.3f deg\n",
               p.name.c_str(), p.N, p.rho, p.alpha, p.C_R[0], p.C_R[1], p.C_R[2], p.C_TT[0], p.C_TT[1], p.C_TT[2],
               p.beta_R_deg, p.beta_TT_deg, p.gamma_TT_deg);
+}
+
+/* The level the random walks run through (docs/decisions.md D27): `--level ply` (the preset's ply) or
+ * `--level yarn --plies K --ply-twist A` (a K-ply yarn of it, the add-on's default plying). */
+struct LevelOptions {
+  std::string level = "ply";
+  int plies = 3;
+  double ply_twist = 0.5;
+};
+
+inline void add_level_options(CLI::App *cmd, LevelOptions *o)
+{
+  cmd->add_option("--level", o->level, "What the paths walk through: ply (one ply) or yarn (a K-ply yarn)")
+      ->check(CLI::IsMember({"ply", "yarn"}))
+      ->capture_default_str();
+  cmd->add_option("--plies", o->plies, "--level yarn: plies per yarn")->check(CLI::Range(1, 16))->capture_default_str();
+  cmd->add_option("--ply-twist", o->ply_twist, "--level yarn: ply twist alpha_yarn (2 R_yarn turns per length)")
+      ->check(finite_range(0.0, 8.0))
+      ->capture_default_str();
+}
+
+inline rdm::RdmMaps gather_level(const FiberPreset &preset, const LevelOptions &level, const rdm::GatherOptions &options)
+{
+  if (level.level == "ply") {
+    return rdm::gather(preset, options);
+  }
+  geometry::YarnStructure s;
+  s.plies = level.plies;
+  s.ply_twist = level.ply_twist;
+  return rdm::gather_yarn(preset, s, options);
 }
 
 /* "10000000", "1e7", "10M", "2.5k": a positive integer path count. */

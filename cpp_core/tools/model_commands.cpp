@@ -214,6 +214,7 @@ class Commands : public ModelCommands {
     bake_->add_option("--threads", threads_, "Worker threads (0: all cores); results do not depend on it")
         ->capture_default_str();
     add_train_options(bake_, &topt_);
+    add_level_options(bake_, &level_);
     bake_->add_flag("--quiet", quiet_, "No progress bar");
 
     fallback_ = app.add_subcommand(
@@ -349,7 +350,7 @@ class Commands : public ModelCommands {
     ProgressBar bar(!quiet_, "paths");
     bar.stage("gather", "paths");
     gopt_.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };
-    const rdm::RdmMaps maps = rdm::gather(preset, gopt_);
+    const rdm::RdmMaps maps = gather_level(preset, level_, gopt_);
     if (!maps_out_.empty()) {
       rdm::save_maps(maps, maps_out_);
     }
@@ -366,9 +367,9 @@ class Commands : public ModelCommands {
       c.paths = std::max<uint64_t>(check_paths / 2, gopt_.bins.incident());
       c.seed = gopt_.seed + 1000;
       bar.stage("check", "paths");
-      check_a = rdm::gather(preset, c);
+      check_a = gather_level(preset, level_, c);
       c.seed = gopt_.seed + 2000;
-      check_b = rdm::gather(preset, c);
+      check_b = gather_level(preset, level_, c);
     }
     const model::FidelityReport r = check_paths > 0 ? model::check_model(m, check_a, {}, &check_b)
                                                     : model::check_model(m, maps);
@@ -491,9 +492,18 @@ class Commands : public ModelCommands {
       throw std::runtime_error("the maps were gathered for preset '" + maps.preset.name +
                                "' with other parameters than the model's ('" + m.preset.name + "')");
     }
+    if (m.structure.plies != maps.structure.plies || m.structure.ply_twist != maps.structure.ply_twist) {
+      auto level = [](const geometry::YarnStructure &s) {
+        return s.is_yarn() ? "a " + std::to_string(s.plies) + "-ply yarn at ply twist " + std::to_string(s.ply_twist)
+                           : std::string("one ply");
+      };
+      throw std::runtime_error("the maps were gathered through " + level(maps.structure) + ", the model describes " +
+                               level(m.structure));
+    }
   }
 
   CLI::App *train_, *fit_, *bake_, *check_, *fallback_, *furnace_;
+  LevelOptions level_;
   std::optional<double> max_furnace_;
   bool furnace_inside_ = false;
   TrainModelOptions topt_;

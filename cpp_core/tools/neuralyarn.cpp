@@ -68,7 +68,7 @@ int run_fiber(const std::string &preset_name, const std::string &params_file, do
 
 int run_gather(const std::string &preset_name, const std::string &params_file, const std::string &paths_text,
                uint64_t seed, uint64_t packing_seed, int threads, const std::string &bins_text, bool no_symmetrize, bool variance,
-               bool quiet, const std::string &out)
+               bool quiet, const LevelOptions &level, const std::string &out)
 {
   const FiberPreset preset = resolve_preset(preset_name, params_file);
   rdm::GatherOptions opt;
@@ -90,7 +90,7 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
   }
   ProgressBar bar(!quiet);
   opt.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };
-  const rdm::RdmMaps maps = rdm::gather(preset, opt);
+  const rdm::RdmMaps maps = gather_level(preset, level, opt);
   rdm::save_maps(maps, out);
   const rdm::GatherStats &s = maps.stats;
   auto rgb = [](const double v[3]) {
@@ -108,9 +108,14 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
               rgb(s.balance).c_str(), std::max({s.balance_se[0], s.balance_se[1], s.balance_se[2]}));
   std::printf("lost (rgb)       %s   (%llu paths cut at the event limit)\n", rgb(s.lost).c_str(),
               (unsigned long long)s.paths_truncated);
+  if (maps.structure.is_yarn()) {
+    std::printf("yarn             %d plies, ply twist %.3f, surface twist alpha %.4f; %llu paths left through an end\n",
+                maps.structure.plies, maps.structure.ply_twist, maps.structure.surface_alpha,
+                (unsigned long long)s.paths_past_ends);
+  }
   std::printf("events per path  mean %.2f, 95th percentile %d, max %d\n", s.mean_events, s.p95_events,
               s.max_events_seen);
-  std::printf("exit displacement (ply radii, scattered paths)  mean %.2f, 95th percentile %.2f; M only: mean %.2f, "
+  std::printf("exit displacement (envelope radii, scattered paths)  mean %.2f, 95th percentile %.2f; M only: mean %.2f, "
               "95th %.2f\n",
               s.mean_displacement, s.p95_displacement, s.mean_displacement_M, s.p95_displacement_M);
   if (s.invalid_weights) {
@@ -167,6 +172,8 @@ int main(int argc, char **argv)
   gather->add_flag("--variance", g_variance, "Also store per-bin standard errors");
   gather->add_flag("--quiet", g_quiet, "No progress bar");
   gather->add_option("--out", g_out, "Map file to write (.nyrdm)")->required();
+  LevelOptions g_level;
+  add_level_options(gather, &g_level);
 
   auto *scene = app.add_subcommand("cycles-scene", "Write the single-ply close-up (explicit fibers, or aggregated with --model) for the patched Cycles");
   std::string s_preset = "fleece", s_params, s_out;
@@ -224,6 +231,11 @@ int main(int argc, char **argv)
   scene->add_option("--layers", s_opt.layers,
                     "Cloth layers: sheets of plies side by side, stacked away from the camera (1: the single ply)")
       ->check(CLI::Range(1, 256))
+      ->capture_default_str();
+  scene->add_option("--level", s_opt.level,
+                    "With --plies and --model (or --baseline): draw the plies (a ply-level model) or the file's yarns "
+                    "(a yarn-level model)")
+      ->check(CLI::IsMember({"plies", "yarns"}))
       ->capture_default_str();
   scene->add_option("--plies", s_opt.plies,
                     "Instead of the straight ply: these ply centrelines (a \"neuralyarn-plies 1\" JSON file, e.g. "
@@ -341,7 +353,7 @@ int main(int argc, char **argv)
       return 0;
     }
     if (gather->parsed()) {
-      return run_gather(g_preset, g_params, g_paths, g_seed, g_packing_seed, g_threads, g_bins, g_no_sym, g_variance, g_quiet, g_out);
+      return run_gather(g_preset, g_params, g_paths, g_seed, g_packing_seed, g_threads, g_bins, g_no_sym, g_variance, g_quiet, g_level, g_out);
     }
     if (fiber->parsed()) {
       return run_fiber(preset_name, params_file, theta_i, phi_i, samples, seed, out);

@@ -16,6 +16,7 @@
 
 #include <gtest/gtest.h>
 
+#include "neuralyarn/model/model.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/scenes/cycles_xml.h"
 #include "neuralyarn/units.h"
@@ -476,4 +477,63 @@ TEST(CyclesScenePlies, BadFilesAndTooManyKeysAreRefusedBeforeWriting)
   o.layers = 2;
   EXPECT_THROW(scene_text(o), std::runtime_error);
   fs::remove(o.plies);
+}
+
+/* The yarn level (D27): each yarn of the file one curve of the yarn radius, with a yarn-level model of the
+ * file's plying; a model of the other level, or of another plying, is refused before anything is written. */
+TEST(CyclesScenePlies, YarnLevelDrawsTheYarnsWithAYarnModel)
+{
+  const std::string body = R"({"format": "neuralyarn-plies 1", "ply_radius": 0.5,
+      "plies": [[0, 0.6, 0, 4, 0.6, 0], [0, -0.3, 0.5, 4, -0.3, 0.5], [0, -0.3, -0.5, 4, -0.3, -0.5]],
+      "yarns": [[0, 0, 0, 2, 0, 0, 4, 0, 0]], "yarn_radius": 1.1, "plies_per_yarn": 3, "ply_twist": 0.5})";
+  const std::string plies = write_plies(body);
+  neuralyarn::model::YarnModel m =
+      neuralyarn::model::load_model(std::string(NY_TEST_DATA_DIR) + "/../../models/fleece.json");
+  const std::string ply_model = std::string(NY_TEST_DATA_DIR) + "/../../models/fleece.json";
+  m.fallback.reset();
+  m.structure.plies = 3;
+  m.structure.ply_twist = 0.5;
+  m.structure.surface_alpha = -0.08;
+  const std::string yarn_model = (fs::temp_directory_path() / ("ny_yarn_model_" + std::to_string(::getpid()) + ".json")).string();
+  neuralyarn::model::save_model(m, yarn_model);
+  PlySceneOptions o;
+  o.plies = plies;
+  o.level = "yarns";
+  o.model = yarn_model;
+  const std::string agg = scene_text(o);
+  EXPECT_EQ(hair_attribute(agg, "nkeys"), (std::vector<double>{3}));
+  EXPECT_DOUBLE_EQ(hair_attribute(agg, "radius").at(0), 2.2); /* 1.1 in units of ply radius 0.5 */
+  EXPECT_DOUBLE_EQ(hair_keys(agg).at(6), 8.0);
+  /* The ply level draws the three plies with the ply model; each model on the other level is refused. */
+  o.level = "plies";
+  o.model = ply_model;
+  EXPECT_EQ(hair_attribute(scene_text(o), "nkeys").size(), 3u);
+  o.model = yarn_model;
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  o.level = "yarns";
+  o.model = ply_model;
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  /* Another plying than the model's. */
+  m.structure.ply_twist = 0.8;
+  neuralyarn::model::save_model(m, yarn_model);
+  o.model = yarn_model;
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  /* Fibers have no yarn level; a file without yarns, or with a bad yarn radius, cannot be drawn as yarns. */
+  o.model.clear();
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  m.structure.ply_twist = 0.5;
+  neuralyarn::model::save_model(m, yarn_model);
+  o.model = yarn_model;
+  o.plies = write_plies(R"({"format": "neuralyarn-plies 1", "ply_radius": 1, "plies": [[0,0,0,1,0,0]]})");
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  for (const char *bad : {"\"yarn_radius\": 0.4", "\"yarn_radius\": null", "\"plies_per_yarn\": 1", "\"ply_twist\": -1"}) {
+    std::string b = body;
+    const std::string key = std::string(bad).substr(0, std::string(bad).find(':'));
+    const size_t at = b.find(key);
+    b.replace(at, b.find_first_of(",}", at) - at, bad);
+    o.plies = write_plies(b);
+    EXPECT_THROW(scene_text(o), std::runtime_error) << bad;
+  }
+  fs::remove(plies);
+  fs::remove(yarn_model);
 }

@@ -773,9 +773,13 @@ TEST(MapFile, RoundTripAndCorruption)
   write_all(bad, text);
   EXPECT_NE(error_of([&] { rdm::load_maps(bad); }).find("bad magic"), std::string::npos);
   std::string newer = good;
+  newer[8] = 3;
+  write_all(bad, newer);
+  EXPECT_NE(error_of([&] { rdm::load_maps(bad); }).find("version 3 is not supported"), std::string::npos);
+  /* Version 2 (a yarn's maps) needs the header's yarn structure: a ply's header marked 2 is refused. */
   newer[8] = 2;
   write_all(bad, newer);
-  EXPECT_NE(error_of([&] { rdm::load_maps(bad); }).find("version 2 is not supported"), std::string::npos);
+  EXPECT_NE(error_of([&] { rdm::load_maps(bad); }), "");
   write_all(bad, good.substr(0, 30));
   EXPECT_NE(error_of([&] { rdm::load_maps(bad); }), "");
   EXPECT_NE(error_of([&] { rdm::load_maps(temp_path("missing.nyrdm")); }).find("cannot open"), std::string::npos);

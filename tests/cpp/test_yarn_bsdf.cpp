@@ -328,9 +328,9 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
   expect_error("truncated.json", j.dump().substr(0, 500), "not valid JSON");
   expect_error("other.json", R"({"format": "something-else"})", "not a neuralyarn model");
   nlohmann::json v = j;
-  v["version"] = model::kModelFormatVersion + 1;
+  v["version"] = model::kModelFormatVersionYarn + 1;
   expect_error("version.json", v.dump(),
-               "version " + std::to_string(model::kModelFormatVersion + 1) + " is not supported");
+               "version " + std::to_string(model::kModelFormatVersionYarn + 1) + " is not supported");
   const size_t table = size_t(j["kernel_flat"][ny::kYarnFlatOffset_Cal].get<float>());
   v = j;
   v["kernel_flat"].erase(v["kernel_flat"].size() - 1);

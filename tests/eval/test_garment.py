@@ -6,6 +6,7 @@ recorded as failed while the native closure's cost is still measured."""
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 
@@ -77,3 +78,43 @@ def test_a_garment_too_large_for_explicit_fibers_still_measures_the_native_cost(
     assert "curve keys" in runs["explicit"]["failed"]
     assert runs["native"]["failed"] is False and runs["native"]["seconds_render"] is not None
     assert runs["native"]["flip"] is None and "curve keys" in runs["native"]["no_reference"]
+
+
+def test_the_plies_files_hold_their_yarns():
+    """The yarn level (D27) draws the yarns the plies were twisted from: the file names them with their radius
+    and plying, and every ply of the straight yarn lies at the plies' centre distance from the yarn's axis."""
+    g = garment.garment_plies(2, 3)
+    assert len(g["yarns"]) == 2 and g["plies_per_yarn"] == garment.PLIES_PER_YARN
+    assert g["ply_twist"] == garment.ALPHA_YARN
+    d = garment.geometry.ply_center_distance(garment.PLIES_PER_YARN, 1.0, garment.ALPHA_YARN)
+    assert g["yarn_radius"] == pytest.approx(1.0 + d)
+    s = garment.straight_yarn_plies(30.0)
+    assert s["yarns"] == [[-15.0, 0.0, 0.0, 15.0, 0.0, 0.0]] and len(s["plies"]) == garment.PLIES_PER_YARN
+    for p in s["plies"]:
+        q = np.reshape(p, (-1, 3))
+        assert np.allclose(np.hypot(q[:, 1], q[:, 2]), d, atol=1e-3)
+        assert q[0, 0] == pytest.approx(-15.0) and q[-1, 0] == pytest.approx(15.0)
+
+
+def test_the_yarn_close_up_at_every_level(tmp_path):
+    """scene yarn: explicit fibers of three plies, the ply model on the three ply curves, the yarn model on one
+    curve of the yarn's radius; each measured against the same reference."""
+    r = subprocess.run(["bash", EVALUATE, "--quick", "--scenes", "yarn", "--lights", "grazing", "--methods",
+                        "explicit", "native", "yarns", "--out", str(tmp_path)], capture_output=True, text=True,
+                       timeout=900)
+    assert r.returncode == 0, r.stderr[-3000:]
+    res = json.load(open(tmp_path / "results.json"))
+    runs = {x["method"]: x for x in res["runs"]}
+    assert set(runs) == {"explicit", "native", "yarns"}
+    for m, x in runs.items():
+        assert x["failed"] is False and x["scene"] == "yarn" and x["flip"] is not None, (m, x)
+    assert runs["native"]["curve_keys"] > runs["yarns"]["curve_keys"] > 0
+    scenes = {m: open(tmp_path / "scenes" / f"yarn_fleece_grazing_{m}_seed1.xml").read() for m in ("native", "yarns")}
+    assert 'model="' in scenes["yarns"] and "_yarn.json" in scenes["yarns"]
+    r_yarn = garment.straight_yarn_plies(1.0)["yarn_radius"]
+    radius = float(re.search(r'<hair\b[^>]*\sradius="([^"]+)"', scenes["yarns"]).group(1))
+    assert radius == pytest.approx(r_yarn, rel=1e-4)
+    # Bad requests: the yarn level on the one-ply close-up, a custom yarn without yarn model.
+    bad = subprocess.run(["bash", EVALUATE, "--quick", "--scenes", "closeup", "--methods", "yarns", "--out",
+                          str(tmp_path / "bad")], capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 1 and "yarn" in bad.stderr

@@ -124,6 +124,36 @@ Eigen::Vector3d Yarn::fiber_point(int ply, int fiber, double x) const
   return ply_center(ply, x) + rho * (std::cos(psi) * e_r + std::sin(psi) * e_b);
 }
 
+double surface_twist(const Yarn &yarn)
+{
+  const YarnParams &p = yarn.params();
+  const double R = yarn.yarn_radius();
+  const double pitch = p.K > 1 && p.alpha_yarn > 0.0 ? 2.0 * R / p.alpha_yarn : 2.0 * R;
+  const int samples = 64;
+  const double h = 1e-4 * p.ply.R;
+  double sum = 0.0;
+  long count = 0;
+  for (int k = 0; k < p.K; k++) {
+    const PlyCrossSection &cs = yarn.cross_section(k);
+    const double shell = R - 3.0 * cs.r;
+    for (int i = 0; i < int(cs.centers.size()); i++) {
+      for (int s = 0; s < samples; s++) {
+        const double x = pitch * (s + 0.5) / samples;
+        const Eigen::Vector3d q = yarn.fiber_point(k, i, x);
+        const Eigen::Vector3d e_r = Eigen::Vector3d(0.0, q.y(), q.z()) / std::hypot(q.y(), q.z());
+        if (std::hypot(q.y(), q.z()) < shell) {
+          continue;
+        }
+        const Eigen::Vector3d t = yarn.fiber_point(k, i, x + h) - yarn.fiber_point(k, i, x - h);
+        const Eigen::Vector3d e_phi = Eigen::Vector3d::UnitX().cross(e_r);
+        sum += t.dot(e_phi) / t.x();
+        count++;
+      }
+    }
+  }
+  return count > 0 ? sum / count / kPi : 0.0;
+}
+
 CurveSet export_fibers(const Yarn &yarn, double x0, double x1, int segments_per_turn)
 {
   const YarnParams &p = yarn.params();

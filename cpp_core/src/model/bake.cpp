@@ -140,6 +140,7 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
 {
   YarnModel m;
   m.preset = maps.preset;
+  m.structure = maps.structure;
   auto stage = [&](const char *name) -> std::function<void(double)> {
     if (!o.progress) {
       return {};

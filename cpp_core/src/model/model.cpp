@@ -203,7 +203,7 @@ std::vector<float> YarnModel::kernel_flat() const
 {
   std::vector<float> f(ny::kYarnFlatHeader, 0.0f);
   f[ny::kYarnFlatVersion] = ny::kYarnFlatFormat;
-  f[ny::kYarnFlatAlpha] = float(preset.alpha);
+  f[ny::kYarnFlatAlpha] = float(surface_alpha());
   const ny::FiberBsdfParams fp = preset.fiber_params();
   f[ny::kYarnFlatC_R] = fp.C_R.r;
   f[ny::kYarnFlatC_R + 1] = fp.C_R.g;
@@ -241,9 +241,13 @@ json model_to_json(const YarnModel &m)
 {
   json j;
   j["format"] = "neuralyarn-model";
-  j["version"] = kModelFormatVersion;
+  j["version"] = m.structure.is_yarn() ? kModelFormatVersionYarn : kModelFormatVersion;
   j["code_version"] = std::string(kVersion) + "+" + kGitRevision;
   j["preset"] = preset_to_json(m.preset);
+  if (m.structure.is_yarn()) {
+    j["structure"] = {{"level", "yarn"}, {"plies", m.structure.plies}, {"ply_twist", m.structure.ply_twist},
+                      {"surface_alpha", m.structure.surface_alpha}};
+  }
   j["networks"] = {{"T", network_to_json(m.T)}, {"R", network_to_json(m.R)}, {"M", network_to_json(m.M)}};
   j["sampling"] = {{"kappa_R", m.proxy.kappa_R},
                    {"beta_M_deg", m.proxy.beta_M / kDeg},
@@ -280,9 +284,9 @@ YarnModel model_from_json(const json &j, const std::string &source)
     throw ModelError(where + "not a neuralyarn model (the key \"format\" must be \"neuralyarn-model\")");
   }
   if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int>() < 1 ||
-      j["version"].get<int>() > kModelFormatVersion) {
+      j["version"].get<int>() > kModelFormatVersionYarn) {
     throw ModelError(where + "model format version " + (j.contains("version") ? j["version"].dump() : "(missing)") +
-                     " is not supported (this build reads versions 1 to " + std::to_string(kModelFormatVersion) + ")");
+                     " is not supported (this build reads versions 1 to " + std::to_string(kModelFormatVersionYarn) + ")");
   }
   YarnModel m;
   try {
@@ -293,6 +297,28 @@ YarnModel model_from_json(const json &j, const std::string &source)
   }
   catch (const std::exception &e) {
     throw ModelError(where + "preset: " + e.what());
+  }
+  m.structure.surface_alpha = m.preset.alpha;
+  if (j["version"].get<int>() == kModelFormatVersionYarn) {
+    const json s = j.value("structure", json());
+    auto number = [&](const char *key) {
+      if (!s.is_object() || !s.contains(key) || !s[key].is_number() || !std::isfinite(s[key].get<double>())) {
+        throw ModelError(where + "a version 5 (yarn-level) model needs 'structure' with a finite '" + key + "'");
+      }
+      return s[key].get<double>();
+    };
+    const double plies = number("plies");
+    m.structure.ply_twist = number("ply_twist");
+    m.structure.surface_alpha = number("surface_alpha");
+    if (s.value("level", "") != "yarn" || plies != std::floor(plies) || plies < 2 || plies > 16 ||
+        m.structure.ply_twist < 0.0 || std::abs(m.structure.surface_alpha) > 100.0) {
+      throw ModelError(where + "'structure' must be {\"level\": \"yarn\", \"plies\": 2 to 16, \"ply_twist\" >= 0, "
+                               "\"surface_alpha\"}");
+    }
+    m.structure.plies = int(plies);
+  }
+  else if (j.contains("structure")) {
+    throw ModelError(where + "'structure' (a yarn-level model) needs format version 5");
   }
   if (!j.contains("networks") || !j["networks"].is_object()) {
     throw ModelError(where + "missing 'networks'");
@@ -338,7 +364,7 @@ YarnModel model_from_json(const json &j, const std::string &source)
     /* The kernel array: layout 2 (no R table; the calibration table runs to the end), 3 (the R azimuth table
      * without the TT share, under "r_azimuth") and 4 (this code's). Older layouts are only checked for their
      * version and numbers and rebuilt with the tables taken over (a TT share of 0 renders as they did). */
-    const int layout = version; /* 2, 3 or 4 (kModelFormatVersion; later versions were refused above) */
+    const int layout = std::min(version, 4); /* 2, 3 or 4 (a yarn's version 5 has layout 4) */
     const std::vector<float> flat = float_array(j, "kernel_flat", where);
     if (layout == 4) {
       if (const char *problem = ny::yarn_flat_check(flat.data(), int(flat.size()))) {

@@ -215,7 +215,7 @@ ProxyFitResult fit_sampling_proxy(const rdm::RdmMaps &maps, const ProxyFitOption
     r.nll = r.nll_uniform;
     return r;
   }
-  const double alpha = maps.preset.alpha;
+  const double alpha = maps.surface_alpha();
   auto f = [&](const std::array<double, 3> &x) {
     return m_proxy_nll(pairs, alpha, width_of(x[1]), width_of(x[2]), logistic(x[0]));
   };

@@ -17,10 +17,18 @@ struct EmbreePly::Impl {
 };
 
 EmbreePly::EmbreePly(const geometry::Ply &ply, double x0, double x1, int segments_per_turn)
-    : impl_(std::make_unique<Impl>())
+    : EmbreePly(geometry::export_fibers(ply, x0, x1, segments_per_turn))
 {
-  const geometry::CurveSet curves = geometry::export_fibers(ply, x0, x1, segments_per_turn);
-  impl_->device = rtcNewDevice("threads=1");
+}
+
+EmbreePly::EmbreePly(const geometry::CurveSet &curves, const char *device_config) : impl_(std::make_unique<Impl>())
+{
+  for (int c = 1; c < curves.num_curves(); c++) {
+    if (curves.offsets[size_t(c) + 1] - curves.offsets[size_t(c)] != curves.offsets[1] - curves.offsets[0]) {
+      throw std::invalid_argument("EmbreePly: every curve must have the same number of points");
+    }
+  }
+  impl_->device = rtcNewDevice(device_config);
   if (!impl_->device) {
     throw std::runtime_error("Embree: cannot create a device (error " + std::to_string(rtcGetDeviceError(nullptr)) + ")");
   }

@@ -16,6 +16,7 @@
 
 #include "neuralyarn/geometry/ply.h"
 #include "neuralyarn/rdm/fiber_lobe_sampler.h"
+#include "neuralyarn/rdm/fiber_medium.h"
 #include "neuralyarn/units.h"
 
 namespace neuralyarn::rdm {
@@ -91,7 +92,7 @@ struct LocalStats {
   uint64_t absorbed[3] = {}, lost[3] = {};
   double balance[3] = {}, balance_sq[3] = {}; /* per chunk in double: summed in chunk order below */
   uint64_t paths[3] = {}, terminated = 0, truncated = 0, events_total = 0, slab_crossings = 0,
-           invalid = 0, disp_sum = 0, disp_sum_M = 0, disp_count = 0, disp_count_M = 0;
+           invalid = 0, disp_sum = 0, disp_sum_M = 0, disp_count = 0, disp_count_M = 0, past_ends = 0;
   int max_events = 0;
 };
 
@@ -100,7 +101,7 @@ struct SharedStats {
   uint64_t energy[3][3] = {}, absorbed[3] = {}, lost[3] = {};
   std::vector<double> balance, balance_sq; /* [chunk][rgb]: combined in chunk order, so deterministic */
   uint64_t paths[3] = {}, terminated = 0, truncated = 0, events_total = 0, slab_crossings = 0,
-           invalid = 0, disp_sum = 0, disp_sum_M = 0, disp_count = 0, disp_count_M = 0;
+           invalid = 0, disp_sum = 0, disp_sum_M = 0, disp_count = 0, disp_count_M = 0, past_ends = 0;
   std::atomic<int> max_events{0};
 };
 
@@ -134,6 +135,7 @@ void merge(SharedStats &s, const LocalStats &l, uint64_t chunk)
   atomic_add(&s.disp_sum_M, l.disp_sum_M);
   atomic_add(&s.disp_count, l.disp_count);
   atomic_add(&s.disp_count_M, l.disp_count_M);
+  atomic_add(&s.past_ends, l.past_ends);
   int prev = s.max_events.load();
   while (prev < l.max_events && !s.max_events.compare_exchange_weak(prev, l.max_events)) {
   }
@@ -159,41 +161,60 @@ double percentile(const std::vector<uint64_t> &hist, double q, double bin_width)
   return double(hist.size() - 1) * bin_width;
 }
 
+/* The walks' medium and its mirror image: the ply's own tracer (called directly) or any FiberMedium. */
 struct Geometry {
-  std::unique_ptr<PlyTracer> tracer[2]; /* the ply and its mirror image */
-  std::vector<double> cos_theta_edge;   /* cos of the theta_i bin edges */
+  const PlyTracer *ply[2] = {nullptr, nullptr};
+  const FiberMedium *medium[2] = {nullptr, nullptr};
+  std::vector<double> cos_theta_edge; /* cos of the theta_i bin edges */
 };
 
+/* What trace_path asks of either kind of medium. */
+double entry_length(const PlyTracer &) { return 0.0; }
+double entry_length(const FiberMedium &m) { return m.entry_length(); }
+double half_length(const PlyTracer &) { return std::numeric_limits<double>::infinity(); }
+double half_length(const FiberMedium &m) { return m.half_length(); }
+float envelope_radius(const PlyTracer &t) { return t.ply_radius(); }
+float envelope_radius(const FiberMedium &m) { return m.envelope_radius(); }
+Vec3 world_point(const PlyTracer &t, const SlabRay &r) { return t.to_world_point(r.o, r.slab); }
+Vec3 world_point(const FiberMedium &, const SlabRay &r) { return r.o; }
+Vec3 world_dir(const PlyTracer &t, const SlabRay &r) { return t.to_world_dir(r.d, r.slab); }
+Vec3 world_dir(const FiberMedium &, const SlabRay &r) { return r.d; }
+
 /* One path. */
-void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const GatherOptions &opt, uint64_t k,
-                Accumulators &acc, LocalStats &ls)
+template <class Medium>
+void trace_path(const Medium *const media[2], const std::vector<double> &cos_theta_edge, const FiberLobeSampler &sampler,
+                const GatherOptions &opt, uint64_t k, Accumulators &acc, LocalStats &ls)
 {
   const MapResolution &b = opt.bins;
   const size_t n_in = b.incident();
   const size_t in_bin = size_t(k % n_in);
   const int mirrored = int((k / n_in) & 1u);
-  const PlyTracer &tracer = *geo.tracer[mirrored];
+  const Medium &tracer = *media[mirrored];
   const int ti = int(in_bin / size_t(b.phi_i));
   const int pi = int(in_bin % size_t(b.phi_i));
   PathRng rng(opt.seed, k);
 
   /* w_i uniform in solid angle inside the bin: cos(theta) uniform, phi uniform. */
-  const double c0 = geo.cos_theta_edge[size_t(ti)], c1 = geo.cos_theta_edge[size_t(ti) + 1];
+  const double c0 = cos_theta_edge[size_t(ti)], c1 = cos_theta_edge[size_t(ti) + 1];
   const double cos_t = c0 + (c1 - c0) * rng.uniform_double();
   const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
   const double phi = -kPi + 2.0 * kPi * (pi + rng.uniform_double()) / b.phi_i;
   const Vec3 wi_local = make_vec3(float(sin_t * std::cos(phi)), float(sin_t * std::sin(phi)), float(cos_t));
-  /* Entry frame at a uniform azimuth a on the ring x = 0 (screw invariance makes one ring enough). */
+  /* Entry frame at a uniform azimuth a on the ring x = 0 (screw invariance makes one ring enough), or at
+   * a uniform x over the entry length of a medium that has none. */
   double sin_a, cos_a;
   sincos(2.0 * kPi * rng.uniform_double(), &sin_a, &cos_a);
+  const double L_entry = entry_length(tracer);
+  const float x_entry = L_entry > 0.0 ? float(L_entry * (rng.uniform_double() - 0.5)) : 0.0f;
   const Vec3 n = make_vec3(0.0f, float(cos_a), float(sin_a));
   const Vec3 ey = make_vec3(0.0f, float(sin_a), float(-cos_a)); /* z x x */
   const Vec3 ex = make_vec3(1.0f, 0.0f, 0.0f);
   const float R = tracer.bound_radius();
   const Vec3 wi = ex * wi_local.x + ey * wi_local.y + n * wi_local.z;
 
+  const Vec3 entry = n * R + ex * x_entry;
   SlabRay ray;
-  ray.o = n * R;
+  ray.o = entry;
   ray.d = -wi;
   ray.slab = 0;
   float beta[3] = {1.0f, 1.0f, 1.0f};
@@ -284,8 +305,11 @@ void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const Gath
   }
 
   /* Exit: direction and point in world coordinates, then in the entry frame. */
-  const Vec3 d_w = tracer.to_world_dir(ray.d, ray.slab);
-  const Vec3 p_w = tracer.to_world_point(ray.o, ray.slab);
+  const Vec3 d_w = world_dir(tracer, ray);
+  const Vec3 p_w = world_point(tracer, ray);
+  if (std::abs(double(p_w.x)) > half_length(tracer)) {
+    ls.past_ends++;
+  }
   const Vec3 wo = make_vec3(ny::dot(d_w, ex), ny::dot(d_w, ey), ny::dot(d_w, n));
   const int label = events == 0 ? 0 : (events == 1 && wo.z > 0.0f ? 1 : 2);
   ls.paths[label]++;
@@ -305,7 +329,7 @@ void trace_path(const Geometry &geo, const FiberLobeSampler &sampler, const Gath
     atomic_add(&acc.count_t[in_bin], 1);
     return;
   }
-  const double disp = std::sqrt(double(ny::dot(p_w - n * R, p_w - n * R))) / double(tracer.ply_radius());
+  const double disp = std::sqrt(double(ny::dot(p_w - entry, p_w - entry))) / double(envelope_radius(tracer));
   const size_t dbin = size_t(std::min(disp / kDisplacementBin, double(kDisplacementBins - 1)));
   const uint64_t disp_fx = uint64_t(std::llround(disp * 1e6));
   ls.displacement[dbin]++;
@@ -384,8 +408,10 @@ RdmMaps mean_of_maps(const RdmMaps &a, const RdmMaps &b)
     throw ParameterError("maps", "maps of different resolutions cannot be averaged");
   }
   if (preset_to_json(a.preset) != preset_to_json(b.preset) || a.packing_seed != b.packing_seed ||
-      a.symmetrized != b.symmetrized) {
-    throw ParameterError("maps", "maps of different plies (preset, packing seed or symmetrisation) cannot be averaged");
+      a.symmetrized != b.symmetrized || a.structure.plies != b.structure.plies ||
+      a.structure.ply_twist != b.structure.ply_twist) {
+    throw ParameterError("maps", "maps of different plies or yarns (preset, packing seed, structure or symmetrisation) "
+                                 "cannot be averaged");
   }
   if (a.seed == b.seed) {
     throw ParameterError("maps", "maps of the same path seed are not independent");
@@ -485,21 +511,11 @@ void validate(const GatherOptions &o)
   }
 }
 
-RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
-{
-  validate(preset);
-  validate(opt);
-  const auto t_start = std::chrono::steady_clock::now();
+namespace {
 
-  geometry::PlyParams pp;
-  pp.N = preset.N;
-  pp.rho = preset.rho;
-  pp.alpha = preset.alpha;
-  pp.R = 1.0;
-  const geometry::PlyCrossSection cs = geometry::pack_cross_section(pp, opt.packing_seed);
-  Geometry geo;
-  geo.tracer[0] = std::make_unique<PlyTracer>(geometry::Ply(pp, cs), opt.tracer);
-  geo.tracer[1] = std::make_unique<PlyTracer>(geometry::Ply(pp, geometry::mirrored(cs)), opt.tracer);
+RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &opt,
+                  Geometry &geo, std::chrono::steady_clock::time_point t_start)
+{
   const FiberLobeSampler sampler(preset.fiber_params(), opt.plain_estimator);
   for (int t = 0; t <= opt.bins.theta_i; t++) {
     geo.cos_theta_edge.push_back(std::cos(0.5 * kPi * t / opt.bins.theta_i));
@@ -537,7 +553,12 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
       const uint64_t k0 = chunk * kChunk, k1 = std::min(opt.paths, k0 + kChunk);
       ls.records.reserve(k1 - k0);
       for (uint64_t k = k0; k < k1; k++) {
-        trace_path(geo, sampler, opt, k, acc, ls);
+        if (geo.ply[0]) {
+          trace_path(geo.ply, geo.cos_theta_edge, sampler, opt, k, acc, ls);
+        }
+        else {
+          trace_path(geo.medium, geo.cos_theta_edge, sampler, opt, k, acc, ls);
+        }
       }
       flush_records(ls, acc, opt.variance);
       merge(shared, ls, chunk);
@@ -559,11 +580,12 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
   RdmMaps maps;
   maps.bins = b;
   maps.preset = preset;
+  maps.structure = structure;
   maps.seed = opt.seed;
   maps.packing_seed = opt.packing_seed;
   maps.paths = opt.paths;
-  maps.fiber_radius = geo.tracer[0]->fiber_radius();
-  maps.slab_length = geo.tracer[0]->slab_length();
+  maps.fiber_radius = geo.ply[0] ? geo.ply[0]->fiber_radius() : geo.medium[0]->fiber_radius();
+  maps.slab_length = geo.ply[0] ? geo.ply[0]->slab_length() : 2.0 * geo.medium[0]->half_length();
   maps.sagitta = opt.tracer.sagitta;
   maps.count = acc.count;
   maps.p_t.assign(acc.n_in, 0.0f);
@@ -677,6 +699,7 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
   st.paths_M = shared.paths[2];
   st.paths_terminated = shared.terminated;
   st.paths_truncated = shared.truncated;
+  st.paths_past_ends = shared.past_ends;
   st.events_histogram = shared.events;
   st.events_total = shared.events_total;
   st.mean_events = double(shared.events_total) / np;
@@ -691,6 +714,40 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   st.seconds_tracing = seconds_tracing;
   return maps;
+}
+
+}  // namespace
+
+RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
+{
+  validate(preset);
+  validate(opt);
+  const auto t_start = std::chrono::steady_clock::now();
+  geometry::PlyParams pp;
+  pp.N = preset.N;
+  pp.rho = preset.rho;
+  pp.alpha = preset.alpha;
+  pp.R = 1.0;
+  const geometry::PlyCrossSection cs = geometry::pack_cross_section(pp, opt.packing_seed);
+  const PlyTracer plain(geometry::Ply(pp, cs), opt.tracer);
+  const PlyTracer mirror(geometry::Ply(pp, geometry::mirrored(cs)), opt.tracer);
+  Geometry geo;
+  geo.ply[0] = &plain;
+  geo.ply[1] = &mirror;
+  geometry::YarnStructure structure;
+  structure.surface_alpha = preset.alpha;
+  return gather_in(preset, structure, opt, geo, t_start);
+}
+
+RdmMaps gather_through(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &opt,
+                       const FiberMedium &medium, const FiberMedium &mirror)
+{
+  validate(preset);
+  validate(opt);
+  Geometry geo;
+  geo.medium[0] = &medium;
+  geo.medium[1] = &mirror;
+  return gather_in(preset, structure, opt, geo, std::chrono::steady_clock::now());
 }
 
 }  // namespace neuralyarn::rdm

@@ -101,6 +101,7 @@ json stats_json(const GatherStats &s)
   j["paths_M"] = s.paths_M;
   j["paths_terminated"] = s.paths_terminated;
   j["paths_truncated"] = s.paths_truncated;
+  j["paths_past_ends"] = s.paths_past_ends;
   j["mean_events"] = s.mean_events;
   j["p95_events"] = s.p95_events;
   j["max_events"] = s.max_events_seen;
@@ -147,7 +148,8 @@ void save_maps(const RdmMaps &maps, const std::string &path)
 
   json h;
   h["format"] = "neuralyarn-rdm";
-  h["version"] = kMapFileVersion;
+  const uint32_t version = maps.structure.is_yarn() ? kMapFileVersionYarn : kMapFileVersion;
+  h["version"] = version;
   h["code_version"] = std::string(kVersion) + "+" + kGitRevision;
   h["created"] = utc_now();
   h["preset"] = preset_to_json(maps.preset);
@@ -167,6 +169,10 @@ void save_maps(const RdmMaps &maps, const std::string &path)
       {"m", "the same for all other scattered paths"},
       {"exit_energy", "mean exit throughput per path of the incident bin (T + R + M)"},
       {"absorbed", "mean expected absorbed energy per path of the incident bin"}};
+  if (maps.structure.is_yarn()) {
+    h["structure"] = {{"level", "yarn"}, {"plies", maps.structure.plies}, {"ply_twist", maps.structure.ply_twist},
+                      {"surface_alpha", maps.structure.surface_alpha}};
+  }
   h["summary"] = stats_json(maps.stats);
   h["arrays"] = pl.arrays;
   h["payload_bytes"] = pl.bytes.size();
@@ -174,7 +180,7 @@ void save_maps(const RdmMaps &maps, const std::string &path)
   const std::string header = h.dump(1);
 
   std::string head(kMagic, 8);
-  append_le<uint32_t>(head, kMapFileVersion);
+  append_le<uint32_t>(head, version);
   append_le<uint64_t>(head, header.size());
   head += header;
 
@@ -199,9 +205,9 @@ RdmMaps load_maps(const std::string &path)
     fail(path, "not a neuralyarn RDM file (bad magic; was it transferred in text mode or truncated?)");
   }
   const uint32_t version = read_le<uint32_t>(data.data() + 8);
-  if (version != kMapFileVersion) {
-    fail(path, "format version " + std::to_string(version) + " is not supported (this build reads version " +
-                   std::to_string(kMapFileVersion) + ")");
+  if (version != kMapFileVersion && version != kMapFileVersionYarn) {
+    fail(path, "format version " + std::to_string(version) + " is not supported (this build reads versions " +
+                   std::to_string(kMapFileVersion) + " and " + std::to_string(kMapFileVersionYarn) + ")");
   }
   const uint64_t hlen = read_le<uint64_t>(data.data() + 12);
   if (hlen > data.size() - 20) {
@@ -238,6 +244,20 @@ RdmMaps load_maps(const std::string &path)
       fail(path, "invalid bin counts in header");
     }
     maps.preset = preset_from_json(h.at("preset"), "map");
+    maps.structure.surface_alpha = maps.preset.alpha;
+    if (version == kMapFileVersionYarn) {
+      const json &st = h.at("structure");
+      maps.structure.plies = st.at("plies").get<int>();
+      maps.structure.ply_twist = st.at("ply_twist").get<double>();
+      maps.structure.surface_alpha = st.at("surface_alpha").get<double>();
+      if (st.at("level").get<std::string>() != "yarn" || maps.structure.plies < 2 ||
+          !std::isfinite(maps.structure.ply_twist) || !std::isfinite(maps.structure.surface_alpha)) {
+        fail(path, "invalid yarn structure in header");
+      }
+    }
+    else if (h.contains("structure")) {
+      fail(path, "a version 1 file with a yarn structure (version 2 holds yarns)");
+    }
     maps.seed = h.at("gather").at("seed").get<uint64_t>();
     maps.paths = h.at("gather").at("paths").get<uint64_t>();
     maps.symmetrized = h.at("gather").at("symmetrized").get<bool>();

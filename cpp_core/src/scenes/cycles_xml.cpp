@@ -206,6 +206,14 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
   }
   /* Read (and refuse a bad file) before anything is written. */
   const PlyCurves curves_in = o.plies.empty() ? PlyCurves{} : read_ply_curves(o.plies);
+  const bool yarn_level = o.level == "yarns";
+  if (!yarn_level && o.level != "plies") {
+    throw std::runtime_error("level must be plies or yarns, got '" + o.level + "'");
+  }
+  if (yarn_level && (curves_in.yarns.empty() || (o.model.empty() && o.baseline.empty()))) {
+    throw std::runtime_error("the yarn level draws the yarns of a plies file (--plies with \"yarns\") with a model "
+                             "or a baseline");
+  }
   const BounceLimits limits = o.artist_bounces ? BounceLimits::blender_addon()
                                                : BounceLimits{o.max_bounce, o.max_bounce, o.max_bounce,
                                                               o.max_bounce, o.max_bounce};
@@ -243,6 +251,17 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
     }
     if (m.calibration.empty()) {
       throw std::runtime_error("model '" + o.model + "' is a version 1 file without a kernel array; re-bake it");
+    }
+    /* A model describes one level: a ply's on yarn curves (or the reverse) would render silently wrong. */
+    if (m.structure.is_yarn() != yarn_level) {
+      throw std::runtime_error("model '" + o.model + "' is a " + (m.structure.is_yarn() ? "yarn" : "ply") +
+                               "-level model; the scene draws " + (yarn_level ? "yarns" : "plies"));
+    }
+    if (yarn_level && (m.structure.plies != curves_in.plies_per_yarn ||
+                       std::abs(m.structure.ply_twist - curves_in.ply_twist) > 1e-6)) {
+      throw std::runtime_error("model '" + o.model + "' was baked for " + std::to_string(m.structure.plies) +
+                               " plies at ply twist " + std::to_string(m.structure.ply_twist) + "; the yarns have " +
+                               std::to_string(curves_in.plies_per_yarn) + " at " + std::to_string(curves_in.ply_twist));
     }
     /* Relative to the scene's directory (the XML reader resolves it so): scene and models move together. */
     const std::filesystem::path scene_dir = std::filesystem::absolute(path).parent_path();
@@ -406,7 +425,8 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
     }
     x << "</shader>\n";
     /* The ply curves as given, or each straight ply as 17 keys along x. */
-    std::vector<std::vector<Eigen::Vector3d>> axes = curves_in.plies;
+    std::vector<std::vector<Eigen::Vector3d>> axes = yarn_level ? curves_in.yarns : curves_in.plies;
+    const double curve_radius = yarn_level ? curves_in.yarn_radius : 1.0;
     if (axes.empty()) {
       const int keys = 17;
       for (const Placement &pl : plies) {
@@ -421,7 +441,7 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
     for (size_t i = 0; i < axes.size(); i++) {
       x << (i ? " " : "") << axes[i].size();
     }
-    x << "\" radius=\"" << s << "\"\n  P=\"";
+    x << "\" radius=\"" << s * curve_radius << "\"\n  P=\"";
     bool first = true;
     for (const auto &axis : axes) {
       for (const Eigen::Vector3d &p : axis) {

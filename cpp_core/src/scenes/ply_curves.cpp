@@ -42,30 +42,54 @@ PlyCurves read_ply_curves(const std::string &path)
     throw fail("'ply_radius' must be a positive number");
   }
   const double scale = 1.0 / radius->get<double>();
-  const auto plies = j.find("plies");
-  if (plies == j.end() || !plies->is_array() || plies->empty()) {
-    throw fail("'plies' must be a non-empty list of coordinate lists");
-  }
-  PlyCurves out;
   size_t total = 0;
-  for (size_t k = 0; k < plies->size(); k++) {
-    const nlohmann::json &p = (*plies)[k];
-    if (!p.is_array() || p.size() < 6 || p.size() % 3) {
-      throw fail("ply " + std::to_string(k) + " needs x y z triples of at least two points, got " +
-                 std::to_string(p.is_array() ? p.size() : 0) + " numbers");
+  /* The curves under `key` ("plies" or "yarns"), each named `what` in messages. */
+  auto read_curves = [&](const char *key, const char *what) {
+    const auto list = j.find(key);
+    if (list == j.end() || !list->is_array() || list->empty()) {
+      throw fail(std::string("'") + key + "' must be a non-empty list of coordinate lists");
     }
-    total += p.size() / 3;
-    if (total > kMaxPlyPoints) {
-      throw fail("more than " + std::to_string(kMaxPlyPoints) + " points");
-    }
-    std::vector<Eigen::Vector3d> pts(p.size() / 3);
-    for (size_t i = 0; i < p.size(); i++) {
-      if (!p[i].is_number() || !std::isfinite(p[i].get<double>())) {
-        throw fail("ply " + std::to_string(k) + " point " + std::to_string(i / 3) + " is not a finite number");
+    std::vector<std::vector<Eigen::Vector3d>> curves;
+    for (size_t k = 0; k < list->size(); k++) {
+      const nlohmann::json &p = (*list)[k];
+      if (!p.is_array() || p.size() < 6 || p.size() % 3) {
+        throw fail(std::string(what) + " " + std::to_string(k) + " needs x y z triples of at least two points, got " +
+                   std::to_string(p.is_array() ? p.size() : 0) + " numbers");
       }
-      pts[i / 3][int(i % 3)] = scale * p[i].get<double>();
+      total += p.size() / 3;
+      if (total > kMaxPlyPoints) {
+        throw fail("more than " + std::to_string(kMaxPlyPoints) + " points");
+      }
+      std::vector<Eigen::Vector3d> pts(p.size() / 3);
+      for (size_t i = 0; i < p.size(); i++) {
+        if (!p[i].is_number() || !std::isfinite(p[i].get<double>())) {
+          throw fail(std::string(what) + " " + std::to_string(k) + " point " + std::to_string(i / 3) +
+                     " is not a finite number");
+        }
+        pts[i / 3][int(i % 3)] = scale * p[i].get<double>();
+      }
+      curves.push_back(std::move(pts));
     }
-    out.plies.push_back(std::move(pts));
+    return curves;
+  };
+  PlyCurves out;
+  out.plies = read_curves("plies", "ply");
+  if (j.contains("yarns")) {
+    out.yarns = read_curves("yarns", "yarn");
+    const nlohmann::json yr = j.value("yarn_radius", nlohmann::json()), k = j.value("plies_per_yarn", nlohmann::json()),
+                         tw = j.value("ply_twist", nlohmann::json());
+    if (!yr.is_number() || !std::isfinite(yr.get<double>()) || !(yr.get<double>() * scale > 1.0)) {
+      throw fail("'yarn_radius' must be a number larger than the ply radius");
+    }
+    if (!k.is_number_integer() || k.get<int>() < 2 || k.get<int>() > 16) {
+      throw fail("'plies_per_yarn' must be an integer in [2, 16]");
+    }
+    if (!tw.is_number() || !std::isfinite(tw.get<double>()) || tw.get<double>() < 0.0) {
+      throw fail("'ply_twist' must be a finite number >= 0");
+    }
+    out.yarn_radius = yr.get<double>() * scale;
+    out.plies_per_yarn = k.get<int>();
+    out.ply_twist = tw.get<double>();
   }
   return out;
 }

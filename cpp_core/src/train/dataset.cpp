@@ -114,7 +114,7 @@ std::vector<float> reflection_scale_table(const rdm::RdmMaps &maps)
 {
   const rdm::MapResolution &b = maps.bins;
   const std::vector<double> E = maps.energy(maps.r);
-  const ny::TwistRotation twist = ny::make_twist_rotation(float(maps.preset.alpha));
+  const ny::TwistRotation twist = ny::make_twist_rotation(float(maps.surface_alpha()));
   const ny::FiberBsdfParams fiber = maps.preset.fiber_params();
   std::vector<float> rho(b.incident(), 0.0f);
   for (int ti = 0; ti < b.theta_i; ti++) {

@@ -58,6 +58,24 @@ class Yarn {
   double fiber_rate_ = 0.0; /* d psi / ds = pi alpha_ply / R_ply + tau */
 };
 
+/* The level a set of maps or a model describes (docs/decisions.md D27): plies = 1 is one ply of the preset
+ * (the ply level), plies > 1 a yarn of that many plies at ply twist alpha_yarn = ply_twist, rendered as one
+ * thick curve of the yarn's radius. surface_alpha is the twist the aggregated BSDF's R lobe turns its
+ * surface-fiber frame by (kernel/frames.h atan(pi alpha)): the preset's alpha for a ply, the yarn's
+ * surface_twist() for a yarn (negative where the S-twisted plies more than undo the fibers' Z twist). */
+struct YarnStructure {
+  int plies = 1;
+  double ply_twist = 0.0;
+  double surface_alpha = 0.0;
+  bool is_yarn() const { return plies > 1; }
+};
+
+/* The surface fibers' twist of a yarn as a twist factor: the mean over the outermost fibers (centres
+ * within three fiber radii of the yarn's envelope, sampled along one pitch) of tan(tilt) / pi, tilt the
+ * angle of the fiber tangent from the yarn axis about the outward radial direction, positive for a
+ * Z twist. For K = 1 it is the ply's alpha (times the outer fibers' rho / R_ply). */
+double surface_twist(const Yarn &yarn);
+
 /* Smallest 3D distance between the centerlines of neighbouring plies at centre distance d (by the screw
  * symmetry of the yarn, a 1-D minimisation). Exposed for tests. */
 double neighbour_ply_distance(int K, double d, double R_ply, double alpha_yarn);

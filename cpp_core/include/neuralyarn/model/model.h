@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "neuralyarn/geometry/yarn.h"
 #include "neuralyarn/model/fallback.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/train/mlp.h"
@@ -22,6 +23,9 @@ namespace neuralyarn::model {
 /* 2: energy calibration table; 3: R azimuth table (kernel array layout 3). Versions 1 and 2 still load
  * (without the tables they lack; their kernel array is rebuilt in the current layout). */
 constexpr int kModelFormatVersion = 4;
+/* A yarn-level model (docs/decisions.md D27): layout 4 plus the "structure" it was baked for. A build that
+ * reads only up to version 4 refuses it rather than rendering a yarn's model on a ply. */
+constexpr int kModelFormatVersionYarn = 5;
 
 class ModelError : public std::runtime_error {
  public:
@@ -65,6 +69,7 @@ struct RShapeTable {
 
 struct YarnModel {
   FiberPreset preset;
+  geometry::YarnStructure structure; /* the level: one ply of the preset, or a K-ply yarn of it */
   NetworkRecord T, R, M;
   SamplingProxy proxy;
   EnergyCalibration calibration;
@@ -79,6 +84,8 @@ struct YarnModel {
   /* The kernel's array: header (kernel/yarn_bsdf.h YarnFlatField), the T, R and M networks, then the
    * calibration table and the R azimuth table. */
   std::vector<float> kernel_flat() const;
+  /* The R lobe's surface-fiber twist (the kernel array's alpha). */
+  double surface_alpha() const { return structure.is_yarn() ? structure.surface_alpha : preset.alpha; }
 };
 
 /* The architectures the kernel expects: inputs, outputs and head of each network. */

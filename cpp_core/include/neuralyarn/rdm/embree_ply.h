@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 //
 // An explicit, finite ply as Embree 3 round linear curves: the independent intersector the tests check
-// PlyTracer against (P(T) from straight rays) and the benchmark races it against. Each fiber is its helix
+// PlyTracer against (P(T) from straight rays) and the benchmark races it against; YarnTracer's fibers. Each fiber is its helix
 // tessellated into `segments_per_turn` chords per turn (at least one per ply radius of length), radius r.
 #pragma once
 
@@ -23,6 +23,10 @@ class EmbreePly {
  public:
   /* The fibers of `ply` over x in [x0, x1]. */
   EmbreePly(const geometry::Ply &ply, double x0, double x1, int segments_per_turn);
+  /* Any fibers (every curve with the same number of points: the fiber of a segment is its curve).
+   * `device_config` is Embree's: "threads=1" (the default, for timing one thread) limits every TBB arena
+   * of the process while the device lives, so walks on several threads pass "". */
+  explicit EmbreePly(const geometry::CurveSet &curves, const char *device_config = "threads=1");
   ~EmbreePly();
   EmbreePly(const EmbreePly &) = delete;
   EmbreePly &operator=(const EmbreePly &) = delete;

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "neuralyarn/geometry/yarn.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/rdm/ply_tracer.h"
 
@@ -70,6 +71,8 @@ struct GatherStats {
   /* Per path, exit weight + absorbed + lost has expectation exactly 1: its mean and standard error. */
   double balance[3] = {0, 0, 0}, balance_se[3] = {0, 0, 0};
   uint64_t paths_T = 0, paths_R = 0, paths_M = 0, paths_terminated = 0, paths_truncated = 0;
+  /* A finite medium (the yarn level): paths that left through an end rather than the envelope. */
+  uint64_t paths_past_ends = 0;
   std::vector<uint64_t> events_histogram; /* [e] = paths with e events (last bin: that many or more) */
   double mean_events = 0.0;
   int p95_events = 0, max_events_seen = 0;
@@ -84,9 +87,12 @@ struct GatherStats {
 struct RdmMaps {
   MapResolution bins;
   FiberPreset preset;
+  geometry::YarnStructure structure; /* the level: a ply (plies = 1) or a K-ply yarn */
   uint64_t seed = 0, packing_seed = 0, paths = 0;
   bool symmetrized = false;
   double fiber_radius = 0.0, slab_length = 0.0, sagitta = 0.0; /* ply radius R = 1 */
+  /* The R lobe's surface-fiber twist: the preset's alpha for a ply, the yarn's surface twist for a yarn. */
+  double surface_alpha() const { return structure.is_yarn() ? structure.surface_alpha : preset.alpha; }
   std::vector<uint64_t> count;    /* [theta_i][phi_i]: paths                                    */
   std::vector<float> p_t;         /* [theta_i][phi_i]: fraction passing unscattered, P(T | w_i) */
   std::vector<float> r, m;        /* [theta_i][phi_i][theta_o][phi_o][rgb]: f |cos theta_o|     */
@@ -112,6 +118,15 @@ struct RdmMaps {
 /* Gathers the maps of one fiber preset (its N, rho, alpha and shading) for a ply of radius 1. Throws
  * ParameterError for invalid options or geometry that cannot be packed. */
 RdmMaps gather(const FiberPreset &preset, const GatherOptions &options);
+
+class FiberMedium;
+/* Margin of the yarn level's explicit yarn beyond the entry region, in yarn radii (rdm/yarn_tracer.h). */
+constexpr double kYarnEndMargin = 16.0;
+
+/* The same random walks through any medium and its mirror image (rdm/fiber_medium.h), recorded as maps of
+ * `structure` (the yarn level's gather_yarn calls it). */
+RdmMaps gather_through(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &options,
+                       const FiberMedium &medium, const FiberMedium &mirror);
 
 /* "22x90x45x90" (theta_i x phi_i x theta_o x phi_o); throws ParameterError("bins") otherwise. Their
  * ranges are checked by validate(GatherOptions). */

@@ -20,7 +20,10 @@
 
 namespace neuralyarn::rdm {
 
+/* Version 1: a ply's maps; version 2: a yarn's (the header's "structure"), which builds that read only
+ * version 1 refuse instead of taking them for a ply's. */
 constexpr uint32_t kMapFileVersion = 1;
+constexpr uint32_t kMapFileVersionYarn = 2;
 
 class MapFileError : public std::runtime_error {
  public:

@@ -4,7 +4,9 @@
 // generators (scripts/garment.py) write and `neuralyarn cycles-scene --plies` reads, so that the explicit
 // fibers and the aggregated plies of one scene come from the same curves (docs/file_formats.md):
 //     {"format": "neuralyarn-plies 1", "ply_radius": R, "plies": [[x0, y0, z0, x1, y1, z1, ...], ...]}
-// in any unit; read scaled to ply radius 1 (cycles-scene's unit).
+// in any unit; read scaled to ply radius 1 (cycles-scene's unit). Optionally the yarns the plies were
+// twisted from, for the yarn level (docs/decisions.md D27): "yarns" (their centrelines, same unit),
+// "yarn_radius", "plies_per_yarn" and "ply_twist".
 #pragma once
 
 #include <string>
@@ -16,12 +18,17 @@ namespace neuralyarn::scenes {
 
 struct PlyCurves {
   std::vector<std::vector<Eigen::Vector3d>> plies; /* centrelines, ply radius 1 */
+  std::vector<std::vector<Eigen::Vector3d>> yarns; /* optional: the yarns' centrelines, same unit */
+  double yarn_radius = 0.0;                        /* with yarns: in ply radii */
+  int plies_per_yarn = 0;
+  double ply_twist = 0.0;
   size_t num_points() const;
 };
 
 /* Throws std::runtime_error naming the file and what is wrong: not JSON, another format, a ply radius that
  * is not positive and finite, no plies, a ply with fewer than two points or a count not a multiple of three,
- * a non-finite coordinate, more than kMaxPlyPoints points in all. */
+ * a non-finite coordinate, more than kMaxPlyPoints points in all; yarns without a yarn radius larger than the
+ * ply's, an integer plies_per_yarn in [2, 16] and a finite ply twist >= 0, or with bad curves. */
 constexpr size_t kMaxPlyPoints = 50'000'000;
 PlyCurves read_ply_curves(const std::string &path);
 

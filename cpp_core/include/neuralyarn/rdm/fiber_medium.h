@@ -1,0 +1,33 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// What a random walk needs of the fibers it walks through (rdm/gather.h): ray queries that stop at tube
+// entries, the far side a path leaves a fiber from, and the cylinder paths enter and leave through.
+// PlyTracer (one infinite ply, exact, D7) is the gather's own; YarnTracer (rdm/yarn_tracer.h, a finite
+// explicit K-ply yarn in Embree) implements this interface for the yarn level (docs/decisions.md D27).
+#pragma once
+
+#include <cstdint>
+
+#include "neuralyarn/rdm/ply_tracer.h"
+
+namespace neuralyarn::rdm {
+
+class FiberMedium {
+ public:
+  virtual ~FiberMedium() = default;
+  /* Radius of the cylinder about the x axis that paths enter through; nothing lies outside it. */
+  virtual float bound_radius() const = 0;
+  /* The envelope's radius (the unit of the displacement statistics). */
+  virtual float envelope_radius() const = 0;
+  virtual float fiber_radius() const = 0;
+  /* Paths enter at x uniform in [-entry_length / 2, entry_length / 2] (the structure's period along the
+   * axis); 0: on the ring x = 0, for a medium that is invariant along its axis. */
+  virtual double entry_length() const = 0;
+  /* |x| beyond which the medium has no fibers (infinity for an infinite one). */
+  virtual double half_length() const = 0;
+  /* As PlyTracer::trace and PlyTracer::leave_fiber (SlabRay::slab stays 0 for a finite medium). */
+  virtual bool trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const = 0;
+  virtual void leave_fiber(const TubeHit &hit, ny::Vec3 d, SlabRay *ray) const = 0;
+};
+
+}  // namespace neuralyarn::rdm

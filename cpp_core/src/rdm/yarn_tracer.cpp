@@ -1,0 +1,106 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/rdm/yarn_tracer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+
+namespace neuralyarn::rdm {
+
+using ny::Vec3;
+using ny::make_vec3;
+
+YarnTracer::YarnTracer(const geometry::Yarn &yarn, double entry_length, double half_length, bool mirrored,
+                       int segments_per_turn)
+    : R_(float(yarn.yarn_radius())), r_(float(yarn.cross_section(0).r)), entry_(entry_length), half_(half_length)
+{
+  geometry::CurveSet curves = geometry::export_fibers(yarn, -half_length, half_length, segments_per_turn);
+  if (mirrored) {
+    /* Turned by pi about y: (x, y, z) -> (-x, y, -z). */
+    for (Eigen::Vector3f &q : curves.points) {
+      q.x() = -q.x();
+      q.z() = -q.z();
+    }
+  }
+  curves_ = std::make_unique<EmbreePly>(curves, "");
+  /* Tubes reach R exactly at the envelope; a hair more keeps entry points outside every tube. */
+  bound_ = R_ * (1.0f + 1e-4f);
+}
+
+bool YarnTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const
+{
+  const Vec3 o = ray->o, d = ray->d;
+  EmbreeHit h;
+  if (curves_->intersect(o, d, 0.0f, std::numeric_limits<float>::infinity(), &h, exclude, exclude_distance)) {
+    hit->t = h.t;
+    hit->fiber = h.fiber;
+    hit->point = o + d * h.t;
+    /* Embree's normal at a joint of two segments is the joint sphere's: keep the part normal to the tangent. */
+    const Vec3 axis = h.tangent.x >= 0.0f ? h.tangent : -h.tangent;
+    Vec3 n = h.normal - axis * ny::dot(h.normal, axis);
+    const float len = ny::length(n);
+    hit->normal = len > 1e-6f ? n * (1.0f / len) : h.normal;
+    hit->axis = axis;
+    ray->o = hit->point;
+    return true;
+  }
+  /* No fiber: the path leaves. Move it to where it crosses the bounding cylinder (the far root), or, running
+   * along the axis, keep it where it is. */
+  const float a2 = d.y * d.y + d.z * d.z;
+  if (a2 > 0.0f) {
+    const float b = o.y * d.y + o.z * d.z;
+    const float c = o.y * o.y + o.z * o.z - bound_ * bound_;
+    const float disc = std::max(b * b - a2 * c, 0.0f);
+    const float t = std::max((-b + std::sqrt(disc)) / a2, 0.0f);
+    ray->o = o + d * t;
+  }
+  return false;
+}
+
+void YarnTracer::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
+{
+  if (ny::dot(d, hit.normal) < 0.0f) {
+    /* Into the fiber: leave from the far side of its cross-section (as PlyTracer::far_side, D7). */
+    const Vec3 c = hit.point - hit.normal * r_;
+    const Vec3 dp = d - hit.axis * ny::dot(d, hit.axis);
+    const float len = ny::length(dp);
+    ray->o = len > 1e-12f ? c + dp * (r_ / len) : hit.point;
+  }
+  else {
+    ray->o = hit.point;
+  }
+  ray->d = d;
+}
+
+RdmMaps gather_yarn(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &options)
+{
+  if (structure.plies == 1) {
+    throw ParameterError("plies", "a one-ply yarn is its ply: plies and yarns coincide (gather or bake the ply level)");
+  }
+  if (structure.plies < 2 || structure.plies > 16) {
+    throw ParameterError("plies", "plies per yarn must be an integer in [2, 16], got " + std::to_string(structure.plies));
+  }
+  if (!(std::isfinite(structure.ply_twist) && structure.ply_twist >= 0.0 && structure.ply_twist <= 8.0)) {
+    throw ParameterError("ply_twist", "the ply twist must be a finite number in [0, 8]");
+  }
+  validate(preset);
+  validate(options);
+  geometry::YarnParams yp;
+  yp.K = structure.plies;
+  yp.alpha_yarn = structure.ply_twist;
+  yp.ply = geometry::PlyParams{preset.N, preset.rho, preset.alpha, 1.0};
+  const geometry::Yarn yarn(yp, options.packing_seed);
+  const double R = yarn.yarn_radius();
+  /* One pitch of the plies about the axis (a straight yarn: two radii), within [2 R, 24 R]. */
+  const double pitch = structure.ply_twist > 0.0 ? 2.0 * R / structure.ply_twist : 2.0 * R;
+  const double entry = std::clamp(pitch, 2.0 * R, 24.0 * R);
+  const double half = 0.5 * entry + kYarnEndMargin * R;
+  const YarnTracer plain(yarn, entry, half, false), mirror(yarn, entry, half, true);
+  geometry::YarnStructure s = structure;
+  s.surface_alpha = geometry::surface_twist(yarn);
+  return gather_through(preset, s, options, plain, mirror);
+}
+
+}  // namespace neuralyarn::rdm
