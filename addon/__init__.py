@@ -25,7 +25,7 @@ if "bpy" in locals():  # script reload (F8 / Reload Scripts)
 
 import bpy  # noqa: E402
 
-from . import curves_bpy, fallback_nodes, model_io, nodes, operators, resources, scene_setup, ui  # noqa: E402,F401
+from . import curves_bpy, fallback_nodes, level_of_detail, model_io, nodes, operators, resources, scene_setup, ui  # noqa: E402,F401
 
 _MODULES = (nodes, operators, ui)
 

@@ -63,6 +63,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
                    help="auto (the file's Curves objects, else a knit), knit, weave, bcc:FILE, leaf:FILE")
     p.add_argument("--plies", type=int, default=1,
                    help="demo scenes: twist each yarn into this many plies (Twist Plies), 1: one curve per yarn")
+    p.add_argument("--lod", default="auto", choices=("auto", "fibers", "plies", "yarns", "surface"),
+                   help="demo scenes with --plies: the level of detail (auto: from the camera, docs/decisions.md D27); "
+                        "one line 'level of detail: <object>: <level>' per object")
     p.add_argument("--keep-materials", action="store_true",
                    help="only give the material to Curves objects without a Neural Yarn material")
     p.add_argument("--fallback", default="auto", choices=("auto", "osl", "nodes"))
@@ -242,21 +245,46 @@ def run(argv: list[str]) -> str:
         scene.cycles.shading_system = True
     yarns = [o for o in scene.objects if o.type == "CURVES"]
     demo = args.scene != "auto" or not yarns
+    if args.resolution:  # before the level of detail, which depends on it
+        scene.render.resolution_x = args.resolution[0]
+        scene.render.resolution_y = args.resolution[-1]
+        scene.render.resolution_percentage = 100
+    level, framed = "plies", False
     if demo:
         yarns = _demo_geometry("knit" if args.scene == "auto" else args.scene)
         if args.plies > 1:
-            r = bpy.ops.neural_yarn.make_plies(plies=args.plies, preset="KEEP")
-            if "FINISHED" not in r:
-                raise BatchError("--plies: the plies could not be made (see the error above)")
-            yarns = [bpy.context.active_object]
+            ny.scene_setup.frame(scene, yarns)  # the camera the level is chosen for
+            framed = True
+            bpy.context.view_layer.update()  # its matrix_world
+            made = []
+            for obj in yarns:
+                choice = ny.level_of_detail.choose_for_yarns(obj, scene, args.plies, args.lod)
+                px = f" (ply {choice.ply_pixels:.3g} px wide)" if choice.ply_pixels is not None else ""
+                print(f"level of detail: {obj.name}: {choice.level}{px}"
+                      + (f"; warning: {choice.warning}" if choice.warning else ""))
+                level = choice.level
+                if level == "yarns":  # geometry only at the level used: no ply curves
+                    made.append(obj)
+                    continue
+                bpy.context.view_layer.objects.active = obj
+                r = bpy.ops.neural_yarn.make_plies(plies=args.plies, preset="KEEP")
+                if "FINISHED" not in r:
+                    raise BatchError("--plies: the plies could not be made (see the error above)")
+                made.append(bpy.context.active_object)
+            yarns = made
+        else:
+            print(f"level of detail: {', '.join(o.name for o in yarns)}: plies (--plies 1: the curves are plies)")
     if args.model:
         try:
             text = ny.nodes.pack_model_file(args.model)
         except ny.model_io.ModelFileError as e:
             raise BatchError(str(e)) from None
         mat, node = ny.nodes.make_material("Neural Yarn " + os.path.basename(args.model), model_text=text)
+        if ny.nodes.parse_text(text).level != level:
+            raise BatchError(f"--model {args.model} is a {ny.nodes.parse_text(text).level}-level model; "
+                             f"the level of detail is {level}")
     else:
-        mat = ny.operators.preset_material(args.preset)
+        mat = ny.operators.preset_material(args.preset, level)
         node = next(n for n in mat.node_tree.nodes if n.bl_idname == ny.nodes.NODE_IDNAME)
     node.fallback = args.fallback.upper()
     if node.error:
@@ -268,12 +296,8 @@ def run(argv: list[str]) -> str:
             continue
         obj.data.materials.clear()
         obj.data.materials.append(mat)
-    if demo or scene.camera is None:
+    if (demo and not framed) or scene.camera is None:
         ny.scene_setup.frame(scene, yarns)
-    if args.resolution:
-        scene.render.resolution_x = args.resolution[0]
-        scene.render.resolution_y = args.resolution[-1]
-        scene.render.resolution_percentage = 100
     if args.samples:
         scene.cycles.samples = args.samples
         scene.cycles.use_adaptive_sampling = False

@@ -18,7 +18,9 @@ from dataclasses import dataclass
 from . import resources
 
 FORMAT = "neuralyarn-model"
-SUPPORTED_VERSIONS = (2, 3, 4)
+SUPPORTED_VERSIONS = (2, 3, 4, 5)
+#: Version 5: a yarn-level model (layout 4 plus the "structure" it was baked for, docs/decisions.md D27).
+YARN_VERSION = 5
 FALLBACK_VERSION = 2
 FALLBACK_MAX_WEIGHT = 100.0
 PRESETS = ("fleece", "silk", "polyester", "cotton", "gabardine")
@@ -58,7 +60,10 @@ class YarnModel:
     text: str  # the JSON text exactly as read
     data: dict
     preset_name: str
-    alpha: float
+    alpha: float  # the R lobe's surface-fiber twist (the kernel array's): the preset's, or the yarn's surface twist
+    level: str = "plies"  # "plies", or "yarns" for a yarn-level model
+    plies: int = 1  # a yarn-level model's plies per yarn
+    ply_twist: float = 0.0
 
     @property
     def fallback(self) -> FallbackTables:
@@ -213,6 +218,22 @@ def parse_model(text: str, source: str) -> YarnModel:
     alpha = preset.get("alpha")
     if not isinstance(alpha, (int, float)) or not math.isfinite(alpha) or alpha < 0:
         raise _fail(source, f"preset 'alpha' must be a finite number >= 0 (got {alpha!r})")
+    level, plies, ply_twist = "plies", 1, 0.0
+    structure = data.get("structure")
+    if version == YARN_VERSION:
+        if not isinstance(structure, dict) or structure.get("level") != "yarn":
+            raise _fail(source, "a version 5 (yarn-level) model needs 'structure' with \"level\": \"yarn\"")
+        plies, ply_twist, alpha = (structure.get(k) for k in ("plies", "ply_twist", "surface_alpha"))
+        if not (isinstance(plies, int) and not isinstance(plies, bool) and 2 <= plies <= 16):
+            raise _fail(source, f"'structure' 'plies' must be an integer in [2, 16] (got {plies!r})")
+        for key, v in (("ply_twist", ply_twist), ("surface_alpha", alpha)):
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+                raise _fail(source, f"'structure' '{key}' must be a finite number (got {v!r})")
+        if ply_twist < 0:
+            raise _fail(source, f"'structure' 'ply_twist' must be >= 0 (got {ply_twist!r})")
+        level = "yarns"
+    elif structure is not None:
+        raise _fail(source, "'structure' (a yarn-level model) needs format version 5")
     flat = data.get("kernel_flat")
     if not isinstance(flat, list):
         raise _fail(source, "missing 'kernel_flat' (the array the native closure uploads)")
@@ -225,7 +246,11 @@ def parse_model(text: str, source: str) -> YarnModel:
         problem = kernel_flat_problem(flat, 3 if version == 3 else 4)
         if problem:
             raise _fail(source, f"'kernel_flat' {problem}")
-    model = YarnModel(source=source, text=text, data=data, preset_name=preset["name"], alpha=float(alpha))
+    model = YarnModel(source=source, text=text, data=data, preset_name=preset["name"], alpha=float(alpha),
+                      level=level, plies=int(plies), ply_twist=float(ply_twist))
+    if flat and flat[0] == 4.0 and abs(flat[2] - model.alpha) > 1e-6 * max(1.0, abs(model.alpha)):
+        raise _fail(source, "'kernel_flat' twist disagrees with the model's "
+                            + ("surface twist" if level == "yarns" else "preset alpha"))
     model.fallback  # validates the tables now, so a bad file is reported when it is loaded, not at render time
     return model
 

@@ -76,10 +76,11 @@ def pack_model_text(model: model_io.YarnModel, name: str):
     return text
 
 
-def pack_preset(preset: str):
-    """The Text of a shipped preset's model (loaded from the add-on's models/ on first use)."""
-    model = model_io.load_model_file(resources.preset_model_path(preset))
-    return pack_model_text(model, f"NY model {preset}.json")
+def pack_preset(preset: str, level: str = "plies"):
+    """The Text of a shipped preset's model at a level ("plies" or "yarns"), loaded from the add-on's models/
+    on first use."""
+    model = model_io.load_model_file(resources.preset_model_path(preset, level))
+    return pack_model_text(model, f"NY model {preset}{'_yarn' if level == 'yarns' else ''}.json")
 
 
 def pack_model_file(path: str):
@@ -161,7 +162,7 @@ def _eevee_output(node, needed: bool) -> None:
 def _apply_preset(self, context):
     if self.preset != "CUSTOM":
         try:
-            self["model"] = pack_preset(self.preset)  # item access: no nested update
+            self["model"] = pack_preset(self.preset, self.level.lower())  # item access: no nested update
         except (OSError, ValueError) as e:
             self.show_error(str(e))
             return
@@ -182,6 +183,11 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
 
     preset: bpy.props.EnumProperty(name="Preset", items=PRESET_ITEMS, default="fleece", update=_update_preset,
                                    description="The yarn material: a shipped preset, or a model file of your own")
+    level: bpy.props.EnumProperty(
+        name="Level", default="PLIES", update=_update_preset,
+        items=(("PLIES", "Plies", "The curves are plies: the preset's ply model"),
+               ("YARNS", "Yarns", "The curves are whole 3-ply yarns (ply twist 0.5): the preset's yarn-level model")),
+        description="What the material's curves are (level of detail, docs/decisions.md D27)")
     model: bpy.props.PointerProperty(
         name="Model", type=bpy.types.Text, update=_update,
         description="The model file's JSON, packed into the .blend")
@@ -190,7 +196,7 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
         description="Use another fiber twist alpha than the model's (moves the surface fibers' highlight; the "
                     "lobe energies stay the model's)")
     twist: bpy.props.FloatProperty(
-        name="Twist alpha", default=0.24, min=0.0, max=4.0, update=_update,
+        name="Twist alpha", default=0.24, min=-4.0, max=4.0, update=_update,
         description="Fiber twist factor alpha: the surface fibers are tilted by atan(pi alpha) from the ply axis")
     fallback: bpy.props.EnumProperty(name="Fallback", items=FALLBACK_ITEMS, default="AUTO", update=_update,
                                      description="What renders the yarn in stock Blender (a patched Cycles uses the native closure)")
@@ -273,6 +279,8 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
 
     def draw_buttons(self, context, layout):
         layout.prop(self, "preset", text="")
+        if self.preset != "CUSTOM":
+            layout.prop(self, "level", expand=True)
         if self.preset == "CUSTOM":
             row = layout.row(align=True)
             row.prop(self, "model", text="")
@@ -344,8 +352,8 @@ def _save_pre(*_args):
     purge_unused()
 
 
-def make_material(name: str, *, preset: str | None = None, model_text=None):
-    """A material whose surface is one Neural Yarn BSDF node."""
+def make_material(name: str, *, preset: str | None = None, model_text=None, level: str = "plies"):
+    """A material whose surface is one Neural Yarn BSDF node (a preset's model at `level`, plies or yarns)."""
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True
     tree = mat.node_tree
@@ -355,8 +363,12 @@ def make_material(name: str, *, preset: str | None = None, model_text=None):
     if model_text is not None:
         node.preset = "CUSTOM"
         node.model = model_text
-    elif preset is not None and preset != node.preset:
-        node.preset = preset
+    elif preset is not None:
+        node["level"] = 1 if level == "yarns" else 0  # item access: the preset's update below packs it once
+        if preset != node.preset:
+            node.preset = preset
+        elif level == "yarns":
+            _apply_preset(node, bpy.context)
     out = tree.nodes.new("ShaderNodeOutputMaterial")
     out.location = (300.0, 0.0)
     tree.links.new(node.outputs[fallback_nodes.GROUP_OUTPUT], out.inputs["Surface"])

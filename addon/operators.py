@@ -23,17 +23,18 @@ UP_AXES = [("auto", "From File", "The BCC header's up axis"), ("Y", "Y Up", "Fil
 KNIT_SCALE = 0.002
 
 
-def preset_material(preset: str):
-    """A material "Neural Yarn <preset>" whose Neural Yarn nodes all still hold that preset (reused), else a
-    new one: the name alone says nothing once an artist has switched the node to another preset."""
-    name = f"Neural Yarn {preset}"
+def preset_material(preset: str, level: str = "plies"):
+    """A material "Neural Yarn <preset>" ("... yarn" for the yarn level) whose Neural Yarn nodes all still hold
+    that preset and level (reused), else a new one: the name alone says nothing once an artist has switched the
+    node to another preset."""
+    name = f"Neural Yarn {preset}" + (" yarn" if level == "yarns" else "")
     for mat in bpy.data.materials:
         if mat.name != name and not mat.name.startswith(name + "."):
             continue
         ours = [n for n in mat.node_tree.nodes if n.bl_idname == nodes.NODE_IDNAME] if mat.node_tree else []
-        if ours and all(n.preset == preset for n in ours):
+        if ours and all(n.preset == preset and n.level.lower() == level for n in ours):
             return mat
-    mat, _node = nodes.make_material(name, preset=preset)
+    mat, _node = nodes.make_material(name, preset=preset, level=level)
     return mat
 
 

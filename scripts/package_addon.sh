@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds the installable add-on: addon/ plus the five shipped models (models/*.json) and the OSL generator
+# Builds the installable add-on: addon/ plus the shipped models (models/*.json: ply and yarn level) and the OSL generator
 # (osl/), which live at the repository's top level, staged as one package, validated with Blender's own
 # extension tool (what `blender --command extension validate|build` runs) and zipped.
 #
@@ -27,7 +27,7 @@ rm -rf "$STAGE"
 mkdir -p "$STAGE/models" "$STAGE/osl"
 # Sources only: no caches, no test output.
 tar -C "$ROOT/addon" --exclude='__pycache__' --exclude='*.pyc' -cf - . | tar -C "$STAGE" -xf -
-cp "$ROOT"/models/{fleece,silk,polyester,cotton,gabardine}.json "$STAGE/models/"
+cp "$ROOT"/models/{fleece,silk,polyester,cotton,gabardine}{,_yarn}.json "$STAGE/models/"
 cp "$ROOT/osl/generate_osl.py" "$ROOT/osl/neural_yarn_fallback.osl.in" "$ROOT/osl/README.md" "$STAGE/osl/"
 cp "$ROOT/LICENSE" "$STAGE/" 2>/dev/null || true
 

@@ -42,7 +42,7 @@ def fallback_knit(preset: str, fallback: str, samples: int, size: int, path: str
     """The command rendering addon/batch.py's knit of 3-ply yarns with a stock-Blender fallback ("nodes" or
     "osl") to `path`."""
     return [PYTHON, os.path.join(ROOT, "addon", "batch.py"), "--", "--preset", preset, "--scene", "knit", "--plies",
-            "3", "--fallback", fallback, *(["--osl"] if fallback == "osl" else []), "--resolution", str(size),
+            "3", "--lod", "plies", "--fallback", fallback, *(["--osl"] if fallback == "osl" else []), "--resolution", str(size),
             str(size), "--samples", str(samples), "--out", path]
 
 

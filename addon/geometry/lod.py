@@ -1,0 +1,108 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Level of detail: which representation of a yarn object a camera needs (docs/decisions.md D27).
+
+Levels, finest first: `fibers` (explicit fibers, the reference), `plies` (each ply a thick curve with the ply
+model), `yarns` (each K-ply yarn one thick curve with the yarn-level model), `surface` (yarns below a pixel
+as a cloth surface; not built yet: asking for it gives yarns and a warning). The choice is made from the
+projected width of a ply in pixels at the object's nearest visible point, as Cycles' Principled Hair Huang
+switches near/far field from the curve radius against the pixel footprint. The thresholds are the ply widths
+below which the coarser level is as accurate as the finer in the evaluation harness's distance sweep
+(docs/benchmarks.md, "Level of detail"). No bpy here: the Blender side fills a View from the scene camera.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+LEVELS = ("fibers", "plies", "yarns", "surface")
+#: Auto draws yarns where a ply is narrower than this many pixels: between the widths of the harness's distance
+#: sweep where the yarn level's FLIP is within 10 % of the ply level's and where it is not (docs/benchmarks.md,
+#: "Level of detail").
+YARNS_BELOW_PLY_PIXELS = 2.0
+#: Auto draws explicit fibers only where a fiber itself is at least this wide: the ply model is the fibers'
+#: mean look and cannot show single fibers. (The harness's close-ups do not reach fibers this wide, so this is
+#: a judgement, not a measurement: a fiber two pixels wide is seen as a fiber.)
+FIBERS_ABOVE_FIBER_PIXELS = 2.0
+
+
+@dataclass(frozen=True)
+class View:
+    """What the choice needs of a camera: its position and unit viewing direction (world units), "PERSP" with
+    the field of view of the image's larger side (Blender's sensor fit Auto) or "ORTHO" with its ortho scale
+    (the larger side's extent), and the render's size in pixels."""
+
+    position: tuple
+    forward: tuple
+    kind: str
+    fov: float
+    ortho_scale: float
+    width: int
+    height: int
+
+
+@dataclass(frozen=True)
+class LevelChoice:
+    level: str
+    ply_pixels: float | None  # the widest ply's width on screen (None: no usable camera)
+    warning: str | None
+
+
+def ply_pixels(points: np.ndarray, ply_radius: float, view: View) -> float | None:
+    """Width in pixels of a ply of `ply_radius` at the nearest of `points` in front of the camera (None: every
+    point is behind it)."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    fwd = np.asarray(view.forward, dtype=np.float64)
+    fwd = fwd / np.linalg.norm(fwd)
+    depth = (p - np.asarray(view.position, dtype=np.float64)) @ fwd
+    if view.kind == "ORTHO":
+        return 2.0 * ply_radius * max(view.width, view.height) / view.ortho_scale if np.any(depth > 0) else None
+    front = depth[depth > 0.0]
+    if front.size == 0:
+        return None
+    return 2.0 * ply_radius * max(view.width, view.height) / (2.0 * float(front.min()) * math.tan(0.5 * view.fov))
+
+
+def choose_level(points: np.ndarray, ply_radius, view: View | None, *, fiber_radius_ratio: float = 0.03,
+                 requested: str = "auto") -> LevelChoice:
+    """The level for one object: `requested` ("auto" or one of LEVELS) for the curve points `points` (n, 3)
+    whose plies have radius `ply_radius` (a number or one per point; world units). Never raises for a bad
+    camera: no camera, a zero resolution or a camera inside the cloth give plies (the look of fibers at any
+    size) with one warning; an object behind the camera gets yarns; `surface` gives yarns and a warning."""
+    if requested not in ("auto",) + LEVELS:
+        raise ValueError(f"level of detail must be auto or one of {', '.join(LEVELS)}, got {requested!r}")
+    if requested == "surface":
+        return LevelChoice("yarns", None, "the surface level is not built yet: drawing yarns")
+    radii = np.atleast_1d(np.asarray(ply_radius, dtype=np.float64))
+    warning = None
+    if radii.size == 0 or not np.all(np.isfinite(radii)) or np.any(radii <= 0):
+        return LevelChoice("plies" if requested == "auto" else requested, None, "no usable ply radius: drawing plies")
+    if radii.max() > 1.01 * radii.min():
+        warning = f"mixed ply radii ({radii.min():.4g} to {radii.max():.4g}): chosen for the widest"
+    if requested != "auto":
+        return LevelChoice(requested, None, warning)
+    if view is None:
+        return LevelChoice("plies", None, "no scene camera: drawing plies")
+    if view.width <= 0 or view.height <= 0:
+        return LevelChoice("plies", None, f"render resolution {view.width} x {view.height}: drawing plies")
+    bad = (view.kind == "PERSP" and not 0.0 < view.fov < math.pi) or (
+        view.kind == "ORTHO" and not view.ortho_scale > 0.0) or view.kind not in ("PERSP", "ORTHO")
+    if bad:
+        return LevelChoice("plies", None, f"unusable camera ({view.kind}): drawing plies")
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if view.kind == "PERSP":
+        depth = (p - np.asarray(view.position)) @ (np.asarray(view.forward) / np.linalg.norm(view.forward))
+        if np.any(np.abs(depth) < 2.0 * radii.max()) or (np.any(depth > 0) and np.any(depth < 0)):
+            return LevelChoice("plies", None, "the camera is inside the cloth: drawing plies")
+    px = ply_pixels(p, float(radii.max()), view)
+    if px is None:
+        return LevelChoice("yarns", None, "the object is behind the camera: drawing yarns")
+    if px * fiber_radius_ratio >= FIBERS_ABOVE_FIBER_PIXELS:
+        level = "fibers"
+    elif px < YARNS_BELOW_PLY_PIXELS:
+        level = "yarns"
+    else:
+        level = "plies"
+    return LevelChoice(level, px, warning)

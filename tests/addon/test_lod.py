@@ -1,0 +1,73 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Level of detail from a known camera (addon/geometry/lod.py): the ply's width in pixels, the level it gives,
+and a sensible level with one warning for every camera the choice cannot use."""
+import math
+
+import numpy as np
+import pytest
+
+from geometry import lod
+
+FOV = math.radians(40.0)
+
+
+def view(z=-10.0, kind="PERSP", width=640, height=480, fov=FOV, ortho_scale=4.0):
+    return lod.View(position=(0.0, 0.0, z), forward=(0.0, 0.0, 1.0), kind=kind, fov=fov, ortho_scale=ortho_scale,
+                    width=width, height=height)
+
+
+def line(z=0.0, n=5):
+    return np.stack([np.linspace(-1, 1, n), np.zeros(n), np.full(n, z)], axis=1)
+
+
+def test_ply_width_in_pixels_is_the_pinhole_projection():
+    # 640 pixels span 2 d tan(20 deg) at depth d = 10: a ply of radius 0.01 is 0.02 / 7.28 * 640 = 1.76 px.
+    px = lod.ply_pixels(line(), 0.01, view())
+    assert px == pytest.approx(0.02 * 640 / (2 * 10 * math.tan(0.5 * FOV)), rel=1e-12)
+    # The nearest point decides; twice as far is half as wide; orthographic ignores depth.
+    pts = np.vstack([line(0.0), line(10.0)])
+    assert lod.ply_pixels(pts, 0.01, view()) == pytest.approx(px)
+    assert lod.ply_pixels(line(10.0), 0.01, view()) == pytest.approx(px / 2)
+    assert lod.ply_pixels(line(10.0), 0.01, view(kind="ORTHO")) == pytest.approx(0.02 * 640 / 4.0)
+
+
+def test_the_level_follows_the_footprint():
+    r = 0.01
+    near = lod.choose_level(line(-9.9), r, view())   # depth 0.1: 176 px, fibers 5 px wide
+    mid = lod.choose_level(line(-9.0), r, view())    # depth 1: 17.6 px
+    far = lod.choose_level(line(10.0), r, view())    # depth 20: 0.88 px
+    assert (near.level, mid.level, far.level) == ("fibers", "plies", "yarns")
+    assert near.warning is mid.warning is far.warning is None
+    # The threshold itself: a ply exactly YARNS_BELOW_PLY_PIXELS wide stays plies, a hair narrower is yarns.
+    d = 2 * r * 640 / (2 * lod.YARNS_BELOW_PLY_PIXELS * math.tan(0.5 * FOV))
+    assert lod.choose_level(line(-10 + d * 0.999), r, view()).level == "plies"
+    assert lod.choose_level(line(-10 + d * 1.001), r, view()).level == "yarns"
+    # A requested level is kept (no camera needed); surface is not built: yarns, with a warning.
+    assert lod.choose_level(line(), r, None, requested="plies") == lod.LevelChoice("plies", None, None)
+    s = lod.choose_level(line(), r, view(), requested="surface")
+    assert s.level == "yarns" and "surface" in s.warning
+    with pytest.raises(ValueError):
+        lod.choose_level(line(), r, view(), requested="atoms")
+
+
+@pytest.mark.parametrize("camera, pts, expect, words", [
+    (None, line(), "plies", "no scene camera"),
+    (view(width=0), line(), "plies", "resolution"),
+    (view(fov=0.0), line(), "plies", "unusable camera"),
+    (view(kind="ORTHO", ortho_scale=0.0), line(), "plies", "unusable camera"),
+    (view(z=0.0), line(), "plies", "inside the cloth"),                     # the camera on the yarn
+    (view(z=0.0), np.vstack([line(-5.0), line(5.0)]), "plies", "inside"),  # cloth on both sides
+    (view(z=20.0), line(), "yarns", "behind the camera"),
+])
+def test_cameras_it_cannot_use_give_a_level_and_one_warning(camera, pts, expect, words):
+    c = lod.choose_level(pts, 0.01, camera)
+    assert c.level == expect and words in c.warning
+
+
+def test_mixed_radii_choose_for_the_widest_and_say_so():
+    pts = line(10.0)
+    c = lod.choose_level(pts, np.array([0.01, 0.01, 0.05, 0.01, 0.01]), view())
+    assert c.level == "plies" and c.ply_pixels == pytest.approx(lod.ply_pixels(pts, 0.05, view()))
+    assert "mixed ply radii" in c.warning
+    for bad in ([], [0.01, float("nan")], [0.0]):
+        assert lod.choose_level(line(), np.array(bad), view()).level == "plies"
