@@ -279,10 +279,10 @@ def run(argv: list[str]) -> str:
             text = ny.nodes.pack_model_file(args.model)
         except ny.model_io.ModelFileError as e:
             raise BatchError(str(e)) from None
+        model_level = ny.nodes.parse_text(text).level
+        if model_level != level:
+            raise BatchError(f"--model {args.model} is a {model_level}-level model; the level of detail is {level}")
         mat, node = ny.nodes.make_material("Neural Yarn " + os.path.basename(args.model), model_text=text)
-        if ny.nodes.parse_text(text).level != level:
-            raise BatchError(f"--model {args.model} is a {ny.nodes.parse_text(text).level}-level model; "
-                             f"the level of detail is {level}")
     else:
         mat = ny.operators.preset_material(args.preset, level)
         node = next(n for n in mat.node_tree.nodes if n.bl_idname == ny.nodes.NODE_IDNAME)

@@ -6,9 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import lod, ply_center_distance
-
-#: The plying the shipped yarn-level models were baked for (scripts/bake_models.sh NY_LEVEL=yarn).
-YARN_MODEL_PLIES, YARN_MODEL_PLY_TWIST = 3, 0.5
+from .geometry.lod import YARN_MODEL_PLIES, YARN_MODEL_PLY_TWIST
 
 
 def view_of(scene) -> lod.View | None:

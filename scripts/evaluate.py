@@ -78,7 +78,7 @@ import numpy as np
 
 from evaluate_charts import (CLOSEUP_DISTANCE, REFERENCE_METHOD, error_distance_charts, error_time_charts, label,
                              group_of, speed_summary, stem, summary_table)
-from garment import garment_plies, straight_yarn_plies
+from garment import garment_plies, straight_yarn_plies, yarn_radius
 from images import LUMINANCE, display, display_ssim, exposure_of, read_exr, write_exr
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
@@ -707,7 +707,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                     region = (slice(a.height // 4, a.height - a.height // 4), slice(a.width // 4, a.width - a.width // 4))
                     region_name = "central"
                 else:  # the ply's, or the yarn's bounding cylinder
-                    radius = straight_yarn_plies(1.0)["yarn_radius"] if scene == "yarn" else PLY_RADIUS
+                    radius = yarn_radius() if scene == "yarn" else PLY_RADIUS
                     region, region_name = central_region(cam_distance, fov, a.width, a.height, radius), "central"
             except RenderFailed:  # the ply is too thin for a central region: the whole frame
                 region, region_name = (slice(None), slice(None)), "frame"

@@ -60,17 +60,21 @@ def garment_plies(rows: int, stitches: int) -> dict:
             "plies": [wrapped(p) for p in pts], **_yarns([wrapped(y.points / r_ply) for y in yarns])}
 
 
+def yarn_radius() -> float:
+    """The yarns' radius in ply radii (twist_plies fits the plies inside the yarn: R_yarn = R_ply (1 + d / R_ply))."""
+    return 1.0 + geometry.ply_center_distance(PLIES_PER_YARN, 1.0, ALPHA_YARN)
+
+
 def _yarns(centrelines: list[list[float]]) -> dict:
-    """The plies file's yarn keys: the yarns' centrelines and their radius in ply radii (twist_plies fits the
-    plies inside the yarn: R_yarn = R_ply (1 + d / R_ply))."""
+    """The plies file's yarn keys: the yarns' centrelines, radius and plying."""
     return {"yarns": centrelines, "plies_per_yarn": PLIES_PER_YARN, "ply_twist": ALPHA_YARN,
-            "yarn_radius": 1.0 + geometry.ply_center_distance(PLIES_PER_YARN, 1.0, ALPHA_YARN)}
+            "yarn_radius": yarn_radius()}
 
 
 def straight_yarn_plies(length: float) -> dict:
     """One straight yarn of PLIES_PER_YARN plies along x, centred on the origin, `length` ply radii long (ply
     radius 1): the harness's yarn close-up."""
-    r_yarn = _yarns([])["yarn_radius"]
+    r_yarn = yarn_radius()
     n = max(2, int(math.ceil(length / 0.25)) + 1)  # the plies are resampled per turn by twist_plies
     axis = np.stack([np.linspace(-0.5 * length, 0.5 * length, n), np.zeros(n), np.zeros(n)], axis=1)
     yarn = geometry.YarnCurve(axis, np.full(n, r_yarn))

@@ -18,6 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 
 LEVELS = ("fibers", "plies", "yarns", "surface")
+#: The plying (plies per yarn, ply twist) the shipped yarn-level models were baked for (their "structure";
+#: tests/addon/test_lod.py holds the two together).
+YARN_MODEL_PLIES, YARN_MODEL_PLY_TWIST = 3, 0.5
 #: Auto draws yarns where a ply is narrower than this many pixels: between the widths of the harness's distance
 #: sweep where the yarn level's FLIP is within 10 % of the ply level's and where it is not (docs/benchmarks.md,
 #: "Level of detail").
@@ -50,13 +53,17 @@ class LevelChoice:
     warning: str | None
 
 
-def ply_pixels(points: np.ndarray, ply_radius: float, view: View) -> float | None:
-    """Width in pixels of a ply of `ply_radius` at the nearest of `points` in front of the camera (None: every
-    point is behind it)."""
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+def _depths(points: np.ndarray, view: View) -> np.ndarray:
+    """The points' distances in front of the camera along its viewing direction (negative: behind it)."""
     fwd = np.asarray(view.forward, dtype=np.float64)
-    fwd = fwd / np.linalg.norm(fwd)
-    depth = (p - np.asarray(view.position, dtype=np.float64)) @ fwd
+    return (np.asarray(points, dtype=np.float64).reshape(-1, 3) - np.asarray(view.position, dtype=np.float64)) @ (
+        fwd / np.linalg.norm(fwd))
+
+
+def ply_pixels(points: np.ndarray, ply_radius: float, view: View, depth: np.ndarray | None = None) -> float | None:
+    """Width in pixels of a ply of `ply_radius` at the nearest of `points` in front of the camera (None: every
+    point is behind it). `depth`: the points' _depths, if known."""
+    depth = _depths(points, view) if depth is None else depth
     if view.kind == "ORTHO":
         return 2.0 * ply_radius * max(view.width, view.height) / view.ortho_scale if np.any(depth > 0) else None
     front = depth[depth > 0.0]
@@ -91,12 +98,10 @@ def choose_level(points: np.ndarray, ply_radius, view: View | None, *, fiber_rad
         view.kind == "ORTHO" and not view.ortho_scale > 0.0) or view.kind not in ("PERSP", "ORTHO")
     if bad:
         return LevelChoice("plies", None, f"unusable camera ({view.kind}): drawing plies")
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    if view.kind == "PERSP":
-        depth = (p - np.asarray(view.position)) @ (np.asarray(view.forward) / np.linalg.norm(view.forward))
-        if np.any(np.abs(depth) < 2.0 * radii.max()) or (np.any(depth > 0) and np.any(depth < 0)):
-            return LevelChoice("plies", None, "the camera is inside the cloth: drawing plies")
-    px = ply_pixels(p, float(radii.max()), view)
+    depth = _depths(points, view)
+    if view.kind == "PERSP" and (np.any(np.abs(depth) < 2.0 * radii.max()) or (np.any(depth > 0) and np.any(depth < 0))):
+        return LevelChoice("plies", None, "the camera is inside the cloth: drawing plies")
+    px = ply_pixels(points, float(radii.max()), view, depth)
     if px is None:
         return LevelChoice("yarns", None, "the object is behind the camera: drawing yarns")
     if px * fiber_radius_ratio >= FIBERS_ABOVE_FIBER_PIXELS:

@@ -71,3 +71,15 @@ def test_mixed_radii_choose_for_the_widest_and_say_so():
     assert "mixed ply radii" in c.warning
     for bad in ([], [0.01, float("nan")], [0.0]):
         assert lod.choose_level(line(), np.array(bad), view()).level == "plies"
+
+
+def test_the_shipped_yarn_models_are_of_the_plying_the_choice_assumes():
+    import glob
+    import json
+    import os
+    root = os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "models")
+    files = glob.glob(os.path.join(root, "*_yarn.json"))
+    assert len(files) == 5
+    for f in files:
+        s = json.load(open(f))["structure"]
+        assert (s["plies"], s["ply_twist"]) == (lod.YARN_MODEL_PLIES, lod.YARN_MODEL_PLY_TWIST), f

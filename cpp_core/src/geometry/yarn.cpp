@@ -128,7 +128,7 @@ double surface_twist(const Yarn &yarn)
 {
   const YarnParams &p = yarn.params();
   const double R = yarn.yarn_radius();
-  const double pitch = p.K > 1 && p.alpha_yarn > 0.0 ? 2.0 * R / p.alpha_yarn : 2.0 * R;
+  const double length = yarn.sampling_length();
   const int samples = 64;
   const double h = 1e-4 * p.ply.R;
   double sum = 0.0;
@@ -138,12 +138,13 @@ double surface_twist(const Yarn &yarn)
     const double shell = R - 3.0 * cs.r;
     for (int i = 0; i < int(cs.centers.size()); i++) {
       for (int s = 0; s < samples; s++) {
-        const double x = pitch * (s + 0.5) / samples;
+        const double x = length * (s + 0.5) / samples;
         const Eigen::Vector3d q = yarn.fiber_point(k, i, x);
-        const Eigen::Vector3d e_r = Eigen::Vector3d(0.0, q.y(), q.z()) / std::hypot(q.y(), q.z());
-        if (std::hypot(q.y(), q.z()) < shell) {
+        const double rho = std::hypot(q.y(), q.z());
+        if (rho < shell) {
           continue;
         }
+        const Eigen::Vector3d e_r = Eigen::Vector3d(0.0, q.y(), q.z()) / rho;
         const Eigen::Vector3d t = yarn.fiber_point(k, i, x + h) - yarn.fiber_point(k, i, x - h);
         const Eigen::Vector3d e_phi = Eigen::Vector3d::UnitX().cross(e_r);
         sum += t.dot(e_phi) / t.x();

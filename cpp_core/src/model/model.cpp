@@ -245,8 +245,7 @@ json model_to_json(const YarnModel &m)
   j["code_version"] = std::string(kVersion) + "+" + kGitRevision;
   j["preset"] = preset_to_json(m.preset);
   if (m.structure.is_yarn()) {
-    j["structure"] = {{"level", "yarn"}, {"plies", m.structure.plies}, {"ply_twist", m.structure.ply_twist},
-                      {"surface_alpha", m.structure.surface_alpha}};
+    j["structure"] = geometry::structure_to_json(m.structure);
   }
   j["networks"] = {{"T", network_to_json(m.T)}, {"R", network_to_json(m.R)}, {"M", network_to_json(m.M)}};
   j["sampling"] = {{"kappa_R", m.proxy.kappa_R},
@@ -298,24 +297,13 @@ YarnModel model_from_json(const json &j, const std::string &source)
   catch (const std::exception &e) {
     throw ModelError(where + "preset: " + e.what());
   }
-  m.structure.surface_alpha = m.preset.alpha;
   if (j["version"].get<int>() == kModelFormatVersionYarn) {
-    const json s = j.value("structure", json());
-    auto number = [&](const char *key) {
-      if (!s.is_object() || !s.contains(key) || !s[key].is_number() || !std::isfinite(s[key].get<double>())) {
-        throw ModelError(where + "a version 5 (yarn-level) model needs 'structure' with a finite '" + key + "'");
-      }
-      return s[key].get<double>();
-    };
-    const double plies = number("plies");
-    m.structure.ply_twist = number("ply_twist");
-    m.structure.surface_alpha = number("surface_alpha");
-    if (s.value("level", "") != "yarn" || plies != std::floor(plies) || plies < 2 || plies > 16 ||
-        m.structure.ply_twist < 0.0 || std::abs(m.structure.surface_alpha) > 100.0) {
-      throw ModelError(where + "'structure' must be {\"level\": \"yarn\", \"plies\": 2 to 16, \"ply_twist\" >= 0, "
-                               "\"surface_alpha\"}");
+    try {
+      m.structure = geometry::structure_from_json(j.value("structure", json()));
     }
-    m.structure.plies = int(plies);
+    catch (const ParameterError &e) {
+      throw ModelError(where + "a version 5 (yarn-level) model: " + e.what());
+    }
   }
   else if (j.contains("structure")) {
     throw ModelError(where + "'structure' (a yarn-level model) needs format version 5");

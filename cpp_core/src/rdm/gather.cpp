@@ -734,9 +734,7 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
   Geometry geo;
   geo.ply[0] = &plain;
   geo.ply[1] = &mirror;
-  geometry::YarnStructure structure;
-  structure.surface_alpha = preset.alpha;
-  return gather_in(preset, structure, opt, geo, t_start);
+  return gather_in(preset, geometry::YarnStructure{}, opt, geo, t_start);
 }
 
 RdmMaps gather_through(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &opt,

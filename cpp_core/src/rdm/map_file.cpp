@@ -170,8 +170,7 @@ void save_maps(const RdmMaps &maps, const std::string &path)
       {"exit_energy", "mean exit throughput per path of the incident bin (T + R + M)"},
       {"absorbed", "mean expected absorbed energy per path of the incident bin"}};
   if (maps.structure.is_yarn()) {
-    h["structure"] = {{"level", "yarn"}, {"plies", maps.structure.plies}, {"ply_twist", maps.structure.ply_twist},
-                      {"surface_alpha", maps.structure.surface_alpha}};
+    h["structure"] = geometry::structure_to_json(maps.structure);
   }
   h["summary"] = stats_json(maps.stats);
   h["arrays"] = pl.arrays;
@@ -244,16 +243,8 @@ RdmMaps load_maps(const std::string &path)
       fail(path, "invalid bin counts in header");
     }
     maps.preset = preset_from_json(h.at("preset"), "map");
-    maps.structure.surface_alpha = maps.preset.alpha;
     if (version == kMapFileVersionYarn) {
-      const json &st = h.at("structure");
-      maps.structure.plies = st.at("plies").get<int>();
-      maps.structure.ply_twist = st.at("ply_twist").get<double>();
-      maps.structure.surface_alpha = st.at("surface_alpha").get<double>();
-      if (st.at("level").get<std::string>() != "yarn" || maps.structure.plies < 2 ||
-          !std::isfinite(maps.structure.ply_twist) || !std::isfinite(maps.structure.surface_alpha)) {
-        fail(path, "invalid yarn structure in header");
-      }
+      maps.structure = geometry::structure_from_json(h.at("structure"));
     }
     else if (h.contains("structure")) {
       fail(path, "a version 1 file with a yarn structure (version 2 holds yarns)");

@@ -199,13 +199,7 @@ float PlyTracer::intersect_tube(const Tube &f, Vec3 o, Vec3 d) const
 Vec3 PlyTracer::far_side(int fiber, Vec3 p, Vec3 d) const
 {
   const Tube &f = fibers_[size_t(fiber)];
-  const Vec3 c = f.a + f.axis * ny::dot(p - f.a, f.axis);
-  Vec3 dp = d - f.axis * ny::dot(d, f.axis);
-  const float len = ny::length(dp);
-  if (!(len > 1e-12f)) {
-    return p; /* d along the axis: no side to leave from; stay where the path is */
-  }
-  return c + dp * (r_ / len);
+  return fiber_far_side(f.a + f.axis * ny::dot(p - f.a, f.axis), f.axis, r_, p, d);
 }
 
 void PlyTracer::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
@@ -220,21 +214,7 @@ bool PlyTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit
   float travelled = 0.0f;
   /* Leaving the bounding cylinder (the origin is inside or on it): the far root. Slab crossings rotate the
    * ray about the axis, which keeps its distance to the cylinder: computed once, counted down. */
-  float t_cyl = kInf;
-  {
-    const Vec3 o = ray->o, d = ray->d;
-    const float a2 = d.y * d.y + d.z * d.z;
-    if (a2 > 0.0f) {
-      const float b = o.y * d.y + o.z * d.z;
-      const float c = o.y * o.y + o.z * o.z - bound_ * bound_;
-      const float disc = std::max(b * b - a2 * c, 0.0f);
-      const float q = -b + std::copysign(std::sqrt(disc), -b);
-      /* roots q / a2 and c / q; the far one is the larger. */
-      const float t1 = q / a2;
-      const float t2 = (q != 0.0f) ? c / q : 0.0f;
-      t_cyl = std::max(std::max(t1, t2), 0.0f);
-    }
-  }
+  float t_cyl = cylinder_exit(ray->o, ray->d, bound_);
   for (;;) {
     const Vec3 o = ray->o;
     const Vec3 d = ray->d;

@@ -46,14 +46,10 @@ bool YarnTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHi
     ray->o = hit->point;
     return true;
   }
-  /* No fiber: the path leaves. Move it to where it crosses the bounding cylinder (the far root), or, running
-   * along the axis, keep it where it is. */
-  const float a2 = d.y * d.y + d.z * d.z;
-  if (a2 > 0.0f) {
-    const float b = o.y * d.y + o.z * d.z;
-    const float c = o.y * o.y + o.z * o.z - bound_ * bound_;
-    const float disc = std::max(b * b - a2 * c, 0.0f);
-    const float t = std::max((-b + std::sqrt(disc)) / a2, 0.0f);
+  /* No fiber: the path leaves. Move it to where it crosses the bounding cylinder, or, running along the
+   * axis, keep it where it is. */
+  const float t = cylinder_exit(o, d, bound_);
+  if (std::isfinite(t)) {
     ray->o = o + d * t;
   }
   return false;
@@ -61,16 +57,9 @@ bool YarnTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHi
 
 void YarnTracer::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
 {
-  if (ny::dot(d, hit.normal) < 0.0f) {
-    /* Into the fiber: leave from the far side of its cross-section (as PlyTracer::far_side, D7). */
-    const Vec3 c = hit.point - hit.normal * r_;
-    const Vec3 dp = d - hit.axis * ny::dot(d, hit.axis);
-    const float len = ny::length(dp);
-    ray->o = len > 1e-12f ? c + dp * (r_ / len) : hit.point;
-  }
-  else {
-    ray->o = hit.point;
-  }
+  /* Into the fiber: leave from the far side of its cross-section (D7). */
+  ray->o = ny::dot(d, hit.normal) < 0.0f ? fiber_far_side(hit.point - hit.normal * r_, hit.axis, r_, hit.point, d)
+                                         : hit.point;
   ray->d = d;
 }
 
@@ -79,12 +68,7 @@ RdmMaps gather_yarn(const FiberPreset &preset, const geometry::YarnStructure &st
   if (structure.plies == 1) {
     throw ParameterError("plies", "a one-ply yarn is its ply: plies and yarns coincide (gather or bake the ply level)");
   }
-  if (structure.plies < 2 || structure.plies > 16) {
-    throw ParameterError("plies", "plies per yarn must be an integer in [2, 16], got " + std::to_string(structure.plies));
-  }
-  if (!(std::isfinite(structure.ply_twist) && structure.ply_twist >= 0.0 && structure.ply_twist <= 8.0)) {
-    throw ParameterError("ply_twist", "the ply twist must be a finite number in [0, 8]");
-  }
+  geometry::validate(structure);
   validate(preset);
   validate(options);
   geometry::YarnParams yp;
@@ -93,9 +77,7 @@ RdmMaps gather_yarn(const FiberPreset &preset, const geometry::YarnStructure &st
   yp.ply = geometry::PlyParams{preset.N, preset.rho, preset.alpha, 1.0};
   const geometry::Yarn yarn(yp, options.packing_seed);
   const double R = yarn.yarn_radius();
-  /* One pitch of the plies about the axis (a straight yarn: two radii), within [2 R, 24 R]. */
-  const double pitch = structure.ply_twist > 0.0 ? 2.0 * R / structure.ply_twist : 2.0 * R;
-  const double entry = std::clamp(pitch, 2.0 * R, 24.0 * R);
+  const double entry = std::clamp(yarn.sampling_length(), 2.0 * R, 24.0 * R);
   const double half = 0.5 * entry + kYarnEndMargin * R;
   const YarnTracer plain(yarn, entry, half, false), mirror(yarn, entry, half, true);
   geometry::YarnStructure s = structure;

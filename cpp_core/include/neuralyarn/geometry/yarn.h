@@ -25,6 +25,8 @@
 #include <Eigen/Core>
 
 #include "neuralyarn/geometry/ply.h"
+#include "neuralyarn/geometry/yarn_structure.h"
+#include "neuralyarn/units.h"
 
 namespace neuralyarn::geometry {
 
@@ -46,6 +48,9 @@ class Yarn {
   /* Distance of the ply centerlines from the yarn axis. */
   double ply_distance() const { return d_; }
   double yarn_radius() const { return d_ + params_.ply.R; }
+  /* The length over which the yarn's structure is sampled (surface_twist, the yarn level's entry region): one
+   * pitch of the plies about the axis, 2 R_yarn / alpha_yarn, or two yarn radii where they do not turn. */
+  double sampling_length() const { return w_ > 0.0 ? 2.0 * kPi / w_ : 2.0 * yarn_radius(); }
 
   Eigen::Vector3d ply_center(int ply, double x) const;
   Eigen::Vector3d ply_tangent(int ply, double x) const;
@@ -56,18 +61,6 @@ class Yarn {
   std::vector<PlyCrossSection> sections_;
   double d_ = 0.0, w_ = 0.0, arc_per_x_ = 1.0;
   double fiber_rate_ = 0.0; /* d psi / ds = pi alpha_ply / R_ply + tau */
-};
-
-/* The level a set of maps or a model describes (docs/decisions.md D27): plies = 1 is one ply of the preset
- * (the ply level), plies > 1 a yarn of that many plies at ply twist alpha_yarn = ply_twist, rendered as one
- * thick curve of the yarn's radius. surface_alpha is the twist the aggregated BSDF's R lobe turns its
- * surface-fiber frame by (kernel/frames.h atan(pi alpha)): the preset's alpha for a ply, the yarn's
- * surface_twist() for a yarn (negative where the S-twisted plies more than undo the fibers' Z twist). */
-struct YarnStructure {
-  int plies = 1;
-  double ply_twist = 0.0;
-  double surface_alpha = 0.0;
-  bool is_yarn() const { return plies > 1; }
 };
 
 /* The surface fibers' twist of a yarn as a twist factor: the mean over the outermost fibers (centres

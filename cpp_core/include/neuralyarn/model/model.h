@@ -13,7 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "neuralyarn/geometry/yarn.h"
+#include "neuralyarn/geometry/yarn_structure.h"
 #include "neuralyarn/model/fallback.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/train/mlp.h"

@@ -26,7 +26,7 @@
 #include <string>
 #include <vector>
 
-#include "neuralyarn/geometry/yarn.h"
+#include "neuralyarn/geometry/yarn_structure.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/rdm/ply_tracer.h"
 
@@ -120,8 +120,6 @@ struct RdmMaps {
 RdmMaps gather(const FiberPreset &preset, const GatherOptions &options);
 
 class FiberMedium;
-/* Margin of the yarn level's explicit yarn beyond the entry region, in yarn radii (rdm/yarn_tracer.h). */
-constexpr double kYarnEndMargin = 16.0;
 
 /* The same random walks through any medium and its mirror image (rdm/fiber_medium.h), recorded as maps of
  * `structure` (the yarn level's gather_yarn calls it). */

@@ -26,7 +26,10 @@
 // after it leaves, so that the kink between two chords never produces a spurious second event.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "neuralyarn/geometry/ply.h"
@@ -53,6 +56,34 @@ struct TubeHit {
   ny::Vec3 normal;  /* outward tube normal at the hit                     */
   ny::Vec3 axis;    /* unit chord direction (the fiber tangent, +x-ward)  */
 };
+
+/* Distance from o (inside the cylinder y^2 + z^2 = radius^2 about the x axis, or on it) along unit d to where
+ * the ray leaves it: the far root, in a cancellation-free form; infinity for a ray along the axis. */
+inline float cylinder_exit(ny::Vec3 o, ny::Vec3 d, float radius)
+{
+  const float a2 = d.y * d.y + d.z * d.z;
+  if (!(a2 > 0.0f)) {
+    return std::numeric_limits<float>::infinity();
+  }
+  const float b = o.y * d.y + o.z * d.z;
+  const float c = o.y * o.y + o.z * o.z - radius * radius;
+  const float disc = std::max(b * b - a2 * c, 0.0f);
+  const float q = -b + std::copysign(std::sqrt(disc), -b);
+  /* roots q / a2 and c / q; the far one is the larger. */
+  const float t1 = q / a2;
+  const float t2 = (q != 0.0f) ? c / q : 0.0f;
+  return std::max(std::max(t1, t2), 0.0f);
+}
+
+/* The far side of a fiber of radius r (unit axis, c on its centre line in p's cross-section) that a path at p
+ * scattered into, direction d: c + r d_perp / |d_perp| (PlyTracer::far_side, D7); p itself when d runs
+ * along the axis (no side to leave from). */
+inline ny::Vec3 fiber_far_side(ny::Vec3 c, ny::Vec3 axis, float r, ny::Vec3 p, ny::Vec3 d)
+{
+  const ny::Vec3 dp = d - axis * ny::dot(d, axis);
+  const float len = ny::length(dp);
+  return len > 1e-12f ? c + dp * (r / len) : p;
+}
 
 class PlyTracer {
  public:

@@ -17,6 +17,9 @@
 
 namespace neuralyarn::rdm {
 
+/* Margin of the explicit yarn beyond the entry region, in yarn radii. */
+constexpr double kYarnEndMargin = 16.0;
+
 class YarnTracer final : public FiberMedium {
  public:
   /* The yarn's fibers over |x| <= half_length; `mirrored`: the yarn turned by pi about the y axis (the
