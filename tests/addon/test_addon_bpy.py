@@ -761,13 +761,16 @@ def test_frame_for_render_renders_with_this_blenders_defaults(bpy, addon, empty,
 
 
 def test_batch_plies_twists_the_demo_yarns(bpy, addon, empty, tmp_path):
-    """--plies 3: the knit demo's yarns become 3 plies each (the main job's knit, scripts/showcase.py)."""
+    """--plies 3: the knit demo's yarns become 3 plies each (the main job's knit, scripts/showcase.py).
+
+    At 32 px the Auto level of detail would render yarns (no ply curves), so the ply level is asked for."""
     import importlib
     batch = importlib.import_module("neural_yarn.batch")
     out = tmp_path / "knit.png"
-    batch.run(["--scene", "knit", "--out", str(out), "--resolution", "32", "--samples", "1"])
+    common = ["--out", str(out), "--resolution", "32", "--samples", "1", "--lod", "plies"]
+    batch.run(["--scene", "knit", *common])
     single = len(bpy.context.active_object.data.curves)
-    batch.run(["--scene", "knit", "--plies", "3", "--out", str(out), "--resolution", "32", "--samples", "1"])
+    batch.run(["--scene", "knit", "--plies", "3", *common])
     plied = bpy.context.active_object
     assert len(plied.data.curves) == 3 * single
     assert plied.active_material is not None and plied.active_material.name.startswith("Neural Yarn fleece")
