@@ -15,8 +15,10 @@ central region (evaluate.py's):
 Columns (Rec. 709 luminance, relative): fitting = model / maps - 1 (maps noise: A / B - 1), aggregation =
 reference / maps - 1 (reference noise: B / A - 1), total = native / reference - 1, and integration = native /
 model - 1 (Cycles against the prediction of what it renders: ~0 unless the closure's integration is wrong).
-The worst channel of fitting and aggregation is printed next to each. A benchmark: prints a table, writes
-JSON; never a test.
+The worst channel of fitting and aggregation is printed next to each. With --rows, the same per image row of
+the region too, with each row's share of the reference's light (where in the ply an error sits: the rows next
+to the silhouette, where the camera ray grazes the ply, or the inner ones); one prediction call per row.
+A benchmark: prints a table, writes JSON; never a test.
 """
 from __future__ import annotations
 
@@ -67,11 +69,38 @@ def worst(a, b) -> float:
     return float(r[np.nanargmax(np.abs(r))])
 
 
+def split_rows(a, res: dict, size, region, preset: str, light: str, refs: dict) -> list[dict]:
+    """Fitting and aggregation per image row of the region, with the row's share of reference A's light."""
+    rows, cols = region
+    maps = [os.path.join(a.maps, f"{preset}_{w}.nyrdm") for w in "AB"]
+    ref = refs[(preset, light)]
+    ref_a = read_exr(os.path.join(a.eval, ref["image_A"]))[..., :3]
+    ref_b = read_exr(os.path.join(a.eval, ref["image_B"]))[..., :3]
+    total = float(ref_a[rows, cols].mean(axis=(0, 1)) @ LUMINANCE) * (rows.stop - rows.start)
+    print(f"\n{preset}, {light}: per row\n\n| row | share of the light % | fitting % | maps A/B % | aggregation % "
+          "| ref B/A % |\n|---|---|---|---|---|---|")
+    out = []
+    for y in range(rows.start, rows.stop):
+        p = predict(preset, [light], size, (slice(y, y + 1), cols), maps, res.get("yarns", {}))
+        maps_mean = 0.5 * (p[(light, "maps_A")] + p[(light, "maps_B")])
+        ra, rb = ref_a[y, cols].mean(axis=0), ref_b[y, cols].mean(axis=0)
+        r = {"row": y, "share": float(ra @ LUMINANCE) / total, "fitting": rel(p[(light, "model")], maps_mean),
+             "maps_noise": rel(p[(light, "maps_A")], p[(light, "maps_B")]), "aggregation": rel(ra, maps_mean),
+             "reference_noise": rel(rb, ra)}
+        out.append(r)
+        print(f"| {y} | {100 * r['share']:.1f} | {100 * r['fitting']:+.1f} | {100 * r['maps_noise']:+.1f} | "
+              f"{100 * r['aggregation']:+.1f} | {100 * r['reference_noise']:+.1f} |", flush=True)
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--eval", required=True, help="output directory of scripts/evaluate.sh (results.json)")
     ap.add_argument("--maps", required=True, help="directory with <preset>_A.nyrdm and <preset>_B.nyrdm")
     ap.add_argument("--json", help="write the rows here too")
+    ap.add_argument("--rows", action="store_true", help="also split every image row of the region")
+    ap.add_argument("--presets", nargs="+", help="only these presets of the run")
+    ap.add_argument("--lights", nargs="+", help="only these lights of the run")
     a = ap.parse_args()
     with open(os.path.join(a.eval, "results.json")) as f:
         res = json.load(f)
@@ -86,7 +115,8 @@ def main() -> int:
     print("| preset | light | fitting % (worst ch.) | maps A/B % | aggregation % (worst ch.) | ref B/A % | "
           "total % | integration % |")
     print("|---|---|---|---|---|---|---|---|")
-    cells = [(preset, light) for preset, light in refs if light in PREDICTED and (preset, light) in natives]
+    cells = [(preset, light) for preset, light in refs if light in PREDICTED and (preset, light) in natives
+             and (not a.presets or preset in a.presets) and (not a.lights or light in a.lights)]
     predicted = {}
     for preset in dict.fromkeys(p for p, _ in cells):
         maps = [os.path.join(a.maps, f"{preset}_{w}.nyrdm") for w in "AB"]
@@ -110,6 +140,9 @@ def main() -> int:
               f"{100 * row['maps_noise']:+.1f} | {100 * row['aggregation']:+.1f} "
               f"({100 * row['aggregation_worst_channel']:+.0f}) | {100 * row['reference_noise']:+.1f} | "
               f"{100 * row['total']:+.1f} | {100 * row['integration']:+.1f} |", flush=True)
+    if a.rows:
+        for row in rows:
+            row["per_row"] = split_rows(a, res, size, region, row["preset"], row["light"], refs)
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"command": ["scripts/bench_split.py", *sys.argv[1:]], "eval": res["command"],

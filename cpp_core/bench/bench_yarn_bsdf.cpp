@@ -81,6 +81,34 @@ void BM_yarn_pdf(benchmark::State &state, const char *preset)
   }
 }
 
+/* The per-w_i part alone (what a renderer can compute once per shading point) and the rest given it. */
+void BM_yarn_lobes(benchmark::State &state, const char *preset)
+{
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat(preset).data());
+  const Inputs &in = inputs();
+  int i = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(ny::yarn_lobes(p, in.wi[i]));
+    i = (i + 1) & (kPairs - 1);
+  }
+}
+
+void BM_yarn_eval_and_pdf_given_lobes(benchmark::State &state, const char *preset)
+{
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat(preset).data());
+  const Inputs &in = inputs();
+  std::vector<ny::YarnLobes> lobes;
+  for (const ny::Vec3 &wi : in.wi) {
+    lobes.push_back(ny::yarn_lobes(p, wi));
+  }
+  int i = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(ny::yarn_eval_lobes(p, lobes[size_t(i)], in.wo[i]));
+    benchmark::DoNotOptimize(ny::yarn_pdf_lobes(p, lobes[size_t(i)], in.wo[i]));
+    i = (i + 1) & (kPairs - 1);
+  }
+}
+
 void BM_yarn_sample(benchmark::State &state, const char *preset)
 {
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat(preset).data());
@@ -99,8 +127,12 @@ void BM_yarn_sample(benchmark::State &state, const char *preset)
 
 BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf, fleece, "fleece");
 BENCHMARK_CAPTURE(BM_yarn_pdf, fleece, "fleece");
+BENCHMARK_CAPTURE(BM_yarn_lobes, fleece, "fleece");
+BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf_given_lobes, fleece, "fleece");
 BENCHMARK_CAPTURE(BM_yarn_sample, fleece, "fleece");
 BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf, cotton, "cotton");
+BENCHMARK_CAPTURE(BM_yarn_lobes, cotton, "cotton");
+BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf_given_lobes, cotton, "cotton");
 BENCHMARK_CAPTURE(BM_yarn_sample, cotton, "cotton");
 BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf, gabardine, "gabardine");  // M 6-32-32-3 (D22)
 BENCHMARK_CAPTURE(BM_yarn_sample, gabardine, "gabardine");

@@ -274,7 +274,10 @@ NY_KERNEL_FN void yarn_calibration(const YarnBsdfParams &p, Vec3 wi, float *dP_T
   *c_M = make_rgb(c[4], c[5], c[6]);
 }
 
-/* Everything that depends on w_i only. */
+/* Everything that depends on w_i only: most of an eval's cost (two networks, the calibration, the
+ * longitudinal normalisers; docs/benchmarks.md). A renderer computes it once per shading point
+ * (yarn_lobes(p, w_i)) and passes it to yarn_eval_lobes(), yarn_pdf_lobes() and yarn_sample_lobes() for every
+ * w_o there; yarn_eval(), yarn_pdf() and yarn_sample() recompute it per call. */
 struct YarnLobes {
   bool valid;     /* w_i strictly above the surface; otherwise the BSDF is zero */
   Vec3 wi;        /* yarn frame            */
@@ -538,25 +541,25 @@ struct YarnSample {
   bool delta;   /* the T lobe was chosen: wo = -wi exactly */
 };
 
-/* Draws w_o with three uniform numbers in [0, 1). With include_T = false the T lobe is never chosen (a
- * renderer that adds T as its own transparent closure); the weight of a non-delta sample is then
- * eval / pdf, and with include_T = true it is eval / ((1 - p_T) pdf), the mixture's weight. Returns false
- * when w_i is not above the surface or nothing is scattered. */
-NY_KERNEL_FN bool yarn_sample(const YarnBsdfParams &p, Vec3 wi, float u_lobe, float u1, float u2, bool include_T,
-                              YarnSample *s)
+/* Draws w_o with three uniform numbers in [0, 1), given the lobes of w_i (yarn_lobes() with the eval
+ * normaliser). With include_T = false the T lobe is never chosen (a renderer that adds T as its own
+ * transparent closure); the weight of a non-delta sample is then eval / pdf, and with include_T = true it is
+ * eval / ((1 - p_T) pdf), the mixture's weight. Returns false when w_i is not above the surface or nothing is
+ * scattered. */
+NY_KERNEL_FN bool yarn_sample_lobes(const YarnBsdfParams &p, const YarnLobes &l, float u_lobe, float u1, float u2,
+                                    bool include_T, YarnSample *s)
 {
   s->wo = make_vec3(0.0f, 0.0f, 1.0f);
   s->weight = make_rgb(0.0f);
   s->pdf = 0.0f;
   s->delta = false;
-  const YarnLobes l = yarn_lobes(p, wi);
   if (!l.valid) {
     return false;
   }
   float u = u_lobe;
   if (include_T) {
     if (u < l.p_T) {
-      s->wo = -wi;
+      s->wo = -l.wi;
       s->weight = make_rgb(1.0f);
       s->pdf = l.p_T;
       s->delta = true;
@@ -600,6 +603,12 @@ NY_KERNEL_FN bool yarn_sample(const YarnBsdfParams &p, Vec3 wi, float u_lobe, fl
   s->pdf = pdf;
   s->weight = f * (1.0f / (include_T ? (1.0f - l.p_T) * pdf : pdf));
   return true;
+}
+
+NY_KERNEL_FN bool yarn_sample(const YarnBsdfParams &p, Vec3 wi, float u_lobe, float u1, float u2, bool include_T,
+                              YarnSample *s)
+{
+  return yarn_sample_lobes(p, yarn_lobes(p, wi), u_lobe, u1, u2, include_T, s);
 }
 
 /* A closure-weight estimate of the albedo: P_T + the R lobe's exact energy + the mean M albedo. */
