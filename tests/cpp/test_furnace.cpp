@@ -52,21 +52,93 @@ std::vector<std::string> furnace_models()
 
 }  // namespace
 
-TEST(Furnace, NoModelScattersMoreThanItReceives)
+/* The largest furnace value of every model at sub x sub directions inside every incident bin of the paper's
+ * maps (sub = 1: the bin centres) is at most 1 + 1 %. */
+static void expect_no_gain(int sub, const char *where)
 {
-  /* At the incident bin centres of the paper's maps, where the calibration bounds P_T + E_R + E_M. (Between
-   * centres cotton and gabardine still exceed it by up to 4.7 %: docs/benchmarks.md, "Stability".) */
-  const std::vector<ny::Vec3> dirs = model::furnace_directions({22, 90, 45, 90}, 1, false);
+  const std::vector<ny::Vec3> dirs = model::furnace_directions({22, 90, 45, 90}, sub, false);
   for (const std::string &path : furnace_models()) {
     const model::YarnModel m = model::load_model(path);
     const std::vector<float> flat = m.kernel_flat();
     const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
     const model::FurnaceMax worst = model::white_furnace_max(p, dirs);
     ASSERT_TRUE(std::isfinite(worst.value)) << path;
-    std::printf("%s: largest white-furnace value %.4f (bin centre %d of %zu)\n", path.c_str(), worst.value,
-                worst.index, dirs.size());
-    EXPECT_LE(worst.value, 1.01) << path;
+    std::printf("%s: %s, largest white-furnace value %.4f (theta_i %.2f deg)\n", path.c_str(), where, worst.value,
+                std::acos(double(worst.wi.z)) / kDeg);
+    EXPECT_LE(worst.value, 1.01) << path << " " << where;
   }
+}
+
+TEST(Furnace, NoModelScattersMoreThanItReceives)
+{
+  /* Where the calibration was computed and bounds P_T + E_R + E_M. */
+  expect_no_gain(1, "at the bin centres");
+}
+
+/* Between the centres the table is bilinear while the networks (P_T above all) vary inside a cell; there
+ * cotton scattered up to 4.7 % more than it received (1.0467 at theta_i 86.6 deg) and gabardine 3.9 % until
+ * every bake bounded its table between the centres (D28). Checked at 2 x 2 directions inside every bin --
+ * none of them where the bound evaluates the furnace. */
+TEST(Furnace, NoGainBetweenCalibrationCentres)
+{
+  expect_no_gain(2, "between the centres");
+}
+
+/* bound_between_centres on a coarse table (6 x 8 nodes) of cotton's networks, with one node's c_M inflated
+ * 3x: afterwards no direction it evaluates scatters more than it receives, a second pass changes nothing,
+ * nodes that share no cell with the lowered ones keep their values, dP_T is never touched, and the table
+ * is the same at 1 and 2 threads. */
+TEST(Furnace, BoundBetweenCentresCapsEveryCellAndOnlyWhatItMust)
+{
+  if (std::getenv("NY_FURNACE_ONLY_LISTED")) {
+    GTEST_SKIP() << "a property of the bound, not of the listed models";
+  }
+  model::YarnModel m = model::load_model(model::builtin_model_path("cotton"));
+  constexpr int nt = 6, np = 8, sub = 3;
+  m.calibration = model::EnergyCalibration{};
+  m.calibration.theta_bins = nt;
+  m.calibration.phi_bins = np;
+  m.calibration.values.assign(size_t(nt * np * ny::kYarnCalStride), 1.0f);
+  for (int k = 0; k < nt * np; k++) {
+    m.calibration.values[size_t(k * ny::kYarnCalStride)] = 0.01f * float(k % 5); /* dP_T, to be left alone */
+  }
+  model::bound_between_centres(&m, sub, 1);
+  const model::EnergyCalibration before = m.calibration;
+  const int hot_t = 3, hot_p = 5, hot = hot_t * np + hot_p;
+  for (int ch = 0; ch < 3; ch++) {
+    m.calibration.values[size_t(hot * ny::kYarnCalStride + 4 + ch)] *= 3.0f;
+  }
+  model::YarnModel m2 = m;
+  const model::CentreBound b = model::bound_between_centres(&m, sub, 1);
+  model::bound_between_centres(&m2, sub, 2);
+  EXPECT_EQ(m.calibration.values, m2.calibration.values) << "the table depends on the thread count";
+  std::printf("inflated node: %d nodes lowered, smallest factor %.4f\n", b.nodes, b.smallest);
+  ASSERT_GE(b.nodes, 1);
+  EXPECT_LT(b.smallest, 0.75); /* 3x more M than a bounded table held cannot fit without cutting it */
+
+  const std::vector<float> flat = m.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  const model::FurnaceMax worst = model::white_furnace_max(p, model::centre_cell_directions(nt, np, sub));
+  EXPECT_LE(worst.value, 1.0 + 2e-5) << "theta_i " << std::acos(double(worst.wi.z)) / kDeg;
+  EXPECT_EQ(model::bound_between_centres(&m, sub, 1).nodes, 0) << "a bounded table is bounded";
+
+  for (int t = 0; t < nt; t++) {
+    for (int q = 0; q < np; q++) {
+      const int k = t * np + q;
+      const float *now = &m.calibration.values[size_t(k * ny::kYarnCalStride)];
+      const float *was = &before.values[size_t(k * ny::kYarnCalStride)];
+      EXPECT_EQ(now[0], was[0]) << "dP_T of node " << k;
+      /* Lowered: the inflated node and those that share a cell with it; every other node keeps its value. */
+      const int dq = std::min((q - hot_p + np) % np, (hot_p - q + np) % np);
+      if (std::abs(t - hot_t) > 1 || dq > 1) {
+        for (int j = 1; j < ny::kYarnCalStride; j++) {
+          EXPECT_EQ(now[j], was[j]) << "node " << k << " entry " << j;
+        }
+      }
+    }
+  }
+  const float *at_hot = &m.calibration.values[size_t(hot * ny::kYarnCalStride)];
+  EXPECT_LT(at_hot[4], 3.0f * before.values[size_t(hot * ny::kYarnCalStride + 4)]);
 }
 
 /* Past the calibration table's last theta_i centre (87.95 deg) a direction scatters exactly what that

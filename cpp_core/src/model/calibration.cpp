@@ -99,7 +99,7 @@ ny::Rgb m_lobe_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l)
   return ny::make_rgb(float(e[0]), float(e[1]), float(e[2]));
 }
 
-EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &maps, int threads)
+EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &maps, int threads, int bound_sub)
 {
   const rdm::MapResolution &b = maps.bins;
   const std::vector<double> ER = maps.energy(maps.r), EM = maps.energy(maps.m);
@@ -190,7 +190,94 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
     }
     c.clamped += hit ? 1 : 0;
   }
-  return c;
+  bound_between_centres(&work, bound_sub, threads);
+  return work.calibration;
+}
+
+std::vector<ny::Vec3> centre_cell_directions(int theta_bins, int phi_bins, int sub)
+{
+  auto centre = [](int k, int n, double lo, double hi) { return lo + (hi - lo) * (k + 0.5) / n; };
+  /* Over theta_i: [0, first centre], between rows, and the last row itself (every w_i past it takes its
+   * energies there, D26); over phi_i: between centres, periodic. */
+  std::vector<ny::Vec3> dirs;
+  for (int t = -1; t < theta_bins; t++) {
+    const double t0 = t < 0 ? 0.0 : centre(t, theta_bins, 0.0, 0.5 * kPi);
+    const double t1 = t + 1 < theta_bins ? centre(t + 1, theta_bins, 0.0, 0.5 * kPi) : t0;
+    for (int q = 0; q < phi_bins; q++) {
+      const double p0 = centre(q, phi_bins, -kPi, kPi), p1 = p0 + 2.0 * kPi / phi_bins;
+      for (int i = 0; i < sub; i++) {
+        for (int j = 0; j < sub; j++) {
+          dirs.push_back(vec(train::entry_direction(t0 + (t1 - t0) * (i + 0.5) / sub, p0 + (p1 - p0) * (j + 0.5) / sub)));
+        }
+      }
+    }
+  }
+  return dirs;
+}
+
+CentreBound bound_between_centres(YarnModel *model, int sub, int threads)
+{
+  EnergyCalibration &c = model->calibration;
+  CentreBound result;
+  if (c.empty() || sub < 1) {
+    return result;
+  }
+  const int nt = c.theta_bins, np = c.phi_bins;
+  const std::vector<ny::Vec3> dirs = centre_cell_directions(nt, np, sub);
+  /* Per direction: the four nodes it weighs, and per channel the factor its energy needs. */
+  struct Need {
+    int idx[4];
+    float w[4];
+    float f[3];
+  };
+  std::vector<Need> need(dirs.size());
+  {
+    const std::vector<float> flat = model->kernel_flat();
+    const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    std::unique_ptr<tbb::global_control> limit;
+    if (threads > 0) {
+      limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    }
+    tbb::parallel_for(size_t(0), dirs.size(), [&](size_t k) {
+      Need &n = need[k];
+      const ny::YarnLobes l = ny::yarn_lobes(p, dirs[k]);
+      ny::yarn_incident_bilinear(nt, np, l.we, n.idx, n.w);
+      const ny::Rgb scattered = ny::yarn_energy_R(l) + m_lobe_energy(p, l);
+      const double room = std::max(0.0, 1.0 - double(l.P_T));
+      const float s[3] = {scattered.r, scattered.g, scattered.b};
+      for (int ch = 0; ch < 3; ch++) {
+        /* A relative slack above float rounding, so that a bounded table stays as it is. */
+        n.f[ch] = s[ch] > room * (1.0 + 1e-5) ? float(room / s[ch]) : 1.0f;
+      }
+    });
+  }
+  /* Serially, so that the table does not depend on the thread count. */
+  std::vector<float> factor(size_t(nt) * size_t(np) * 3, 1.0f);
+  for (const Need &n : need) {
+    for (int k = 0; k < 4; k++) {
+      if (n.w[k] > 0.0f) {
+        for (int ch = 0; ch < 3; ch++) {
+          float &f = factor[size_t(n.idx[k]) * 3 + size_t(ch)];
+          f = std::min(f, n.f[ch]);
+        }
+      }
+    }
+  }
+  for (size_t node = 0; node < size_t(nt) * size_t(np); node++) {
+    bool changed = false;
+    for (int ch = 0; ch < 3; ch++) {
+      const float f = factor[node * 3 + size_t(ch)];
+      if (f < 1.0f) {
+        float *v = &c.values[node * ny::kYarnCalStride];
+        v[1 + ch] *= f;
+        v[4 + ch] *= f;
+        changed = true;
+        result.smallest = std::min(result.smallest, double(f));
+      }
+    }
+    result.nodes += changed ? 1 : 0;
+  }
+  return result;
 }
 
 }  // namespace neuralyarn::model

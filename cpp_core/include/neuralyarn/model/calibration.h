@@ -31,7 +31,7 @@ ny::Rgb white_furnace(const ny::YarnBsdfParams &p, const ny::Vec3 &wi);
 /* Directions to evaluate the furnace at: sub x sub inside every incident cell of `bins` (uniform in cos
  * theta_i and phi_i; sub = 1: the bin centres, where the calibration table is bounded), and with `edge`
  * theta_i 89.975 deg at each phi_i bin centre (beyond the last centre the table is constant while the lobes
- * change). Between centres and at the edge the models still exceed 1 (docs/benchmarks.md, "Stability"). */
+ * change; D26 holds it at the last row). */
 std::vector<ny::Vec3> furnace_directions(const rdm::MapResolution &bins, int sub, bool edge);
 
 /* The largest channel of white_furnace over `dirs`, and where (NaN, if any, wins). */
@@ -42,8 +42,34 @@ struct FurnaceMax {
 };
 FurnaceMax white_furnace_max(const ny::YarnBsdfParams &p, const std::vector<ny::Vec3> &dirs, int threads = 0);
 
+/* Directions per cell side at which bound_between_centres() evaluates the furnace. */
+constexpr int kBoundSub = 4;
+
 /* The table for `model` (its networks; its current table is ignored) on `maps` (same preset), at the maps'
- * incident resolution. */
-EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &maps, int threads = 0);
+ * incident resolution, bounded between its centres by bound_between_centres() at bound_sub (0: not, only
+ * for tests of the centres themselves). */
+EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &maps, int threads = 0,
+                                   int bound_sub = kBoundSub);
+
+/* Where bound_between_centres() evaluates the furnace: sub x sub directions, uniform in theta_i and phi_i, in
+ * every cell between neighbouring centres of a theta_bins x phi_bins table (theta_i from 0, phi_i periodic),
+ * and along the last row. */
+std::vector<ny::Vec3> centre_cell_directions(int theta_bins, int phi_bins, int sub);
+
+/* What bound_between_centres() changed: nodes whose c_R or c_M it lowered, and the smallest factor. */
+struct CentreBound {
+  int nodes = 0;
+  double smallest = 1.0;
+};
+
+/* Bounds the model's calibration table between its centres (docs/decisions.md D28). The table is bounded at
+ * its centres, but bilinear factors meet networks (P_T above all) that vary inside a cell, so P_T + E_R + E_M
+ * exceeded 1 between them (cotton 1.047 at theta_i 86.6 deg). The furnace is evaluated at sub x sub
+ * directions in every cell between neighbouring centres (below the first row, and along the last row, which
+ * serves every w_i past it, D26); each node's c_R and c_M are multiplied, per channel, by the smallest factor
+ * (1 - P_T) / (E_R + E_M) that any direction it weighs needs. Those energies are linear in the four nodes'
+ * factors, so afterwards no evaluated direction scatters more than it receives; applying it twice changes
+ * nothing. dP_T is untouched. */
+CentreBound bound_between_centres(YarnModel *model, int sub = kBoundSub, int threads = 0);
 
 }  // namespace neuralyarn::model

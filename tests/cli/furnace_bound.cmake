@@ -1,0 +1,31 @@
+# `neuralyarn furnace MODEL --bound` (decisions D28): a shipped model is already bounded between its
+# calibration centres, so the verb lowers no node and writes the same kernel array and fallback tables;
+# --out without --bound, and a model that does not exist, are refused and write nothing.
+# Arguments: -DCLI=<neuralyarn> -DMODEL=<shipped model> -DOUT=<directory>
+file(REMOVE_RECURSE ${OUT})
+file(MAKE_DIRECTORY ${OUT})
+
+execute_process(COMMAND ${CLI} furnace ${MODEL} --bound --out ${OUT}/bound.json
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0 OR NOT out MATCHES "bound between the calibration centres: 0 of 1980 nodes lowered")
+  message(FATAL_ERROR "the shipped model was not bounded already (${rc}):\n${out}\n${err}")
+endif()
+# The written model is the shipped one: same calibration and fallback tables (nothing to recompute).
+file(READ ${MODEL} shipped)
+file(READ ${OUT}/bound.json written)
+string(JSON shipped_cal GET "${shipped}" kernel_flat)
+string(JSON written_cal GET "${written}" kernel_flat)
+string(JSON shipped_fb GET "${shipped}" fallback)
+string(JSON written_fb GET "${written}" fallback)
+if(NOT shipped_cal STREQUAL written_cal OR NOT shipped_fb STREQUAL written_fb)
+  message(FATAL_ERROR "--bound changed a model it did not lower")
+endif()
+
+execute_process(COMMAND ${CLI} furnace ${MODEL} --out ${OUT}/lone.json RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(rc EQUAL 0 OR EXISTS ${OUT}/lone.json OR NOT err MATCHES "--out requires --bound")
+  message(FATAL_ERROR "--out without --bound was accepted (${rc}): ${err}")
+endif()
+execute_process(COMMAND ${CLI} furnace ${OUT}/missing.json --bound RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(rc EQUAL 0 OR EXISTS ${OUT}/missing.json OR NOT err MATCHES "cannot open")
+  message(FATAL_ERROR "a missing model was accepted (${rc}): ${err}")
+endif()
