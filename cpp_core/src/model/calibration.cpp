@@ -251,7 +251,7 @@ CentreBound bound_between_centres(YarnModel *model, int sub, int threads)
       }
     });
   }
-  /* Serially, so that the table does not depend on the thread count. */
+  /* Each node: the smallest factor over the directions it weighs (a minimum, so in any order the same). */
   std::vector<float> factor(size_t(nt) * size_t(np) * 3, 1.0f);
   for (const Need &n : need) {
     for (int k = 0; k < 4; k++) {
