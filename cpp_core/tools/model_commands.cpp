@@ -327,9 +327,7 @@ class Commands : public ModelCommands {
     model::fit_model_proxy(&m, maps, topt_.fit);
     m.r_shape = model::fit_r_shape(m, maps);
     m.calibration = model::calibrate_energy(m, maps, threads_);
-    model::FallbackOptions fo;
-    fo.threads = threads_;
-    m.fallback = model::compute_fallback(m, fo);
+    refresh_fallback(&m);
     model::save_model(m, out);
     print_proxy(m);
     print_fallback(*m.fallback);
@@ -426,6 +424,14 @@ class Commands : public ModelCommands {
     return 0;
   }
 
+  /* The fallback tables sample the kernel: every change to a model's networks or tables redoes them. */
+  void refresh_fallback(model::YarnModel *m) const
+  {
+    model::FallbackOptions fo;
+    fo.threads = threads_;
+    m->fallback = model::compute_fallback(*m, fo);
+  }
+
   int run_furnace()
   {
     model::YarnModel m = model::load_model(model_);
@@ -433,10 +439,8 @@ class Commands : public ModelCommands {
       const std::string out = out_.empty() ? model_ : out_;
       check_writable(out);
       const model::CentreBound b = model::bound_between_centres(&m, model::kBoundSub, threads_);
-      if (b.nodes > 0) { /* the fallback tables sample the kernel: they change with the table */
-        model::FallbackOptions fo;
-        fo.threads = threads_;
-        m.fallback = model::compute_fallback(m, fo);
+      if (b.nodes > 0) {
+        refresh_fallback(&m);
       }
       model::save_model(m, out);
       std::printf("bound between the calibration centres: %d of %d nodes lowered, smallest factor %.4f; wrote %s\n",

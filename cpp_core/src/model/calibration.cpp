@@ -18,6 +18,14 @@ namespace {
 
 ny::Vec3 vec(const Eigen::Vector3f &v) { return ny::make_vec3(v.x(), v.y(), v.z()); }
 
+/* At most `threads` workers while it lives (0: all cores). */
+std::unique_ptr<tbb::global_control> thread_limit(int threads)
+{
+  return threads > 0 ? std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                             size_t(threads))
+                     : nullptr;
+}
+
 /* map / network, or 1 where there is nothing to calibrate. Energies below 1e-5 are Monte Carlo noise in
  * the map (a bin of 20 000 paths resolves about 1e-4). */
 float ratio(double map, double net)
@@ -58,10 +66,7 @@ std::vector<ny::Vec3> furnace_directions(const rdm::MapResolution &bins, int sub
 
 FurnaceMax white_furnace_max(const ny::YarnBsdfParams &p, const std::vector<ny::Vec3> &dirs, int threads)
 {
-  std::unique_ptr<tbb::global_control> limit;
-  if (threads > 0) {
-    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
-  }
+  const auto limit = thread_limit(threads);
   std::vector<double> worst(dirs.size());
   tbb::parallel_for(size_t(0), dirs.size(), [&](size_t i) {
     const ny::Rgb e = white_furnace(p, dirs[i]);
@@ -196,15 +201,14 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
 
 std::vector<ny::Vec3> centre_cell_directions(int theta_bins, int phi_bins, int sub)
 {
-  auto centre = [](int k, int n, double lo, double hi) { return lo + (hi - lo) * (k + 0.5) / n; };
   /* Over theta_i: [0, first centre], between rows, and the last row itself (every w_i past it takes its
    * energies there, D26); over phi_i: between centres, periodic. */
   std::vector<ny::Vec3> dirs;
   for (int t = -1; t < theta_bins; t++) {
-    const double t0 = t < 0 ? 0.0 : centre(t, theta_bins, 0.0, 0.5 * kPi);
-    const double t1 = t + 1 < theta_bins ? centre(t + 1, theta_bins, 0.0, 0.5 * kPi) : t0;
+    const double t0 = t < 0 ? 0.0 : rdm::bin_center(t, 0.0, 0.5 * kPi, theta_bins);
+    const double t1 = t + 1 < theta_bins ? rdm::bin_center(t + 1, 0.0, 0.5 * kPi, theta_bins) : t0;
     for (int q = 0; q < phi_bins; q++) {
-      const double p0 = centre(q, phi_bins, -kPi, kPi), p1 = p0 + 2.0 * kPi / phi_bins;
+      const double p0 = rdm::bin_center(q, -kPi, kPi, phi_bins), p1 = p0 + 2.0 * kPi / phi_bins;
       for (int i = 0; i < sub; i++) {
         for (int j = 0; j < sub; j++) {
           dirs.push_back(vec(train::entry_direction(t0 + (t1 - t0) * (i + 0.5) / sub, p0 + (p1 - p0) * (j + 0.5) / sub)));
@@ -234,10 +238,7 @@ CentreBound bound_between_centres(YarnModel *model, int sub, int threads)
   {
     const std::vector<float> flat = model->kernel_flat();
     const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
-    std::unique_ptr<tbb::global_control> limit;
-    if (threads > 0) {
-      limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
-    }
+    const auto limit = thread_limit(threads);
     tbb::parallel_for(size_t(0), dirs.size(), [&](size_t k) {
       Need &n = need[k];
       const ny::YarnLobes l = ny::yarn_lobes(p, dirs[k]);
