@@ -3,7 +3,7 @@
 in one run (issue 21's closure goal: ≤ 1.0×), and optionally against an earlier build of the patched Cycles:
 
     .venv/bin/python scripts/bench_closure.py [--presets fleece cotton] [--spp 1024] [--repeats 3]
-        [--baselines build/eval_speed/baselines.json] [--cycles-before OLD_CYCLES_BINARY]
+        [--baselines docs/evaluation/speed_closeup.json] [--cycles-before OLD_CYCLES_BINARY]
 
 The close-up of `neuralyarn cycles-scene` (key-rim lights, 320 × 160 by default). Chiang gets the colour that
 evaluate.sh fitted to the explicit-fiber reference under uniform light (`--baselines`, a baselines.json of an
@@ -56,6 +56,16 @@ def render(binary: str, scene: str, spp: int, a, exr: str) -> float:
     return seconds
 
 
+def fitted_colours(path: str) -> dict:
+    """Chiang's fitted colour per "closeup_<preset>_chiang" from an evaluate.sh run's baselines.json, or from
+    its results.json (the "baselines" list, as kept in docs/evaluation/speed_closeup.json)."""
+    with open(path) as f:
+        d = json.load(f)
+    if isinstance(d.get("baselines"), list):
+        return {f"{b['scene']}_{b['preset']}_{b['method']}": b["colour"] for b in d["baselines"] if not b["failed"]}
+    return {k: v["fit"]["colour"] for k, v in d.items()}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--presets", nargs="+", default=PRESETS, choices=PRESETS)
@@ -65,13 +75,11 @@ def main() -> int:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--height", type=int, default=160)
-    ap.add_argument("--baselines", help="baselines.json of an evaluate.sh run: Chiang's fitted colour per preset")
+    ap.add_argument("--baselines", help="baselines.json or results.json of an evaluate.sh run (e.g. "
+                    "docs/evaluation/speed_closeup.json): Chiang's fitted colour per preset")
     ap.add_argument("--cycles-before", help="an earlier build of the patched cycles binary, rendered alongside")
     a = ap.parse_args()
-    fitted = {}
-    if a.baselines:
-        with open(a.baselines) as f:
-            fitted = {k: v["fit"]["colour"] for k, v in json.load(f).items()}
+    fitted = fitted_colours(a.baselines) if a.baselines else {}
     builds = [("neural", CYCLES), ("chiang", CYCLES)]
     if a.cycles_before:
         builds.insert(1, ("neural-before", a.cycles_before))

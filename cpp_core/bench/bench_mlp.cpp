@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 //
-// Inference cost of the model's MLPs: the kernel's fused loop (kernel/mlp.h, what Cycles runs, one
-// sample at a time) against Eigen (the trainer's forward, single sample and batched per sample).
+// Inference cost of the model's MLPs: the kernel's loops (kernel/mlp.h, one sample at a time: the generic one
+// with runtime widths, and the compile-time-width one that the yarn BSDF runs for the trainer's shapes) against
+// Eigen (the trainer's forward, single sample and batched per sample).
 //
 //   build/cpp_core/bench_mlp --benchmark_min_time=0.2
+//   build/cpp_core/bench_mlp_cycles_flags --benchmark_min_time=0.2   (compiled as Cycles' CPU kernel is)
 #include <benchmark/benchmark.h>
 
 #include <random>
@@ -24,10 +26,17 @@ MlpShape shape_of(int which)
   if (which == 1) {
     return MlpShape{{6, 21, 21, 3}, ny::kMlpHeadExp};
   }
-  return MlpShape{{6, 21, 21, 21, 3}, ny::kMlpHeadExp};
+  if (which == 2) {
+    return MlpShape{{6, 21, 21, 21, 3}, ny::kMlpHeadExp};
+  }
+  return MlpShape{{6, 32, 32, 3}, ny::kMlpHeadExp};
 }
 
-const char *name_of(int which) { return which == 0 ? "T 3-7-7-1" : which == 1 ? "M 6-21-21-3" : "M 6-21-21-21-3"; }
+const char *name_of(int which)
+{
+  const char *names[] = {"T 3-7-7-1", "M 6-21-21-3", "M 6-21-21-21-3", "M 6-32-32-3"};
+  return names[which];
+}
 
 void BM_kernel(benchmark::State &state)
 {
@@ -46,6 +55,33 @@ void BM_kernel(benchmark::State &state)
     benchmark::DoNotOptimize(out[0]);
   }
   state.SetLabel(name_of(int(state.range(0))));
+}
+
+/* mlp_forward_io: what yarn_bsdf.h calls (compile-time widths for 3-7-7-1, 6-21-21-3 and 6-32-32-3; the
+ * deeper shape falls back to the generic loop). */
+void BM_kernel_io(benchmark::State &state)
+{
+  const int which = int(state.range(0));
+  const Mlp<float> m(shape_of(which), 1);
+  const std::vector<float> flat = m.to_flat();
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+  std::vector<float> inputs(6 * 1024);
+  for (float &v : inputs) {
+    v = U(rng);
+  }
+  float out[ny::kMlpMaxWidth];
+  size_t i = 0;
+  for (auto _ : state) {
+    if (which == 0) {
+      ny::mlp_forward_io<3, 1>(flat.data(), &inputs[(i++ & 1023) * 6], out);
+    }
+    else {
+      ny::mlp_forward_io<6, 3>(flat.data(), &inputs[(i++ & 1023) * 6], out);
+    }
+    benchmark::DoNotOptimize(out[0]);
+  }
+  state.SetLabel(name_of(which));
 }
 
 void BM_eigen_single(benchmark::State &state)
@@ -73,9 +109,10 @@ void BM_eigen_batch1024(benchmark::State &state)
   state.SetLabel(name_of(int(state.range(0))));
 }
 
-BENCHMARK(BM_kernel)->DenseRange(0, 2);
-BENCHMARK(BM_eigen_single)->DenseRange(0, 2);
-BENCHMARK(BM_eigen_batch1024)->DenseRange(0, 2);
+BENCHMARK(BM_kernel)->DenseRange(0, 3);
+BENCHMARK(BM_kernel_io)->DenseRange(0, 3);
+BENCHMARK(BM_eigen_single)->DenseRange(0, 3);
+BENCHMARK(BM_eigen_batch1024)->DenseRange(0, 3);
 
 }  // namespace
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <random>
 
 #include "neuralyarn/kernel/mlp.h"
@@ -119,6 +120,44 @@ TEST(Mlp, KernelInferenceEqualsTrainerForward)
         ASSERT_NEAR(out[i], Y(i, j), 2e-5f * (1.0f + std::abs(Y(i, j)))) << "sample " << j;
       }
     }
+  }
+}
+
+/* mlp_forward_io() runs the trainer's shapes with compile-time widths; that path must give exactly what the
+ * generic loop gives (same operations in the same order), on every shape it takes and on inputs that reach
+ * both PReLU branches and the heads' extremes, and a shape it does not take must still go through. */
+TEST(Mlp, SizedShapesAreBitIdenticalToTheGenericLoop)
+{
+  const ShapeCase cases[] = {
+      {{3, 7, 7, 1}, ny::kMlpHeadSigmoid}, {{3, 7, 7, 1}, ny::kMlpHeadExp}, {{6, 21, 21, 3}, ny::kMlpHeadExp},
+      {{6, 32, 32, 3}, ny::kMlpHeadExp},   {{6, 20, 20, 3}, ny::kMlpHeadExp}, {{6, 21, 21, 21, 3}, ny::kMlpHeadExp},
+  };
+  std::mt19937_64 rng(11);
+  for (const ShapeCase &sc : cases) {
+    Mlp<float> m(MlpShape{sc.widths, sc.head}, 3);
+    randomize(m, rng);
+    const std::vector<float> flat = m.to_flat();
+    const auto X = random_matrix<float>(sc.widths.front(), 4000, rng, -8.0, 8.0);
+    int differ_from_zero = 0;
+    for (int j = 0; j < X.cols(); j++) {
+      float in[ny::kMlpMaxWidth], a[ny::kMlpMaxWidth], b[ny::kMlpMaxWidth];
+      for (int i = 0; i < X.rows(); i++) {
+        in[i] = X(i, j);
+      }
+      if (sc.widths.front() == 3) {
+        ny::mlp_forward_io<3, 1>(flat.data(), in, a);
+      }
+      else {
+        ny::mlp_forward_io<6, 3>(flat.data(), in, a);
+      }
+      ny::mlp_forward(flat.data(), in, b);
+      for (int i = 0; i < sc.widths.back(); i++) {
+        ASSERT_EQ(std::memcmp(&a[i], &b[i], sizeof(float)), 0)
+            << "shape " << sc.widths[1] << " sample " << j << ": " << a[i] << " vs " << b[i];
+        differ_from_zero += a[i] != 0.0f;
+      }
+    }
+    EXPECT_GT(differ_from_zero, 1000);
   }
 }
 

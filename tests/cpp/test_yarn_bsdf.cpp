@@ -14,6 +14,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <cstring>
 #include <random>
 
 #include <boost/math/distributions/chi_squared.hpp>
@@ -460,4 +461,61 @@ TEST(YarnBsdf, MChannelKIsTheNetworksOutputKTimesItsScale)
     distinct += std::abs(want[0] - want[2]) > 0.2 * std::max(want[0], want[2]);
   }
   EXPECT_GE(distinct, 2); /* the test can see a swap */
+}
+
+/* A shadow ray computes P_T alone (yarn_transmission_probability, the Cycles closure's shadow path); it must
+ * be the P_T of the full lobes, bit for bit, everywhere: on the calibration table's centres and between them,
+ * past its last theta_i centre (the energy direction), at grazing incidence and below the surface. */
+TEST(YarnBsdf, ShadowTransmissionIsTheLobesPT)
+{
+  std::vector<model::YarnModel> models = {synthetic_model("silk", 4)};
+  for (const char *preset : {"fleece", "cotton", "gabardine"}) {
+    models.push_back(model::load_model(model::builtin_model_path(preset)));
+  }
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  for (const model::YarnModel &m : models) {
+    const std::vector<float> flat = m.kernel_flat();
+    const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    int positive = 0;
+    for (int k = 0; k < 20000; k++) {
+      /* theta_i over [0, pi/2 + 0.1]: the last 0.1 rad below the surface; every 8th exactly grazing. */
+      const double theta = k % 8 == 0 ? kPi / 2 - 1e-4 * U(rng) : (kPi / 2 + 0.1) * U(rng);
+      const ny::Vec3 wi = from_polar(theta, 2 * kPi * U(rng) - kPi);
+      const float P_T = ny::yarn_transmission_probability(p, wi);
+      ASSERT_EQ(P_T, ny::yarn_lobes(p, wi).P_T) << "theta_i " << theta;
+      positive += P_T > 0.0f;
+    }
+    EXPECT_GT(positive, 4000); /* the comparison is not 0 == 0 (P_T is 0 near the normal of dense plies) */
+  }
+}
+
+/* The renderer's eval asks for both (yarn_eval_pdf_lobes, angles of w_o computed once): it must be
+ * yarn_eval_lobes() and yarn_pdf_lobes() bit for bit, over the whole sphere of w_o, with the TT part active. */
+TEST(YarnBsdf, EvalAndPdfTogetherAreEvalAndPdfApart)
+{
+  std::vector<model::YarnModel> models = {synthetic_model("fleece", 6)};
+  for (const char *preset : {"cotton", "gabardine"}) {
+    models.push_back(model::load_model(model::builtin_model_path(preset)));
+  }
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  auto same = [](float a, float b) { return std::memcmp(&a, &b, sizeof(float)) == 0; };
+  for (const model::YarnModel &m : models) {
+    const std::vector<float> flat = m.kernel_flat();
+    const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    int tt = 0;
+    for (int k = 0; k < 20000; k++) {
+      const ny::Vec3 wi = from_polar((kPi / 2 + 0.05) * U(rng), 2 * kPi * U(rng) - kPi);
+      const ny::Vec3 wo = from_polar(kPi * U(rng), 2 * kPi * U(rng) - kPi);
+      const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+      tt += l.q_TT > 0.0f;
+      float pdf;
+      const ny::Rgb f = ny::yarn_eval_pdf_lobes(p, l, wo, &pdf);
+      const ny::Rgb f_apart = ny::yarn_eval_lobes(p, l, wo);
+      ASSERT_TRUE(same(pdf, ny::yarn_pdf_lobes(p, l, wo)));
+      ASSERT_TRUE(same(f.r, f_apart.r) && same(f.g, f_apart.g) && same(f.b, f_apart.b));
+    }
+    EXPECT_GT(tt, 100);
+  }
 }

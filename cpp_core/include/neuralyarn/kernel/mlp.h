@@ -58,53 +58,143 @@ NY_KERNEL_FN float mlp_apply_head(int head, float z)
   return z;
 }
 
-/* Evaluates the network stored at `params` on `input` (w_0 floats) into `output` (w_L floats). Uses two
- * stack buffers of kMlpMaxWidth floats; no heap. */
+/* One weight layer of n_in -> n_out: z = b + W x (summed over the inputs in order), then PReLU (hidden) or
+ * nothing; `p` points at W and the pointer past this layer's parameters is returned. */
+NY_KERNEL_FN const float *mlp_layer(const float *p, int n_in, int n_out, bool hidden, const float *in, float *out)
+{
+  const float *W = p;
+  const float *b = W + n_out * n_in;
+  const float *a = b + n_out;
+  float z[kMlpMaxWidth];
+  for (int o = 0; o < n_out; o++) {
+    z[o] = b[o];
+  }
+  for (int i = 0; i < n_in; i++) {
+    const float x = in[i];
+    const float *col = W + i * n_out;
+    NY_SIMD_LOOP
+    for (int o = 0; o < n_out; o++) {
+      z[o] += col[o] * x;
+    }
+  }
+  for (int o = 0; o < n_out; o++) {
+    out[o] = (hidden && z[o] < 0.0f) ? a[o] * z[o] : z[o]; /* channel-wise PReLU */
+  }
+  return a + (hidden ? n_out : 0);
+}
+
+/* The same layer with widths known at compile time: the loops unroll and z stays in registers. The
+ * operations and their order are those of mlp_layer(), so the result is bit-identical (tests/cpp/test_mlp.cpp).
+ * With runtime widths the accumulators go through memory on every input and the loops' remainders branch: the
+ * model's networks run much slower that way (docs/benchmarks.md, "Neural closure vs Principled Hair"). */
+template<int n_in, int n_out, bool hidden>
+NY_KERNEL_FN const float *mlp_layer_sized(const float *p, const float *in, float *out)
+{
+  const float *W = p;
+  const float *b = W + n_out * n_in;
+  const float *a = b + n_out;
+  float z[n_out];
+  for (int o = 0; o < n_out; o++) {
+    z[o] = b[o];
+  }
+  for (int i = 0; i < n_in; i++) {
+    const float x = in[i];
+    const float *col = W + i * n_out;
+    NY_SIMD_LOOP
+    for (int o = 0; o < n_out; o++) {
+      z[o] += col[o] * x;
+    }
+  }
+  for (int o = 0; o < n_out; o++) {
+    out[o] = (hidden && z[o] < 0.0f) ? a[o] * z[o] : z[o];
+  }
+  return a + (hidden ? n_out : 0);
+}
+
+/* A network of two hidden layers of width H with compile-time widths I-H-H-O (`p` past the header). */
+template<int I, int H, int O>
+NY_KERNEL_FN void mlp_forward_sized(const float *p, int head, const float *input, float *output)
+{
+  float h1[H], h2[H], z[O];
+  p = mlp_layer_sized<I, H, true>(p, input, h1);
+  p = mlp_layer_sized<H, H, true>(p, h1, h2);
+  mlp_layer_sized<H, O, false>(p, h2, z);
+  for (int o = 0; o < O; o++) {
+    output[o] = mlp_apply_head(head, z[o]);
+  }
+}
+
+/* Evaluates the network stored at `params` on `input` (w_0 floats) into `output` (w_L floats), with runtime
+ * widths. Uses stack buffers of kMlpMaxWidth floats; no heap. */
 NY_KERNEL_FN void mlp_forward(const float *params, const float *input, float *output)
 {
   const int L = (int)params[0];
-  int widths[kMlpMaxLayers + 1] = {0};
-  for (int l = 0; l <= L; l++) {
-    widths[l] = (int)params[1 + l];
-  }
   const int head = (int)params[L + 2];
   const float *p = params + L + 3;
-
   float buf_a[kMlpMaxWidth], buf_b[kMlpMaxWidth];
   float *in = buf_a, *out = buf_b;
-  for (int i = 0; i < widths[0]; i++) {
+  for (int i = 0; i < (int)params[1]; i++) {
     in[i] = input[i];
   }
   for (int l = 0; l < L; l++) {
-    const int n_in = widths[l], n_out = widths[l + 1];
-    const float *W = p;
-    const float *b = W + n_out * n_in;
-    const float *a = b + n_out;
-    const bool hidden = l < L - 1;
-    float z[kMlpMaxWidth];
-    for (int o = 0; o < n_out; o++) {
-      z[o] = b[o];
-    }
-    for (int i = 0; i < n_in; i++) {
-      const float x = in[i];
-      const float *col = W + i * n_out;
-      for (int o = 0; o < n_out; o++) {
-        z[o] += col[o] * x;
-      }
-    }
-    for (int o = 0; o < n_out; o++) {
-      if (hidden) {
-        out[o] = z[o] >= 0.0f ? z[o] : a[o] * z[o]; /* channel-wise PReLU */
-      }
-      else {
-        output[o] = mlp_apply_head(head, z[o]);
-      }
-    }
-    p = a + (hidden ? n_out : 0);
+    const int n_in = (int)params[1 + l], n_out = (int)params[2 + l];
+    p = mlp_layer(p, n_in, n_out, l < L - 1, in, out);
     float *t = in;
     in = out;
     out = t;
   }
+  for (int o = 0; o < (int)params[1 + L]; o++) {
+    output[o] = mlp_apply_head(head, in[o]);
+  }
+}
+
+/* The shapes the trainer makes, by input and output width: I-H-H-O with the hidden widths H it uses
+ * (3-7-7-1 for T and rho_R; 6-21-21-3, and 6-32-32-3 since decisions D22, for M), chosen by overloading on
+ * MlpIO<I, O> (not `if constexpr` nor a specialised static member, which some kernel languages or Cycles'
+ * NY_KERNEL_FN do not take). Returns false for any other shape. */
+template<int I, int O> struct MlpIO {
+};
+
+template<int I, int O>
+NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<I, O>, const float *, int, int, const float *, float *)
+{
+  return false;
+}
+
+NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<3, 1>, const float *p, int H, int head, const float *input, float *output)
+{
+  if (H != 7) {
+    return false;
+  }
+  mlp_forward_sized<3, 7, 1>(p, head, input, output);
+  return true;
+}
+
+NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<6, 3>, const float *p, int H, int head, const float *input, float *output)
+{
+  if (H == 21) {
+    mlp_forward_sized<6, 21, 3>(p, head, input, output);
+    return true;
+  }
+  if (H == 32) {
+    mlp_forward_sized<6, 32, 3>(p, head, input, output);
+    return true;
+  }
+  return false;
+}
+
+/* mlp_forward() for a network known to map I inputs to O outputs (the flat array's validation checks it):
+ * the trainer's shapes with compile-time widths, bit-identical to mlp_forward(); any other through
+ * mlp_forward(). */
+template<int I, int O>
+NY_KERNEL_FN void mlp_forward_io(const float *params, const float *input, float *output)
+{
+  if (params[0] == 3.0f && params[1] == (float)I && params[4] == (float)O && params[2] == params[3] &&
+      mlp_forward_trainer_shape(MlpIO<I, O>(), params + 6, (int)params[2], (int)params[5], input, output))
+  {
+    return;
+  }
+  mlp_forward(params, input, output);
 }
 
 }  // namespace ny

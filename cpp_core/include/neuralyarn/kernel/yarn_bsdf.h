@@ -303,7 +303,7 @@ NY_KERNEL_FN float yarn_transmission(const YarnBsdfParams &p, Vec3 wi)
 {
   const float in[3] = {wi.x, wi.y, wi.z};
   float out[1];
-  mlp_forward(p.net_T, in, out);
+  mlp_forward_io<3, 1>(p.net_T, in, out);
   return clampf(out[0], 0.0f, 1.0f);
 }
 
@@ -311,7 +311,7 @@ NY_KERNEL_FN float yarn_reflection_scale(const YarnBsdfParams &p, Vec3 wi)
 {
   const float in[3] = {wi.x, wi.y, wi.z};
   float out[1];
-  mlp_forward(p.net_R, in, out);
+  mlp_forward_io<3, 1>(p.net_R, in, out);
   return out[0];
 }
 
@@ -339,6 +339,26 @@ NY_KERNEL_FN Vec3 yarn_energy_direction(const YarnBsdfParams &p, Vec3 wi)
   return make_vec3(wi.x * s, wi.y * s, cos_c);
 }
 
+/* P_T(w_i) given the energy direction and the calibration's dP_T there. */
+NY_KERNEL_FN float yarn_calibrated_transmission(const YarnBsdfParams &p, Vec3 we, float dP_T)
+{
+  return clampf(yarn_transmission(p, we) + dP_T, 0.0f, 1.0f);
+}
+
+/* P_T(w_i) alone, exactly as yarn_lobes() computes it: all that a shadow ray needs of the yarn (the T lobe is
+ * its transparency), at a fraction of the lobes' cost (no R network, normalisers or truncated normals). */
+NY_KERNEL_FN float yarn_transmission_probability(const YarnBsdfParams &p, Vec3 wi)
+{
+  if (!(wi.z > 0.0f)) {
+    return 0.0f;
+  }
+  const Vec3 we = yarn_energy_direction(p, wi);
+  float dP_T;
+  Rgb c_R, c_M;
+  yarn_calibration(p, we, &dP_T, &c_R, &c_M);
+  return yarn_calibrated_transmission(p, we, dP_T);
+}
+
 /* `with_eval` = false skips the cos^2 normaliser of the R lobe, which only eval needs. */
 NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_eval = true)
 {
@@ -352,7 +372,7 @@ NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_ev
   if (l.valid) {
     yarn_calibration(p, l.we, &dP_T, &c_R, &c_M);
   }
-  l.P_T = l.valid ? clampf(yarn_transmission(p, l.we) + dP_T, 0.0f, 1.0f) : 0.0f;
+  l.P_T = l.valid ? yarn_calibrated_transmission(p, l.we, dP_T) : 0.0f;
   const float theta_i = theta_of(l.wi_f);
   const Rgb F = schlick_fresnel(p.fiber.C_R, cos_theta(yarn_to_surface_fiber(p.twist, l.we)));
   l.weight_R = l.valid ? F * c_R * yarn_reflection_scale(p, l.we) : make_rgb(0.0f);
@@ -408,6 +428,23 @@ NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_ev
  * azimuths leave the surface (each of its parts integrates to it, yarn_eval_R_parts). */
 NY_KERNEL_FN Rgb yarn_energy_R(const YarnLobes &l) { return l.weight_R * 0.5f; }
 
+/* An outgoing direction in the surface-fiber frame with the angles that every lobe's eval and pdf read:
+ * computed once per w_o (two atan2 and a square root) instead of in each of them. */
+struct YarnOutgoing {
+  Vec3 w;
+  float theta, phi, cos_theta;
+};
+
+NY_KERNEL_FN YarnOutgoing yarn_outgoing(Vec3 wo_f)
+{
+  YarnOutgoing o;
+  o.w = wo_f;
+  o.theta = theta_of(wo_f);
+  o.phi = phi_of(wo_f);
+  o.cos_theta = cos_theta(wo_f);
+  return o;
+}
+
 /* pi nu(phi~_o | w_i): the R lobe's azimuthal density relative to the uniform 1 / pi (1 without a table). */
 NY_KERNEL_FN float yarn_r_azimuth(const YarnLobes &l, float phi)
 {
@@ -429,26 +466,33 @@ NY_KERNEL_FN float yarn_r_azimuth(const YarnLobes &l, float phi)
  * (its azimuth density nu) and the TT part (0 where it has no share). S_R |cos| = (1 - tau) R + tau TT. The
  * cosine is the fiber's own (longitudinal), so that each part's energy is exactly rho_R F / 2: half of
  * the fiber's albedo, the half whose azimuth leaves the surface. */
-NY_KERNEL_FN void yarn_eval_R_parts(const YarnLobes &l, Vec3 wo_f, Rgb *R, Rgb *TT)
+NY_KERNEL_FN void yarn_eval_R_parts(const YarnLobes &l, const YarnOutgoing &o, Rgb *R, Rgb *TT)
 {
   *R = *TT = make_rgb(0.0f);
-  if (!l.valid || !(wo_f.z > 0.0f)) {
+  if (!l.valid || !(o.w.z > 0.0f)) {
     return;
   }
-  const float theta = theta_of(wo_f), phi = phi_of(wo_f), c = cos_theta(wo_f);
-  *R = l.weight_R * (longitudinal_eval(l.m_R, theta) * kInvTwoPi * c * yarn_r_azimuth(l, phi));
+  const float c = o.cos_theta;
+  *R = l.weight_R * (longitudinal_eval(l.m_R, o.theta) * kInvTwoPi * c * yarn_r_azimuth(l, o.phi));
   if (l.q_TT > 0.0f) {
-    *TT = l.weight_R * (longitudinal_eval(l.m_TT, theta) * 0.5f * c * truncated_normal_pdf(l.tn_TT_phi, phi));
+    *TT = l.weight_R * (longitudinal_eval(l.m_TT, o.theta) * 0.5f * c * truncated_normal_pdf(l.tn_TT_phi, o.phi));
   }
 }
 
+NY_KERNEL_FN void yarn_eval_R_parts(const YarnLobes &l, Vec3 wo_f, Rgb *R, Rgb *TT)
+{
+  yarn_eval_R_parts(l, yarn_outgoing(wo_f), R, TT);
+}
+
 /* S_R |cos theta~_o|, w_o in the surface-fiber frame. */
-NY_KERNEL_FN Rgb yarn_eval_R_fiber(const YarnLobes &l, Vec3 wo_f)
+NY_KERNEL_FN Rgb yarn_eval_R_fiber(const YarnLobes &l, const YarnOutgoing &o)
 {
   Rgb R, TT;
-  yarn_eval_R_parts(l, wo_f, &R, &TT);
+  yarn_eval_R_parts(l, o, &R, &TT);
   return (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
 }
+
+NY_KERNEL_FN Rgb yarn_eval_R_fiber(const YarnLobes &l, Vec3 wo_f) { return yarn_eval_R_fiber(l, yarn_outgoing(wo_f)); }
 
 NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo)
 {
@@ -457,7 +501,7 @@ NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 w
   }
   const float in[6] = {l.we.x, l.we.y, l.we.z, wo.x, wo.y, wo.z};
   float out[3];
-  mlp_forward(p.net_M, in, out);
+  mlp_forward_io<6, 3>(p.net_M, in, out);
   return make_rgb(out[0], out[1], out[2]) * l.scale_M;
 }
 
@@ -466,38 +510,54 @@ constexpr float kYarnMinCosTheta = 1e-7f;
 
 /* Densities of the R and M proposals in solid angle, w_o in the surface-fiber frame. The R proposal has
  * two parts (reflection; TT, density 0 when it has no share). */
-NY_KERNEL_FN void yarn_pdf_R_parts(const YarnLobes &l, Vec3 wo_f, float *pdf_R, float *pdf_TT)
+NY_KERNEL_FN void yarn_pdf_R_parts(const YarnLobes &l, const YarnOutgoing &o, float *pdf_R, float *pdf_TT)
 {
   *pdf_R = *pdf_TT = 0.0f;
-  if (!(wo_f.z > 0.0f)) {
+  if (!(o.w.z > 0.0f)) {
     return;
   }
-  const float theta = theta_of(wo_f), inv_cos = 1.0f / fmaxf(cos_theta(wo_f), kYarnMinCosTheta);
-  *pdf_R = truncated_normal_pdf(l.tn_R, theta) * kInvPi * inv_cos;
+  const float inv_cos = 1.0f / fmaxf(o.cos_theta, kYarnMinCosTheta);
+  *pdf_R = truncated_normal_pdf(l.tn_R, o.theta) * kInvPi * inv_cos;
   if (l.q_TT > 0.0f) {
-    *pdf_TT = truncated_normal_pdf(l.tn_TT, theta) * truncated_normal_pdf(l.tn_TT_phi, phi_of(wo_f)) * inv_cos;
+    *pdf_TT = truncated_normal_pdf(l.tn_TT, o.theta) * truncated_normal_pdf(l.tn_TT_phi, o.phi) * inv_cos;
   }
 }
 
-NY_KERNEL_FN float yarn_pdf_R_fiber(const YarnLobes &l, Vec3 wo_f)
+NY_KERNEL_FN void yarn_pdf_R_parts(const YarnLobes &l, Vec3 wo_f, float *pdf_R, float *pdf_TT)
+{
+  yarn_pdf_R_parts(l, yarn_outgoing(wo_f), pdf_R, pdf_TT);
+}
+
+NY_KERNEL_FN float yarn_pdf_R_fiber(const YarnLobes &l, const YarnOutgoing &o)
 {
   float r, tt;
-  yarn_pdf_R_parts(l, wo_f, &r, &tt);
+  yarn_pdf_R_parts(l, o, &r, &tt);
   return (1.0f - l.q_TT) * r + l.q_TT * tt;
 }
 
 /* The M proxy alone: kappa_M TN(theta~_o) vM(phi~_o) / cos theta~_o + (1 - kappa_M) / 4 pi. The fit
  * (model/proxy_fit.h) maximises the likelihood of exactly this function. */
-NY_KERNEL_FN float yarn_m_proxy_pdf(const TruncatedNormal &tn_M, float kappa_vm, float kappa_M, Vec3 wo_f)
+NY_KERNEL_FN float yarn_m_proxy_pdf(const TruncatedNormal &tn_M, float kappa_vm, float kappa_M, const YarnOutgoing &o)
 {
-  const float lobe = truncated_normal_pdf(tn_M, theta_of(wo_f)) * von_mises_pdf(phi_of(wo_f), kappa_vm) /
-                     fmaxf(cos_theta(wo_f), kYarnMinCosTheta);
+  const float lobe = truncated_normal_pdf(tn_M, o.theta) * von_mises_pdf(o.phi, kappa_vm) /
+                     fmaxf(o.cos_theta, kYarnMinCosTheta);
   return kappa_M * lobe + (1.0f - kappa_M) * kInvFourPi;
 }
 
-NY_KERNEL_FN float yarn_pdf_M_fiber(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo_f)
+NY_KERNEL_FN float yarn_m_proxy_pdf(const TruncatedNormal &tn_M, float kappa_vm, float kappa_M, Vec3 wo_f)
 {
-  return yarn_m_proxy_pdf(l.tn_M, l.kappa_vm, p.kappa_M, wo_f);
+  return yarn_m_proxy_pdf(tn_M, kappa_vm, kappa_M, yarn_outgoing(wo_f));
+}
+
+NY_KERNEL_FN float yarn_pdf_M_fiber(const YarnBsdfParams &p, const YarnLobes &l, const YarnOutgoing &o)
+{
+  return yarn_m_proxy_pdf(l.tn_M, l.kappa_vm, p.kappa_M, o);
+}
+
+/* The non-delta sampler's density at o, conditional on not choosing T. */
+NY_KERNEL_FN float yarn_pdf_fiber(const YarnBsdfParams &p, const YarnLobes &l, const YarnOutgoing &o)
+{
+  return p.kappa_R * yarn_pdf_R_fiber(l, o) + (1.0f - p.kappa_R) * yarn_pdf_M_fiber(p, l, o);
 }
 
 /* Non-delta part: eval = (S_R + S_M) |cos theta_o|. */
@@ -506,8 +566,7 @@ NY_KERNEL_FN Rgb yarn_eval_lobes(const YarnBsdfParams &p, const YarnLobes &l, Ve
   if (!l.valid) {
     return make_rgb(0.0f);
   }
-  const Vec3 wo_f = yarn_to_surface_fiber(p.twist, wo);
-  return yarn_eval_R_fiber(l, wo_f) + yarn_eval_M(p, l, wo);
+  return yarn_eval_R_fiber(l, yarn_outgoing(yarn_to_surface_fiber(p.twist, wo))) + yarn_eval_M(p, l, wo);
 }
 
 /* Density of the non-delta sampler, conditional on not choosing T (integrates to 1 over the sphere). */
@@ -516,15 +575,27 @@ NY_KERNEL_FN float yarn_pdf_lobes(const YarnBsdfParams &p, const YarnLobes &l, V
   if (!l.valid) {
     return 0.0f;
   }
-  const Vec3 wo_f = yarn_to_surface_fiber(p.twist, wo);
-  return p.kappa_R * yarn_pdf_R_fiber(l, wo_f) + (1.0f - p.kappa_R) * yarn_pdf_M_fiber(p, l, wo_f);
+  return yarn_pdf_fiber(p, l, yarn_outgoing(yarn_to_surface_fiber(p.twist, wo)));
+}
+
+/* Both at once, as a renderer asks for them (the angles of w_o computed once): yarn_eval_lobes() and
+ * yarn_pdf_lobes(), bit for bit. */
+NY_KERNEL_FN Rgb yarn_eval_pdf_lobes(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo, float *pdf)
+{
+  *pdf = 0.0f;
+  if (!l.valid) {
+    return make_rgb(0.0f);
+  }
+  const YarnOutgoing o = yarn_outgoing(yarn_to_surface_fiber(p.twist, wo));
+  *pdf = yarn_pdf_fiber(p, l, o);
+  return yarn_eval_R_fiber(l, o) + yarn_eval_M(p, l, wo);
 }
 
 NY_KERNEL_FN Rgb yarn_eval(const YarnBsdfParams &p, Vec3 wi, Vec3 wo, float *pdf)
 {
   const YarnLobes l = yarn_lobes(p, wi);
   if (pdf) {
-    *pdf = yarn_pdf_lobes(p, l, wo);
+    return yarn_eval_pdf_lobes(p, l, wo, pdf);
   }
   return yarn_eval_lobes(p, l, wo);
 }
@@ -595,11 +666,12 @@ NY_KERNEL_FN bool yarn_sample_lobes(const YarnBsdfParams &p, const YarnLobes &l,
     }
   }
   s->wo = surface_fiber_to_yarn(p.twist, wo_f);
-  const float pdf = p.kappa_R * yarn_pdf_R_fiber(l, wo_f) + (1.0f - p.kappa_R) * yarn_pdf_M_fiber(p, l, wo_f);
+  const YarnOutgoing o = yarn_outgoing(wo_f);
+  const float pdf = yarn_pdf_fiber(p, l, o);
   if (!(pdf > 0.0f)) {
     return false;
   }
-  const Rgb f = yarn_eval_R_fiber(l, wo_f) + yarn_eval_M(p, l, s->wo);
+  const Rgb f = yarn_eval_R_fiber(l, o) + yarn_eval_M(p, l, s->wo);
   s->pdf = pdf;
   s->weight = f * (1.0f / (include_T ? (1.0f - l.p_T) * pdf : pdf));
   return true;
