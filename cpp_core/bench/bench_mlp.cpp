@@ -38,28 +38,8 @@ const char *name_of(int which)
   return names[which];
 }
 
-void BM_kernel(benchmark::State &state)
-{
-  const Mlp<float> m(shape_of(int(state.range(0))), 1);
-  const std::vector<float> flat = m.to_flat();
-  std::mt19937 rng(1);
-  std::uniform_real_distribution<float> U(-1.0f, 1.0f);
-  std::vector<float> inputs(6 * 1024);
-  for (float &v : inputs) {
-    v = U(rng);
-  }
-  float out[ny::kMlpMaxWidth];
-  size_t i = 0;
-  for (auto _ : state) {
-    ny::mlp_forward(flat.data(), &inputs[(i++ & 1023) * 6], out);
-    benchmark::DoNotOptimize(out[0]);
-  }
-  state.SetLabel(name_of(int(state.range(0))));
-}
-
-/* mlp_forward_io: what yarn_bsdf.h calls (compile-time widths for 3-7-7-1, 6-21-21-3 and 6-32-32-3; the
- * deeper shape falls back to the generic loop). */
-void BM_kernel_io(benchmark::State &state)
+/* One kernel forward per iteration over 1024 fixed random inputs. */
+template<class Forward> void run_kernel(benchmark::State &state, Forward forward)
 {
   const int which = int(state.range(0));
   const Mlp<float> m(shape_of(which), 1);
@@ -73,15 +53,25 @@ void BM_kernel_io(benchmark::State &state)
   float out[ny::kMlpMaxWidth];
   size_t i = 0;
   for (auto _ : state) {
-    if (which == 0) {
-      ny::mlp_forward_io<3, 1>(flat.data(), &inputs[(i++ & 1023) * 6], out);
-    }
-    else {
-      ny::mlp_forward_io<6, 3>(flat.data(), &inputs[(i++ & 1023) * 6], out);
-    }
+    forward(flat.data(), &inputs[(i++ & 1023) * 6], out);
     benchmark::DoNotOptimize(out[0]);
   }
   state.SetLabel(name_of(which));
+}
+
+/* The generic loop, runtime widths. */
+void BM_kernel(benchmark::State &state) { run_kernel(state, ny::mlp_forward); }
+
+/* mlp_forward_io: what yarn_bsdf.h calls (compile-time widths for 3-7-7-1, 6-21-21-3 and 6-32-32-3; the
+ * deeper shape falls back to the generic loop). */
+void BM_kernel_io(benchmark::State &state)
+{
+  if (state.range(0) == 0) {
+    run_kernel(state, ny::mlp_forward_io<3, 1>);
+  }
+  else {
+    run_kernel(state, ny::mlp_forward_io<6, 3>);
+  }
 }
 
 void BM_eigen_single(benchmark::State &state)

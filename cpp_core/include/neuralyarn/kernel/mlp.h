@@ -59,56 +59,34 @@ NY_KERNEL_FN float mlp_apply_head(int head, float z)
 }
 
 /* One weight layer of n_in -> n_out: z = b + W x (summed over the inputs in order), then PReLU (hidden) or
- * nothing; `p` points at W and the pointer past this layer's parameters is returned. */
+ * nothing; `p` points at W and the pointer past this layer's parameters is returned. NI and NO, when not 0,
+ * are the widths known at compile time (and n_in, n_out equal them): the loops unroll and z stays in
+ * registers. With runtime widths the accumulators go through memory on every input and the loops' remainders
+ * branch: the model's networks run much slower that way (docs/benchmarks.md, "Neural closure vs Principled
+ * Hair"). One body for both, so both give the same result bit for bit (tests/cpp/test_mlp.cpp). */
+template<int NI = 0, int NO = 0>
 NY_KERNEL_FN const float *mlp_layer(const float *p, int n_in, int n_out, bool hidden, const float *in, float *out)
 {
+  const int ni = NI > 0 ? NI : n_in, no = NO > 0 ? NO : n_out;
   const float *W = p;
-  const float *b = W + n_out * n_in;
-  const float *a = b + n_out;
-  float z[kMlpMaxWidth];
-  for (int o = 0; o < n_out; o++) {
+  const float *b = W + no * ni;
+  const float *a = b + no;
+  float z[NO > 0 ? NO : kMlpMaxWidth];
+  for (int o = 0; o < no; o++) {
     z[o] = b[o];
   }
-  for (int i = 0; i < n_in; i++) {
+  for (int i = 0; i < ni; i++) {
     const float x = in[i];
-    const float *col = W + i * n_out;
+    const float *col = W + i * no;
     NY_SIMD_LOOP
-    for (int o = 0; o < n_out; o++) {
+    for (int o = 0; o < no; o++) {
       z[o] += col[o] * x;
     }
   }
-  for (int o = 0; o < n_out; o++) {
+  for (int o = 0; o < no; o++) {
     out[o] = (hidden && z[o] < 0.0f) ? a[o] * z[o] : z[o]; /* channel-wise PReLU */
   }
-  return a + (hidden ? n_out : 0);
-}
-
-/* The same layer with widths known at compile time: the loops unroll and z stays in registers. The
- * operations and their order are those of mlp_layer(), so the result is bit-identical (tests/cpp/test_mlp.cpp).
- * With runtime widths the accumulators go through memory on every input and the loops' remainders branch: the
- * model's networks run much slower that way (docs/benchmarks.md, "Neural closure vs Principled Hair"). */
-template<int n_in, int n_out, bool hidden>
-NY_KERNEL_FN const float *mlp_layer_sized(const float *p, const float *in, float *out)
-{
-  const float *W = p;
-  const float *b = W + n_out * n_in;
-  const float *a = b + n_out;
-  float z[n_out];
-  for (int o = 0; o < n_out; o++) {
-    z[o] = b[o];
-  }
-  for (int i = 0; i < n_in; i++) {
-    const float x = in[i];
-    const float *col = W + i * n_out;
-    NY_SIMD_LOOP
-    for (int o = 0; o < n_out; o++) {
-      z[o] += col[o] * x;
-    }
-  }
-  for (int o = 0; o < n_out; o++) {
-    out[o] = (hidden && z[o] < 0.0f) ? a[o] * z[o] : z[o];
-  }
-  return a + (hidden ? n_out : 0);
+  return a + (hidden ? no : 0);
 }
 
 /* A network of two hidden layers of width H with compile-time widths I-H-H-O (`p` past the header). */
@@ -116,9 +94,9 @@ template<int I, int H, int O>
 NY_KERNEL_FN void mlp_forward_sized(const float *p, int head, const float *input, float *output)
 {
   float h1[H], h2[H], z[O];
-  p = mlp_layer_sized<I, H, true>(p, input, h1);
-  p = mlp_layer_sized<H, H, true>(p, h1, h2);
-  mlp_layer_sized<H, O, false>(p, h2, z);
+  p = mlp_layer<I, H>(p, I, H, true, input, h1);
+  p = mlp_layer<H, H>(p, H, H, true, h1, h2);
+  mlp_layer<H, O>(p, H, O, false, h2, z);
   for (int o = 0; o < O; o++) {
     output[o] = mlp_apply_head(head, z[o]);
   }
