@@ -17,8 +17,8 @@ against an explicit-fiber reference of the same scene (the mean over orientation
            references' bounce limits and with the artist's (Blender's defaults, the add-on's 64 transparent);
   bakes    fiber parameters beyond the presets (alpha 0, rho, N, beta_R, C_TT (1, 1, 1), very dark fibers,
            impossible packings): success, time, albedo error, white furnace;
-  furnace  the white furnace of every shipped model (`neuralyarn furnace`, at the bin centres and inside the
-           bins).
+  furnace  the white furnace of the presets' shipped models (`neuralyarn furnace`, at the bin centres and
+           inside the bins).
 
 Each cell of DIR/results.json `cells` holds: sweep, method, preset, the swept parameters, spp, seeds,
 nan_pixels, inf_pixels, negative_pixels, firefly_pixels, furnace_max (the largest white-furnace value seen:
@@ -69,6 +69,9 @@ QUICK = {
     "layers": [2, 8],
     "bakes": ["c_tt_one", "unpackable"],
     "bake_paths": "1e5",
+    # Coarse maps and a short M training: the quick bake checks that a stress bake succeeds and stays
+    # bounded, not its fidelity (the full run bakes at the paper's resolution).
+    "bake_options": ["--bins", "12x48x24x48", "--m-steps", "5000"],
 }
 FULL = {
     "width": 128, "height": 64, "ref_spp": 512, "ref_rotations": 4, "spp": 64, "seeds": 3,
@@ -83,6 +86,7 @@ FULL = {
     "bakes": ["alpha_zero", "rho_low", "rho_high", "n_few", "n_many", "beta_r_narrow", "beta_r_wide", "c_tt_one",
               "dark", "unpackable"],
     "bake_paths": "4e6",
+    "bake_options": [],
 }
 #: Fiber parameters of the bake sweep: changes to the fleece preset (cpp_core/data/presets.json).
 BAKES = {
@@ -348,7 +352,7 @@ def sweep_bakes(a, progress):
         what = progress(f"bake {name} {BAKES[name]}")
         t0 = time.monotonic()
         args = [ev.CLI, "bake", "--params", pfile, "--paths", a.cfg["bake_paths"], "--check-paths",
-                a.cfg["bake_paths"], "--quiet", "--threads", str(a.threads), "--out", model]
+                a.cfg["bake_paths"], *a.cfg["bake_options"], "--quiet", "--threads", str(a.threads), "--out", model]
         try:
             r = subprocess.run(args, capture_output=True, text=True, timeout=a.timeout)
         except subprocess.TimeoutExpired:
@@ -384,9 +388,9 @@ def furnace(model: str) -> dict:
     return out
 
 
-def sweep_furnace(a, progress):
+def sweep_furnace(a, presets, progress):
     cells = []
-    for p in ev.PRESETS:
+    for p in presets:
         progress(f"furnace {p}")
         cells.append({"sweep": "furnace", "method": "native", "preset": p, "failed": False,
                       **furnace(os.path.join(ev.MODELS, f"{p}.json"))})
@@ -545,7 +549,7 @@ def main(argv: list[str]) -> int:
         elif sw == "bakes":
             cells += sweep_bakes(a, progress)
         else:
-            cells += sweep_furnace(a, progress)
+            cells += sweep_furnace(a, presets, progress)
     commands, earlier_seconds = [["scripts/stability.sh", *argv]], 0.0
     old_path = os.path.join(a.out, "results.json")
     if args.append and os.path.isfile(old_path):

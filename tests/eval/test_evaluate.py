@@ -3,7 +3,7 @@
 record with every field for every run, finite numbers, the noise floor of each light; a second run reuses
 the cached references; unknown names exit 1 with one line on stderr, before rendering anything.
 
-Run by ctest (eval.pytest_quick) with .venv/bin/python -m pytest; NY_EVAL_OUT names the output directory
+Run by ctest (eval.pytest_evaluate) with .venv/bin/python -m pytest; NY_EVAL_OUT names the output directory
 (default: a pytest temporary directory), NY_BUILD_DIR the build.
 """
 import json

@@ -83,7 +83,7 @@ def test_no_render_has_nan_inf_or_negative_pixels(quick):
 
 def test_no_model_gains_energy_at_the_bin_centres(quick):
     cells = [c for c in quick[1]["cells"] if c.get("furnace_max") is not None]
-    assert {c["preset"] for c in cells if c["sweep"] == "furnace"} == set(stability.ev.PRESETS)
+    assert {c["preset"] for c in cells if c["sweep"] == "furnace"} == set(quick[1]["settings"]["presets"])
     for c in cells:
         if c["sweep"] in ("furnace", "bakes"):
             # 1 % above 1 is pbrt's Hair.WhiteFurnace bound, at the bin centres where the calibration bounds
@@ -121,17 +121,26 @@ def test_an_impossible_packing_fails_fast_naming_the_parameter(quick):
     assert good["failed"] is False and good["furnace_max_centres"] <= 1.01, good
 
 
-def test_append_replaces_the_cells_it_redoes_and_keeps_the_others(tmp_path):
+def test_append_replaces_the_cells_it_redoes_and_keeps_the_others(quick, tmp_path):
+    # The quick run's references, as the cache these runs must reuse (rendering them again would be most of
+    # this test's time): the native sweeps then render no explicit fibers.
+    shutil.copytree(os.path.join(quick[0], "refs"), tmp_path / "refs")
+    refs = sorted(os.listdir(tmp_path / "refs"))
+
     def run(*args):
         r = subprocess.run(["bash", os.path.join(ROOT, "scripts", "stability.sh"), "--quick", "--out", str(tmp_path),
                             *args], capture_output=True, text=True, timeout=300)
         assert r.returncode == 0, r.stderr[-2000:]
         with open(tmp_path / "results.json") as f:
             return json.load(f)
-    first = run("--sweeps", "furnace")
-    again = run("--sweeps", "furnace", "--append")
-    assert len(again["cells"]) == len(first["cells"]) == 5 and len(again["commands"]) == 2
-    other = run("--sweeps", "views", "--presets", "fleece", "--methods", "native", "--append")
-    assert {c["sweep"] for c in other["cells"]} == {"furnace", "views"} and len(other["commands"]) == 3
-    assert run("--sweeps", "furnace")["commands"] == [["scripts/stability.sh", "--quick", "--out", str(tmp_path),
-                                                       "--sweeps", "furnace"]]
+    native = ("--presets", "fleece", "--methods", "native")
+    first = run("--sweeps", "views", *native)
+    again = run("--sweeps", "views", *native, "--append")
+    assert len(again["cells"]) == len(first["cells"]) == 6 and len(again["commands"]) == 2
+    other = run("--sweeps", "units", *native, "--append")
+    assert {c["sweep"] for c in other["cells"]} == {"views", "units"} and len(other["commands"]) == 3
+    assert len(other["cells"]) == 6 + 3
+    assert sorted(os.listdir(tmp_path / "refs")) == refs
+    assert not [f for f in os.listdir(tmp_path / "scenes") if "_explicit_" in f]
+    assert run("--sweeps", "units", *native)["commands"] == [["scripts/stability.sh", "--quick", "--out", str(tmp_path),
+                                                             "--sweeps", "units", *native]]
