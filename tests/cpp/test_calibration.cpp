@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <stdexcept>
+#include <utility>
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/calibration.h"
@@ -87,4 +89,58 @@ TEST(Calibration, MatchesTheMapsAtBinCentresAndHelpsOnIndependentMaps)
               bounded_b.albedo_mae_rel);
   EXPECT_GT(lowered, 0.0); /* cotton at 6 x 24 gains energy between centres: the bound has work to do */
   EXPECT_LT(bounded_b.albedo_mae_rel, 0.75 * before_b.albedo_mae_rel);
+}
+
+/* The M lobe's quadrature runs the network on 16 exits at once; it must be bit for bit the plain sum of
+ * yarn_eval_M over the grid in row-major order (the shipped cotton model, and gabardine's wider 6-32-32-3 M),
+ * split at the equator or not, on a grid whose rows are not a multiple of 16 cells (the padded last block). */
+TEST(Calibration, MLobeQuadratureIsThePlainSumOfYarnEvalM)
+{
+  for (const char *preset : {"cotton", "gabardine"}) {
+    const model::YarnModel m = model::load_model(model::builtin_model_path(preset));
+    const std::vector<float> flat = m.kernel_flat();
+    const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    for (const auto &[nt, np] : {std::pair{64, 128}, std::pair{6, 21}}) {
+      const model::ExitGrid g(nt, np);
+      for (const ny::Vec3 wi : {ny::make_vec3(0.3f, -0.2f, 0.93f), ny::make_vec3(0.9f, 0.4f, 0.17f)}) {
+        const ny::YarnLobes l = ny::yarn_lobes(p, ny::normalize(wi));
+        double up[3] = {0, 0, 0}, down[3] = {0, 0, 0};
+        for (int to = 0; to < nt; to++) {
+          double *e = 2 * to < nt ? up : down;
+          for (int po = 0; po < np; po++) {
+            const size_t q = size_t(to) * size_t(np) + size_t(po);
+            const ny::Rgb v = ny::yarn_eval_M(p, l, ny::make_vec3(g.x[q], g.y[q], g.z[q]));
+            e[0] += v.r * g.solid_angle[size_t(to)];
+            e[1] += v.g * g.solid_angle[size_t(to)];
+            e[2] += v.b * g.solid_angle[size_t(to)];
+          }
+        }
+        double su[3], sd[3];
+        model::m_lobe_energy_split(p, l, g, true, su, sd);
+        for (int c = 0; c < 3; c++) {
+          EXPECT_EQ(su[c], up[c]) << preset << " " << nt << "x" << np << " channel " << c;
+          EXPECT_EQ(sd[c], down[c]) << preset << " " << nt << "x" << np << " channel " << c;
+          EXPECT_GT(down[c], 0.0) << preset;
+        }
+        if (nt == 64 && np == 128) {
+          /* m_lobe_energy: the same cells summed into one accumulator. */
+          double all[3] = {0, 0, 0};
+          for (int to = 0; to < nt; to++) {
+            for (int po = 0; po < np; po++) {
+              const size_t q = size_t(to) * size_t(np) + size_t(po);
+              const ny::Rgb v = ny::yarn_eval_M(p, l, ny::make_vec3(g.x[q], g.y[q], g.z[q]));
+              all[0] += v.r * g.solid_angle[size_t(to)];
+              all[1] += v.g * g.solid_angle[size_t(to)];
+              all[2] += v.b * g.solid_angle[size_t(to)];
+            }
+          }
+          const ny::Rgb e = model::m_lobe_energy(p, l);
+          EXPECT_EQ(e.r, float(all[0]));
+          EXPECT_EQ(e.g, float(all[1]));
+          EXPECT_EQ(e.b, float(all[2]));
+        }
+      }
+    }
+  }
+  EXPECT_THROW(model::ExitGrid(7, 16), std::invalid_argument);
 }

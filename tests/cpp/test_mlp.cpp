@@ -11,6 +11,7 @@
 #include <random>
 
 #include "neuralyarn/kernel/mlp.h"
+#include "neuralyarn/model/mlp_lanes.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/train/mlp.h"
 
@@ -158,6 +159,58 @@ TEST(Mlp, SizedShapesAreBitIdenticalToTheGenericLoop)
       }
     }
     EXPECT_GT(differ_from_zero, 1000);
+  }
+}
+
+/* The host's quadratures run L inputs at once (model/mlp_lanes.h): each lane must be exactly what
+ * mlp_forward_io gives for its input alone, on the shapes vectorised over lanes and on one that is not. */
+TEST(Mlp, LanesAreBitIdenticalToOneInputAtATime)
+{
+  const ShapeCase cases[] = {
+      {{3, 7, 7, 1}, ny::kMlpHeadSigmoid}, {{6, 21, 21, 3}, ny::kMlpHeadExp}, {{6, 32, 32, 3}, ny::kMlpHeadExp},
+      {{6, 20, 20, 3}, ny::kMlpHeadExp},
+  };
+  constexpr int L = 16;
+  std::mt19937_64 rng(12);
+  for (const ShapeCase &sc : cases) {
+    Mlp<float> m(MlpShape{sc.widths, sc.head}, 3);
+    randomize(m, rng);
+    const std::vector<float> flat = m.to_flat();
+    const int I = sc.widths.front(), O = sc.widths.back();
+    const auto X = random_matrix<float>(I, 50 * L, rng, -8.0, 8.0);
+    int nonzero = 0;
+    for (int j0 = 0; j0 < X.cols(); j0 += L) {
+      float in[6 * L], out[3 * L];
+      for (int i = 0; i < I; i++) {
+        for (int l = 0; l < L; l++) {
+          in[i * L + l] = X(i, j0 + l);
+        }
+      }
+      if (I == 3) {
+        model::mlp_forward_io_lanes<3, 1, L>(flat.data(), in, out);
+      }
+      else {
+        model::mlp_forward_io_lanes<6, 3, L>(flat.data(), in, out);
+      }
+      for (int l = 0; l < L; l++) {
+        float x[6], y[3];
+        for (int i = 0; i < I; i++) {
+          x[i] = X(i, j0 + l);
+        }
+        if (I == 3) {
+          ny::mlp_forward_io<3, 1>(flat.data(), x, y);
+        }
+        else {
+          ny::mlp_forward_io<6, 3>(flat.data(), x, y);
+        }
+        for (int o = 0; o < O; o++) {
+          ASSERT_EQ(std::memcmp(&out[o * L + l], &y[o], sizeof(float)), 0)
+              << "shape " << sc.widths[1] << " input " << j0 + l << ": " << out[o * L + l] << " vs " << y[o];
+          nonzero += y[o] != 0.0f;
+        }
+      }
+    }
+    EXPECT_GT(nonzero, 500);
   }
 }
 

@@ -4,11 +4,13 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <stdexcept>
 
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
 #include "neuralyarn/model/lobe_fidelity.h"
+#include "neuralyarn/model/mlp_lanes.h"
 #include "neuralyarn/train/dataset.h"
 #include "neuralyarn/units.h"
 
@@ -86,21 +88,69 @@ FurnaceMax white_furnace_max(const ny::YarnBsdfParams &p, const std::vector<ny::
   return f;
 }
 
-ny::Rgb m_lobe_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l)
+ExitGrid::ExitGrid(int nt, int np) : theta_bins(nt), phi_bins(np), solid_angle(size_t(nt))
 {
-  constexpr int nt = 64, np = 128;
-  double e[3] = {0, 0, 0};
+  if (nt < 2 || nt % 2 != 0 || np < 1) {
+    throw std::invalid_argument("exit grid: theta bins must be even and at least 2, phi bins at least 1");
+  }
   for (int to = 0; to < nt; to++) {
     const double t0 = kPi * to / nt, t1 = kPi * (to + 1) / nt;
-    const double dO = (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / np, th = 0.5 * (t0 + t1);
+    solid_angle[size_t(to)] = (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / np;
     for (int po = 0; po < np; po++) {
-      const ny::Vec3 wo = vec(train::entry_direction(th, -kPi + 2.0 * kPi * (po + 0.5) / np));
-      const ny::Rgb v = ny::yarn_eval_M(p, l, wo);
-      e[0] += v.r * dO;
-      e[1] += v.g * dO;
-      e[2] += v.b * dO;
+      const ny::Vec3 wo = vec(train::entry_direction(0.5 * (t0 + t1), -kPi + 2.0 * kPi * (po + 0.5) / np));
+      x.push_back(wo.x);
+      y.push_back(wo.y);
+      z.push_back(wo.z);
     }
   }
+}
+
+void m_lobe_energy_split(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, const ExitGrid &g, bool split,
+                         double up[3], double down[3])
+{
+  for (int c = 0; c < 3; c++) {
+    up[c] = down[c] = 0.0;
+  }
+  if (!l.valid) {
+    return; /* yarn_eval_M's zero */
+  }
+  /* yarn_eval_M at kLanes exits at once: its input (w_e, w_o), then its product with scale_M lane by lane;
+   * the last block of a row repeats its last exit in the lanes past the row and leaves them out. */
+  constexpr int kLanes = 16;
+  float in[6 * kLanes], out[3 * kLanes];
+  for (int k = 0; k < kLanes; k++) {
+    in[0 * kLanes + k] = l.we.x;
+    in[1 * kLanes + k] = l.we.y;
+    in[2 * kLanes + k] = l.we.z;
+  }
+  const int nt = g.theta_bins, np = g.phi_bins;
+  for (int to = 0; to < nt; to++) {
+    const double dO = g.solid_angle[size_t(to)];
+    double *e = split && 2 * to >= nt ? down : up;
+    for (int po = 0; po < np; po += kLanes) {
+      const int n = std::min(kLanes, np - po);
+      for (int k = 0; k < kLanes; k++) {
+        const size_t q = size_t(to) * size_t(np) + size_t(po + std::min(k, n - 1));
+        in[3 * kLanes + k] = g.x[q];
+        in[4 * kLanes + k] = g.y[q];
+        in[5 * kLanes + k] = g.z[q];
+      }
+      mlp_forward_io_lanes<6, 3, kLanes>(p.net_M, in, out);
+      for (int k = 0; k < n; k++) {
+        const ny::Rgb v = ny::make_rgb(out[k], out[kLanes + k], out[2 * kLanes + k]) * l.scale_M;
+        e[0] += v.r * dO;
+        e[1] += v.g * dO;
+        e[2] += v.b * dO;
+      }
+    }
+  }
+}
+
+ny::Rgb m_lobe_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l)
+{
+  static const ExitGrid grid(64, 128);
+  double e[3], unused[3];
+  m_lobe_energy_split(p, l, grid, false, e, unused);
   return ny::make_rgb(float(e[0]), float(e[1]), float(e[2]));
 }
 

@@ -12,6 +12,7 @@
 #include <tbb/parallel_for.h>
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/model/calibration.h"
 #include "neuralyarn/model/cycles_lobes.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/units.h"
@@ -40,29 +41,6 @@ double von_mises_upper_share(float kappa)
     up += std::abs(phi) < 0.5 * kPi ? v : 0.0;
   }
   return all > 0.0 ? up / all : 0.5;
-}
-
-/* The M energies of one view direction, split at the equator of the normal. */
-void m_energy_split(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, int nt, int np, double up[3],
-                    double down[3])
-{
-  for (int c = 0; c < 3; c++) {
-    up[c] = down[c] = 0.0;
-  }
-  for (int to = 0; to < nt; to++) {
-    const double t0 = kPi * to / nt, t1 = kPi * (to + 1) / nt;
-    const double dO = (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / np, th = 0.5 * (t0 + t1);
-    double *e = 2 * to < nt ? up : down;
-    const double st = std::sin(th), ct = std::cos(th);
-    for (int po = 0; po < np; po++) {
-      const double ph = -kPi + 2.0 * kPi * (po + 0.5) / np;
-      const ny::Vec3 wo = ny::make_vec3(float(st * std::cos(ph)), float(st * std::sin(ph)), float(ct));
-      const ny::Rgb v = ny::yarn_eval_M(p, l, wo);
-      e[0] += v.r * dO;
-      e[1] += v.g * dO;
-      e[2] += v.b * dO;
-    }
-  }
 }
 
 /* Upper bound of a stored lobe weight (the loader's check): a weight is at most the view's energy over a
@@ -405,12 +383,13 @@ FallbackTables compute_fallback(const YarnModel &model, const FallbackOptions &o
   f.W.assign(n * K * 3, 0.0f);
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                             o.threads > 0 ? size_t(o.threads) : tbb::this_task_arena::max_concurrency());
+  const ExitGrid grid(o.quad_theta, o.quad_phi);
   tbb::parallel_for(0, int(n), [&](int k) {
     const int i = k / f.phi_bins, j = k % f.phi_bins;
     const ny::Vec3 wi = ny::direction_from_angles(float(f.theta_center(i)), float(f.phi_center(j)));
     const ny::YarnLobes l = ny::yarn_lobes(p, wi);
     double up[3], down[3];
-    m_energy_split(p, l, o.quad_theta, o.quad_phi, up, down);
+    m_lobe_energy_split(p, l, grid, true, up, down);
     f.P_T[size_t(k)] = l.P_T;
     const ny::Rgb er = ny::yarn_energy_R(l);
     const float ers[3] = {er.r, er.g, er.b};

@@ -105,8 +105,9 @@ void integrate_r_parts(const ny::YarnBsdfParams &p, const rdm::MapResolution &b,
           const float u2 = (k + 0.5f) / n_phi;
           const float phi = part == 0 ? -ny::kHalfPi + ny::kPi * u2 : ny::sample_truncated_normal(l.tn_TT_phi, u2);
           const ny::Vec3 wo_f = ny::direction_from_angles(theta, phi);
+          const ny::YarnOutgoing o = ny::yarn_outgoing(wo_f); /* w_o's angles once, for pdf and eval */
           float pdf_R, pdf_TT;
-          ny::yarn_pdf_R_parts(l, wo_f, &pdf_R, &pdf_TT);
+          ny::yarn_pdf_R_parts(l, o, &pdf_R, &pdf_TT);
           const float pdf = count * (parts == 2 ? pdf_R + pdf_TT : pdf_R);
           if (!(pdf > 0.0f)) {
             continue;
@@ -115,7 +116,7 @@ void integrate_r_parts(const ny::YarnBsdfParams &p, const rdm::MapResolution &b,
           int to, po;
           rdm::outgoing_bin(b, wo.x, wo.y, wo.z, &to, &po);
           ny::Rgb R, TT;
-          ny::yarn_eval_R_parts(l, wo_f, &R, &TT);
+          ny::yarn_eval_R_parts(l, o, &R, &TT);
           add(to, po, phi, R * (1.0f / pdf), TT * (1.0f / pdf), l.tau);
         }
       }

@@ -58,6 +58,9 @@ NY_KERNEL_FN float mlp_apply_head(int head, float z)
   return z;
 }
 
+/* A hidden layer's channel-wise PReLU (slope a below 0); the output layer passes z through. */
+NY_KERNEL_FN float mlp_prelu(bool hidden, float a, float z) { return (hidden && z < 0.0f) ? a * z : z; }
+
 /* One weight layer of n_in -> n_out: z = b + W x (summed over the inputs in order), then PReLU (hidden) or
  * nothing; `p` points at W and the pointer past this layer's parameters is returned. NI and NO, when not 0,
  * are the widths known at compile time (and n_in, n_out equal them): the loops unroll and z stays in
@@ -84,7 +87,7 @@ NY_KERNEL_FN const float *mlp_layer(const float *p, int n_in, int n_out, bool hi
     }
   }
   for (int o = 0; o < no; o++) {
-    out[o] = (hidden && z[o] < 0.0f) ? a[o] * z[o] : z[o]; /* channel-wise PReLU */
+    out[o] = mlp_prelu(hidden, a[o], z[o]);
   }
   return a + (hidden ? no : 0);
 }

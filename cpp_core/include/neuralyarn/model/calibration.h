@@ -19,8 +19,23 @@ namespace neuralyarn::model {
 /* Ratios are clamped to this range; a bin where either energy is (nearly) zero gets 1. */
 constexpr float kCalibrationMin = 0.01f, kCalibrationMax = 100.0f;
 
-/* Integral of the M lobe (S_M |cos theta_o|, calibration included) over the sphere: midpoint rule on a
- * fixed 64 x 128 (theta_o, phi_o) grid with exact cell solid angles, whatever the maps' resolution (M lobes
+/* A midpoint grid of exit directions over the sphere: nt (even, so that the equator is a cell boundary)
+ * rows in polar angle theta_o from the normal, np cells in azimuth, row-major, and each row's exact cell
+ * solid angle. Built once and shared by every incident direction. */
+struct ExitGrid {
+  ExitGrid(int nt, int np);
+  int theta_bins, phi_bins;
+  std::vector<float> x, y, z; /* the directions' components */
+  std::vector<double> solid_angle;
+};
+
+/* The M lobe's energy (S_M |cos theta_o|, calibration included) by the midpoint rule on grid g: all in
+ * `up`, or with `split` the upper hemisphere's (theta_o < 90 deg) in `up` and the lower's in `down`. Bit for
+ * bit the sum of yarn_eval_M over the cells in row-major order (the network on 16 exits at once). */
+void m_lobe_energy_split(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, const ExitGrid &g, bool split,
+                         double up[3], double down[3]);
+
+/* Integral of the M lobe over the sphere on a fixed 64 x 128 grid, whatever the maps' resolution (M lobes
  * are tens of degrees wide). */
 ny::Rgb m_lobe_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l);
 
