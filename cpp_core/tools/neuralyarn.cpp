@@ -130,7 +130,7 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
 int main(int argc, char **argv)
 {
   CLI::App app{"neuralyarn: neural yarn appearance model (Soh & Montazeri, EGSR 2024) tools"};
-  app.set_version_flag("--version", std::string(kVersion));
+  app.set_version_flag("--version", std::string(kVersion) + "+" + kGitRevision); /* as model files stamp it */
   app.require_subcommand(1);
 
   auto *presets = app.add_subcommand("presets", "List the built-in fiber presets");
