@@ -104,17 +104,21 @@ TEST(Calibration, MLobeQuadratureIsThePlainSumOfYarnEvalM)
       const model::ExitGrid g(nt, np);
       for (const ny::Vec3 wi : {ny::make_vec3(0.3f, -0.2f, 0.93f), ny::make_vec3(0.9f, 0.4f, 0.17f)}) {
         const ny::YarnLobes l = ny::yarn_lobes(p, ny::normalize(wi));
-        double up[3] = {0, 0, 0}, down[3] = {0, 0, 0};
-        for (int to = 0; to < nt; to++) {
-          double *e = 2 * to < nt ? up : down;
-          for (int po = 0; po < np; po++) {
-            const size_t q = size_t(to) * size_t(np) + size_t(po);
-            const ny::Rgb v = ny::yarn_eval_M(p, l, ny::make_vec3(g.x[q], g.y[q], g.z[q]));
-            e[0] += v.r * g.solid_angle[size_t(to)];
-            e[1] += v.g * g.solid_angle[size_t(to)];
-            e[2] += v.b * g.solid_angle[size_t(to)];
+        /* The plain sum, into `up` alone or split at the equator. */
+        auto plain_sum = [&](bool split, double up[3], double down[3]) {
+          for (int to = 0; to < nt; to++) {
+            double *e = split && 2 * to >= nt ? down : up;
+            for (int po = 0; po < np; po++) {
+              const size_t q = size_t(to) * size_t(np) + size_t(po);
+              const ny::Rgb v = ny::yarn_eval_M(p, l, ny::make_vec3(g.x[q], g.y[q], g.z[q]));
+              e[0] += v.r * g.solid_angle[size_t(to)];
+              e[1] += v.g * g.solid_angle[size_t(to)];
+              e[2] += v.b * g.solid_angle[size_t(to)];
+            }
           }
-        }
+        };
+        double up[3] = {0, 0, 0}, down[3] = {0, 0, 0};
+        plain_sum(true, up, down);
         double su[3], sd[3];
         model::m_lobe_energy_split(p, l, g, true, su, sd);
         for (int c = 0; c < 3; c++) {
@@ -124,16 +128,8 @@ TEST(Calibration, MLobeQuadratureIsThePlainSumOfYarnEvalM)
         }
         if (nt == 64 && np == 128) {
           /* m_lobe_energy: the same cells summed into one accumulator. */
-          double all[3] = {0, 0, 0};
-          for (int to = 0; to < nt; to++) {
-            for (int po = 0; po < np; po++) {
-              const size_t q = size_t(to) * size_t(np) + size_t(po);
-              const ny::Rgb v = ny::yarn_eval_M(p, l, ny::make_vec3(g.x[q], g.y[q], g.z[q]));
-              all[0] += v.r * g.solid_angle[size_t(to)];
-              all[1] += v.g * g.solid_angle[size_t(to)];
-              all[2] += v.b * g.solid_angle[size_t(to)];
-            }
-          }
+          double all[3] = {0, 0, 0}, none[3] = {0, 0, 0};
+          plain_sum(false, all, none);
           const ny::Rgb e = model::m_lobe_energy(p, l);
           EXPECT_EQ(e.r, float(all[0]));
           EXPECT_EQ(e.g, float(all[1]));

@@ -164,15 +164,24 @@ NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<6, 3>, const float *p, int H, 
   return false;
 }
 
+/* H when the network at `params` is I-H-H-O (two hidden layers of one width, the trainer's form), else 0;
+ * its layers then start at params + 6 and its head is params[5]. */
+template<int I, int O>
+NY_KERNEL_FN int mlp_two_hidden_width(const float *params)
+{
+  return (params[0] == 3.0f && params[1] == (float)I && params[4] == (float)O && params[2] == params[3]) ?
+             (int)params[2] :
+             0;
+}
+
 /* mlp_forward() for a network known to map I inputs to O outputs (the flat array's validation checks it):
  * the trainer's shapes with compile-time widths, bit-identical to mlp_forward(); any other through
  * mlp_forward(). */
 template<int I, int O>
 NY_KERNEL_FN void mlp_forward_io(const float *params, const float *input, float *output)
 {
-  if (params[0] == 3.0f && params[1] == (float)I && params[4] == (float)O && params[2] == params[3] &&
-      mlp_forward_trainer_shape(MlpIO<I, O>(), params + 6, (int)params[2], (int)params[5], input, output))
-  {
+  const int H = mlp_two_hidden_width<I, O>(params);
+  if (H > 0 && mlp_forward_trainer_shape(MlpIO<I, O>(), params + 6, H, (int)params[5], input, output)) {
     return;
   }
   mlp_forward(params, input, output);

@@ -68,9 +68,7 @@ void mlp_forward_sized_lanes(const float *p, int head, const float *in, float *o
 template<int I, int O, int L>
 void mlp_forward_io_lanes(const float *params, const float *in, float *out)
 {
-  const bool two_hidden = params[0] == 3.0f && params[1] == float(I) && params[4] == float(O) &&
-                          params[2] == params[3];
-  const int H = two_hidden ? int(params[2]) : 0, head = two_hidden ? int(params[5]) : 0;
+  const int H = ny::mlp_two_hidden_width<I, O>(params), head = H > 0 ? int(params[5]) : 0;
   if constexpr (I == 3 && O == 1) {
     if (H == 7) {
       return mlp_forward_sized_lanes<3, 7, 1, L>(params + 6, head, in, out);
