@@ -12,7 +12,8 @@ Renders every (scene, method, preset, light, spp, seed) with the patched standal
 (scene, preset, light) — reference A is the reference, B against A is the noise floor. Each is the mean of
 --ref-rotations renders of the ply turned about its axis (B's angles halfway between A's, other seeds), so
 that it holds the mean over the cross-section's orientation, as the maps do (D20).
-References are cached in DIR/refs and reused when the scene files and the sample count are the same.
+References are cached in DIR/refs and reused when the scene files, the sample count and the Cycles binary are
+the same.
 
 Scenes: `garment` (on request; --garment-stitches, default 40 x 40: a plain-knit sleeve of 3-ply yarn,
 scripts/garment.py, seen whole at 320 x 240, the point lights moved out with the camera; its central region is
@@ -426,6 +427,11 @@ def render(a, scene: str, spp: int, exr: str, what: str, fallback: tuple[str, st
     return {"seconds": seconds, "peak_rss_mb": float(lines[-1]) / 1024.0 if lines else None}
 
 
+@functools.lru_cache(maxsize=None)
+def cycles_sha256() -> str:
+    return sha256(CYCLES)
+
+
 def sha256(path: str) -> str:
     with open(path, "rb") as f:
         return hashlib.sha256(f.read()).hexdigest()
@@ -541,7 +547,9 @@ def reference(a, scene: str, preset: str, light: str, which: str, what: str,
     exr = os.path.join(a.out, "refs", name + ".exr")
     meta_path = os.path.join(a.out, "refs", name + ".json")
     key = {"scene_sha256": hashlib.sha256("".join(sha256(x) for x in xmls).encode()).hexdigest(),
-           "spp": a.ref_spp, "rotations": k_count, "width": a.width, "height": a.height}
+           "spp": a.ref_spp, "rotations": k_count, "width": a.width, "height": a.height,
+           # the renderer too: a rebuilt Cycles may sample the fibers differently (decisions D31)
+           "cycles_sha256": cycles_sha256()}
     if os.path.isfile(exr) and os.path.isfile(meta_path):
         with open(meta_path) as f:
             meta = json.load(f)

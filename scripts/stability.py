@@ -171,10 +171,14 @@ def render_view(a, s: dict, method: str, spp: int, seed: int, what: str) -> tupl
 
 def reference(a, s: dict, progress) -> np.ndarray:
     """Explicit fibers at a.ref_spp, the mean over a.ref_rotations orientations as the harness's reference A
-    (cached in DIR/refs by spec)."""
+    (cached in DIR/refs by spec and Cycles binary: a rebuilt Cycles may sample the fibers differently, D31)."""
     exr = os.path.join(a.out, "refs", f"{key_of(s)}_{a.ref_spp}spp_{a.ref_rotations}rot.exr")
-    if os.path.isfile(exr):
-        return read_exr(exr)
+    stamp = exr[:-len(".exr")] + ".json"
+    renderer = {"cycles_sha256": ev.cycles_sha256()}
+    if os.path.isfile(exr) and os.path.isfile(stamp):
+        with open(stamp) as f:
+            if json.load(f) == renderer:
+                return read_exr(exr)
     k, spp = a.ref_rotations, max(1, a.ref_spp // a.ref_rotations)
     total = None
     for i, (seed, rotation) in enumerate(ev.reference_parts("A", k)):
@@ -185,6 +189,8 @@ def reference(a, s: dict, progress) -> np.ndarray:
         os.remove(part)
         total = img if total is None else total + img
     write_exr(exr, total / k)
+    with open(stamp, "w") as f:
+        json.dump(renderer, f)
     return total / k
 
 

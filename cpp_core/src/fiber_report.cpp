@@ -36,7 +36,7 @@ std::vector<AlbedoRow> fiber_albedo_table(const FiberPreset &preset, const std::
       ny::Vec3 wo;
       ny::Rgb w;
       float pdf;
-      if (!ny::fiber_sample(params, wi, u0, u1, u2, &wo, &w, &pdf)) {
+      if (!ny::fiber_sample(params, wi, u0, u1, u2, [&] { return uniform_float(rng); }, &wo, &w, &pdf)) {
         continue;
       }
       const double c[3] = {w.r, w.g, w.b};

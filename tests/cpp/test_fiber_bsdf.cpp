@@ -7,9 +7,12 @@
 // adaptive grid; the family of 5 x 12 = 60 tests is run at a Sidak-corrected level so that a correct
 // implementation fails the whole family with probability 1 %. Seeds are fixed, so the suite is
 // deterministic; the level says how unlucky a seed would have to be.
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -108,7 +111,7 @@ TEST_P(FiberBsdfTest, SampleMatchesPdfChi2)
                     u2 = neuralyarn::uniform_float(rng);
         ny::Rgb w;
         float pdf;
-        return ny::fiber_sample(params, wi, u0, u1, u2, &wo, &w, &pdf);
+        return ny::fiber_sample(params, wi, u0, u1, u2, [&] { return neuralyarn::uniform_float(rng); }, &wo, &w, &pdf);
       },
       [&](ny::Vec3 wo) { return double(ny::fiber_pdf(params, wi, wo)); }, 1000000, 20, 40,
       uint64_t(100 + GetParam().preset * 100 + GetParam().incident));
@@ -144,7 +147,7 @@ TEST_P(FiberBsdfTest, SampleWeightIsEvalOverPdf)
     ny::Vec3 wo;
     ny::Rgb w;
     float pdf;
-    ASSERT_TRUE(ny::fiber_sample(params, wi, u0, u1, u2, &wo, &w, &pdf));
+    ASSERT_TRUE(ny::fiber_sample(params, wi, u0, u1, u2, [&] { return neuralyarn::uniform_float(rng); }, &wo, &w, &pdf));
     EXPECT_NEAR(ny::length(wo), 1.0f, 1e-5f);
     float pdf_eval;
     const ny::Rgb f = ny::fiber_eval(params, wi, wo, &pdf_eval);
@@ -203,7 +206,7 @@ TEST(FiberBsdfRobustness, TenMillionPairsFiniteAndNonNegative)
     ny::Vec3 ws;
     ny::Rgb w;
     float spdf = -1.0f;
-    const bool ok = ny::fiber_sample(p, wi, u[0], u[1], u[2], &ws, &w, &spdf);
+    const bool ok = ny::fiber_sample(p, wi, u[0], u[1], u[2], [&] { return neuralyarn::uniform_float(rng); }, &ws, &w, &spdf);
     const bool good = finite_nonneg(f) && ny::is_finite(pdf) && pdf >= 0.0f && ok && finite_nonneg(w) &&
                       ny::is_finite(spdf) && spdf > 0.0f && ny::is_finite(ws.x) && ny::is_finite(ws.y) &&
                       ny::is_finite(ws.z);
@@ -228,7 +231,7 @@ TEST(FiberBsdfRobustness, BlackFiberScattersNothing)
   ny::Vec3 wo;
   ny::Rgb w;
   float pdf;
-  EXPECT_FALSE(ny::fiber_sample(p, wi, 0.3f, 0.4f, 0.5f, &wo, &w, &pdf));
+  EXPECT_FALSE(ny::fiber_sample(p, wi, 0.3f, 0.4f, 0.5f, [] { return 0.5f; }, &wo, &w, &pdf));
   EXPECT_EQ(pdf, 0.0f);
   EXPECT_EQ(ny::fiber_pdf(p, wi, ny::make_vec3(0, 0, -1)), 0.0f);
 }
@@ -248,6 +251,95 @@ TEST(FiberBsdf, ReflectionPeaksOnTheSpecularCone)
     }
   }
   EXPECT_NEAR(best_theta / kDeg, -30.0, 0.2);
+}
+
+/* The lobe choice weighted by the path's throughput t (the explicit-fiber reference in Cycles, the gather):
+ * whichever lobe is drawn, the channel sum of t e_k / p_k is <t, albedo>, so the choice never grows a path.
+ * Positive control: cotton's channel-mean choice multiplies a blue path by ~2 per TT event. */
+TEST(FiberBsdf, ThroughputWeightedLobeChoiceNeverGrowsThePath)
+{
+  neuralyarn::Rng rng(7);
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  const ny::Rgb fallback[] = {ny::make_rgb(0, 0, 0), ny::make_rgb(nan, 1, 1), ny::make_rgb(inf, 0, 0)};
+  for (const char *name : kPresets) {
+    const ny::FiberBsdfParams p = neuralyarn::find_preset(name).fiber_params();
+    for (int i = 0; i < 20000; i++) {
+      const ny::Vec3 wi = ny::sample_uniform_sphere(neuralyarn::uniform_float(rng), neuralyarn::uniform_float(rng));
+      ny::Rgb e_R, e_TT;
+      ny::fiber_energies(p, wi, &e_R, &e_TT);
+      /* Throughputs from one dominant channel to grey, over 30 orders of magnitude. */
+      const float scale = std::pow(10.0f, float(int(rng() % 31) - 15));
+      ny::Rgb t = ny::make_rgb(neuralyarn::uniform_float(rng), neuralyarn::uniform_float(rng),
+                               neuralyarn::uniform_float(rng));
+      t = t * t * t * scale;
+      const float p_R = ny::fiber_probability_R(e_R, e_TT, t);
+      ASSERT_TRUE(p_R >= 0.0f && p_R <= 1.0f) << name << " p_R " << p_R;
+      const double sum = double(t.r) * (e_R.r + e_TT.r) + double(t.g) * (e_R.g + e_TT.g) +
+                         double(t.b) * (e_R.b + e_TT.b);
+      const ny::Rgb lobes[2] = {e_R, e_TT};
+      const float probs[2] = {p_R, 1.0f - p_R};
+      for (int k = 0; k < 2; k++) {
+        const double drawn = double(t.r) * lobes[k].r + double(t.g) * lobes[k].g + double(t.b) * lobes[k].b;
+        /* A lobe below float's resolution of 1 - p_R (2^-24) of the path may round to probability 0. */
+        if (drawn > 1e-6 * sum) {
+          ASSERT_GT(probs[k], 0.0f) << name << ": a lobe that carries the path is never drawn";
+          /* p_TT = 1 - p_R in float: off by up to 2^-24 absolutely, p_R by a few ulps relatively. */
+          EXPECT_LE(drawn / probs[k], sum * (1.0 + 1e-6 + 1.2e-7 / probs[k])) << name << " lobe " << k;
+        }
+      }
+    }
+    /* No usable throughput: the channel means, as without one. */
+    ny::Rgb e_R, e_TT;
+    ny::fiber_energies(p, ny::direction_from_angles(0.3f, 0.2f), &e_R, &e_TT);
+    for (const ny::Rgb &t : fallback) {
+      EXPECT_EQ(ny::fiber_probability_R(e_R, e_TT, t), ny::fiber_probability_R(e_R, e_TT)) << name;
+    }
+  }
+  const ny::FiberBsdfParams cotton = neuralyarn::find_preset("cotton").fiber_params();
+  ny::Rgb e_R, e_TT;
+  ny::fiber_energies(cotton, ny::direction_from_angles(0.0f, 0.0f), &e_R, &e_TT);
+  EXPECT_GT(e_TT.b / (1.0f - ny::fiber_probability_R(e_R, e_TT)), 2.0f) << "cotton's TT is blue-heavy";
+}
+
+/* The same at the level of walks through the kernel's sampler (what the Cycles closure runs): 30 events of
+ * cotton, each at a random incidence within 45 degrees of the normal plane, where both lobes draw theta_o
+ * exactly (acceptance >= 0.5). Then the weight is a mix of the lobes' colours and, with the lobe chosen by
+ * throughput, a walk's channel sum never grows: no channel can exceed the start's sum, 3. Drawn by channel
+ * means, the 99.9th percentile is 23 (the reference's coloured fireflies). */
+TEST(FiberBsdf, ThroughputWeightedLobeChoiceKeepsCottonWalksBounded)
+{
+  const ny::FiberBsdfParams cotton = neuralyarn::find_preset("cotton").fiber_params();
+  auto percentile_999 = [&](bool weighted) {
+    neuralyarn::Rng rng(11);
+    std::vector<float> peaks;
+    for (int w = 0; w < 20000; w++) {
+      ny::Rgb t = ny::make_rgb(1.0f, 1.0f, 1.0f);
+      for (int e = 0; e < 30; e++) {
+        const float theta_i = float(kPi / 2) * (neuralyarn::uniform_float(rng) - 0.5f);
+        const float phi_i = float(2 * kPi) * neuralyarn::uniform_float(rng);
+        ny::FiberLobes l = ny::fiber_lobes(cotton, ny::direction_from_angles(theta_i, phi_i));
+        if (weighted) {
+          l.p_R = ny::fiber_probability_R(l.energy_R, l.energy_TT, t);
+        }
+        ny::Vec3 wo;
+        ny::Rgb weight;
+        float pdf;
+        auto next = [&] { return neuralyarn::uniform_float(rng); };
+        if (!ny::fiber_sample_lobes(l, next(), next(), next(), next, &wo, &weight, &pdf)) {
+          break;
+        }
+        t = t * weight;
+      }
+      peaks.push_back(std::max(t.r, std::max(t.g, t.b)));
+    }
+    std::sort(peaks.begin(), peaks.end());
+    return peaks[size_t(0.999 * peaks.size())];
+  };
+  const float mean_choice = percentile_999(false), weighted_choice = percentile_999(true);
+  std::printf("99.9th percentile of a walk's largest channel: channel means %g, throughput %g\n", mean_choice,
+              weighted_choice);
+  EXPECT_GT(mean_choice, 10.0f) << "positive control: the channel-mean choice grows cotton walks";
+  EXPECT_LE(weighted_choice, 3.0f * (1.0f + 30 * 1e-6f)) << "30 events of float rounding";
 }
 
 TEST(FiberBsdf, TransmissionPeaksForward)

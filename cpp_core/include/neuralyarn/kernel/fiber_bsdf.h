@@ -17,13 +17,26 @@
 //   * pdf is a density with respect to solid angle;
 //   * sample returns a direction, its pdf and weight = eval / pdf.
 //
-// Sampling is exact and matches pdf: the lobe is chosen with probability
+// Sampling matches pdf exactly. The lobe is chosen with probability
 //   p_R = mean(F) / (mean(F) + mean((1 - F) C_TT)),
-// theta_o from the truncated normal N(-theta_i, beta_k) on [-pi/2, pi/2] by inverse CDF, and the azimuth
-// uniformly (R) or from the von Mises (TT). The pdf is the density of that mixture,
-//   pdf = [p_R TN_R(theta_o) / (2 pi) + (1 - p_R) TN_TT(theta_o) vM(phi_o - phi_i - pi)] / cos theta_o,
-// the 1 / cos theta_o converting from (theta, phi) to solid angle. The sample weight is therefore
-// bounded: the truncated normal is proportional to g, so eval / pdf ~ (Z_TN / G) cos^2 theta_o.
+// or, where the caller knows the path's throughput t (it then sets FiberLobes::p_R itself), with the lobes'
+// energies weighted by it: p_R = <t, F> / <t, F + (1 - F) C_TT>. Any p_R in (0, 1) is unbiased; the weighted
+// one keeps the lobe choice from growing a channel: with the channel mean, every TT event of a cotton path
+// multiplies its blue weight by 2.1 and its red by 0.19 (TT is blue-heavy, R red-heavy); weighted, the
+// channel sum of t e_k / p_k is <t, albedo>.
+// theta_o is drawn exactly from lobe k's density gbar_k(theta) cos^2(theta) by rejection: proposals from the
+// truncated normal N(-theta_i, beta_k) on [-pi/2, pi/2] (inverse CDF), accepted with probability
+// cos^2 theta_o, more uniform numbers from the caller's generator. The acceptance rate is G_k / Z_k (Z_k the
+// truncated normal's mass); where it is below kFiberExactMinAcceptance (w_i within a few beta of the fiber
+// axis) one proposal is kept instead, with density TN_k. The azimuth is uniform (R) or von Mises (TT).
+// pdf is the density of that mixture,
+//   pdf = [p_R D_R(theta_o) / (2 pi) + (1 - p_R) D_TT(theta_o) vM(phi_o - phi_i - pi)] / cos theta_o,
+// D_k = gbar_k cos^2 or TN_k, the 1 / cos theta_o converting from (theta, phi) to solid angle. Where both
+// lobes are exact, eval = sum_k e_k pdf_k and the weight eval / pdf is a mix of the lobes' colours: with the
+// weighted p_R the path's channel sum never grows. With the truncated normal alone every event would
+// multiply the path by (Z / G) cos^2 theta_o, a grey factor of mean one whose product over the tens of
+// events of a cotton walk spreads over orders of magnitude (fireflies in the explicit-fiber reference;
+// tests/cpp/test_fiber_bsdf.cpp measures both).
 //
 // von Mises concentration: kappa = 1 / gamma_TT^2, as the paper writes f(.; ., gamma^-2). For small
 // gamma this von Mises equals a wrapped normal of standard deviation gamma to O(gamma^4); the authors'
@@ -64,7 +77,32 @@ NY_KERNEL_FN Rgb schlick_fresnel(Rgb C_R, float cos_theta)
   return C_R + (make_rgb(1.0f) - C_R) * f;
 }
 
-/* The w_i-dependent setup. `with_eval` = false skips the two cos^2 normalisers, which only eval needs
+/* Probability of sampling R from the lobes' energies e_R = F and e_TT = (1 - F) C_TT: by their channel means. */
+NY_KERNEL_FN float fiber_probability_R(Rgb e_R, Rgb e_TT)
+{
+  const float a_R = average(e_R);
+  const float a_TT = average(e_TT);
+  return (a_R + a_TT > 0.0f) ? a_R / (a_R + a_TT) : 0.0f;
+}
+
+/* The same with the energies weighted by the path's throughput (see the top of this file); a throughput that
+ * weights nothing (zero, NaN, infinite) falls back to the channel means. */
+NY_KERNEL_FN float fiber_probability_R(Rgb e_R, Rgb e_TT, Rgb throughput)
+{
+  const float a_R = throughput.r * e_R.r + throughput.g * e_R.g + throughput.b * e_R.b;
+  const float a_TT = throughput.r * e_TT.r + throughput.g * e_TT.g + throughput.b * e_TT.b;
+  const float a = a_R + a_TT;
+  return (a > 0.0f && a < kFloatMax) ? a_R / a : fiber_probability_R(e_R, e_TT);
+}
+
+/* The lobes' energies at incidence w_i: e_R = F and e_TT = (1 - F) C_TT (their sum is the albedo). */
+NY_KERNEL_FN void fiber_energies(const FiberBsdfParams &p, Vec3 wi, Rgb *e_R, Rgb *e_TT)
+{
+  *e_R = schlick_fresnel(p.C_R, cos_theta(wi));
+  *e_TT = (make_rgb(1.0f) - *e_R) * p.C_TT;
+}
+
+/* The w_i-dependent setup. `with_eval` = false skips the two cos^2 normalisers, which eval, pdf and sample need
  * (they are the expensive part: up to 2 x 32 exp/cos); m_R and m_TT are then left zero. */
 NY_KERNEL_FN FiberLobes fiber_lobes(const FiberBsdfParams &p, Vec3 wi, bool with_eval = true)
 {
@@ -72,12 +110,9 @@ NY_KERNEL_FN FiberLobes fiber_lobes(const FiberBsdfParams &p, Vec3 wi, bool with
   l.cos_theta_i = cos_theta(wi);
   l.theta_i = theta_of(wi);
   l.phi_i = phi_of(wi);
-  l.F = schlick_fresnel(p.C_R, l.cos_theta_i);
-  l.energy_R = l.F;
-  l.energy_TT = (make_rgb(1.0f) - l.F) * p.C_TT;
-  const float e_R = average(l.energy_R);
-  const float e_TT = average(l.energy_TT);
-  l.p_R = (e_R + e_TT > 0.0f) ? e_R / (e_R + e_TT) : 0.0f;
+  fiber_energies(p, wi, &l.energy_R, &l.energy_TT);
+  l.F = l.energy_R;
+  l.p_R = fiber_probability_R(l.energy_R, l.energy_TT);
   l.kappa_TT = 1.0f / (p.gamma_TT * p.gamma_TT);
   const float mu = -l.theta_i;
   if (with_eval) {
@@ -96,10 +131,34 @@ NY_KERNEL_FN FiberLobes fiber_lobes(const FiberBsdfParams &p, Vec3 wi, bool with
 /* Albedo: integral of eval over the sphere, F + (1 - F) C_TT. */
 NY_KERNEL_FN Rgb fiber_albedo(const FiberLobes &l) { return l.energy_R + l.energy_TT; }
 
+
+/* Rejection sampling of theta_o (see the top of this file) where its acceptance rate is at least this; a
+ * loop that ran kFiberExactMaxRounds proposals (probability below 0.8^64 = 6e-7) returns no sample. */
+constexpr float kFiberExactMinAcceptance = 0.2f;
+constexpr int kFiberExactMaxRounds = 64;
+
+/* Whether lobe (m, tn) draws theta_o exactly from gbar cos^2: its acceptance rate G / Z = 1 / (beta G^-1 Z)
+ * is at least kFiberExactMinAcceptance. Needs the lobe's normaliser (fiber_lobes with eval). */
+NY_KERNEL_FN bool fiber_lobe_exact(const LongitudinalLobe &m, const TruncatedNormal &tn)
+{
+  return m.inv_beta_G > 0.0f && m.beta * m.inv_beta_G * tn.mass * kFiberExactMinAcceptance <= 1.0f;
+}
+
+/* Lobe k's sampling density of theta_o. */
+NY_KERNEL_FN float fiber_theta_pdf(const LongitudinalLobe &m, const TruncatedNormal &tn, float theta)
+{
+  if (fiber_lobe_exact(m, tn)) {
+    const float c = cosf(theta);
+    return longitudinal_eval(m, theta) * c * c;
+  }
+  return truncated_normal_pdf(tn, theta);
+}
+
 /* Smallest cos(theta_o) used to convert a (theta, phi) density to solid angle: the density is then
  * finite (if huge) at the poles, where eval is zero. */
 constexpr float kFiberMinCosTheta = 1e-7f;
 
+/* Requires lobes set up with eval (the exact branch's density needs the normalisers). */
 NY_KERNEL_FN float fiber_pdf_lobes(const FiberLobes &l, Vec3 wo)
 {
   if (!(l.p_R > 0.0f) && !(average(l.energy_TT) > 0.0f)) {
@@ -107,8 +166,8 @@ NY_KERNEL_FN float fiber_pdf_lobes(const FiberLobes &l, Vec3 wo)
   }
   const float theta_o = theta_of(wo);
   const float phi_o = phi_of(wo);
-  const float pdf_R = truncated_normal_pdf(l.tn_R, theta_o) * kInvTwoPi;
-  const float pdf_TT = truncated_normal_pdf(l.tn_TT, theta_o) *
+  const float pdf_R = fiber_theta_pdf(l.m_R, l.tn_R, theta_o) * kInvTwoPi;
+  const float pdf_TT = fiber_theta_pdf(l.m_TT, l.tn_TT, theta_o) *
                        von_mises_pdf(wrap_angle(phi_o - l.phi_i - kPi), l.kappa_TT);
   const float pdf = l.p_R * pdf_R + (1.0f - l.p_R) * pdf_TT;
   return pdf / fmaxf(cos_theta(wo), kFiberMinCosTheta);
@@ -137,38 +196,53 @@ NY_KERNEL_FN Rgb fiber_eval(const FiberBsdfParams &p, Vec3 wi, Vec3 wo, float *p
 
 NY_KERNEL_FN float fiber_pdf(const FiberBsdfParams &p, Vec3 wi, Vec3 wo)
 {
-  return fiber_pdf_lobes(fiber_lobes(p, wi, false), wo);
+  return fiber_pdf_lobes(fiber_lobes(p, wi), wo);
 }
 
-/* Draws w_o given three uniform numbers in [0, 1). Returns false (and zero weight) when the fiber
- * scatters nothing (C_R = C_TT = 0 at this angle). */
-NY_KERNEL_FN bool fiber_sample(const FiberBsdfParams &p,
-                               Vec3 wi,
-                               float u_lobe,
-                               float u_theta,
-                               float u_phi,
-                               Vec3 *wo,
-                               Rgb *weight,
-                               float *pdf)
+/* Draws w_o from the lobes set up for w_i (with eval), given three uniform numbers in [0, 1) and a generator
+ * `next()` of further ones for the rejection loop. Returns false (and zero weight) when the fiber scatters
+ * nothing (C_R = C_TT = 0 at this angle) or the loop ran out. */
+template<class Uniform>
+NY_KERNEL_FN bool fiber_sample_lobes(const FiberLobes &l,
+                                     float u_lobe,
+                                     float u_theta,
+                                     float u_phi,
+                                     Uniform &&next,
+                                     Vec3 *wo,
+                                     Rgb *weight,
+                                     float *pdf)
 {
-  const FiberLobes l = fiber_lobes(p, wi);
   const float e_TT = average(l.energy_TT);
   *weight = make_rgb(0.0f);
   *pdf = 0.0f;
   if (!(l.p_R > 0.0f) && !(e_TT > 0.0f)) {
     return false;
   }
-  float theta_o, phi_o;
-  if (u_lobe < l.p_R) {
+  const bool lobe_R = u_lobe < l.p_R;
+  const LongitudinalLobe &m = lobe_R ? l.m_R : l.m_TT;
+  const TruncatedNormal &tn = lobe_R ? l.tn_R : l.tn_TT;
+  float theta_o = sample_truncated_normal(tn, u_theta);
+  if (fiber_lobe_exact(m, tn)) {
+    for (int round = 1;; round++) {
+      const float c = cosf(theta_o);
+      if (next() < c * c) {
+        break;
+      }
+      if (round == kFiberExactMaxRounds) {
+        return false;
+      }
+      theta_o = sample_truncated_normal(tn, next());
+    }
+  }
+  float phi_o;
+  if (lobe_R) {
     /* R: azimuth uniform. */
-    theta_o = sample_truncated_normal(l.tn_R, u_theta);
     phi_o = kTwoPi * u_phi - kPi;
   }
   else {
     /* TT: azimuth von Mises about the forward direction. The lobe-selection number, rescaled to [0, 1),
      * is the von Mises acceptance variate. */
     const float u_reuse = clampf((u_lobe - l.p_R) / (1.0f - l.p_R), 0.0f, 0.99999994f);
-    theta_o = sample_truncated_normal(l.tn_TT, u_theta);
     phi_o = l.phi_i + kPi + sample_von_mises(l.kappa_TT, u_phi, u_reuse);
   }
   *wo = direction_from_angles(theta_o, phi_o);
@@ -180,6 +254,20 @@ NY_KERNEL_FN bool fiber_sample(const FiberBsdfParams &p,
   const Rgb f = fiber_eval_lobes(l, *wo);
   *weight = make_rgb(f.r / *pdf, f.g / *pdf, f.b / *pdf);
   return true;
+}
+
+template<class Uniform>
+NY_KERNEL_FN bool fiber_sample(const FiberBsdfParams &p,
+                               Vec3 wi,
+                               float u_lobe,
+                               float u_theta,
+                               float u_phi,
+                               Uniform &&next,
+                               Vec3 *wo,
+                               Rgb *weight,
+                               float *pdf)
+{
+  return fiber_sample_lobes(fiber_lobes(p, wi), u_lobe, u_theta, u_phi, next, wo, weight, pdf);
 }
 
 }  // namespace ny

@@ -40,6 +40,7 @@ constexpr float kInvFourPi = 0.07957747154594766788f;
 constexpr float kSqrt2 = 1.41421356237309504880f;
 constexpr float kInvSqrt2 = 0.70710678118654752440f;
 constexpr float kInvSqrtTwoPi = 0.39894228040143267794f;
+constexpr float kFloatMax = 3.40282347e38f; /* FLT_MAX, without <cfloat> */
 
 /* ------------------------------------------------------------------------------------------------ */
 /* Vec3: a direction or point in a local frame.                                                      */

@@ -82,24 +82,16 @@ bool FiberLobeSampler::sample(ny::Vec3 wi, ny::Rgb throughput, Uniform &&uniform
 {
   const float theta_i = ny::theta_of(wi);
   const float cos_i = ny::cos_theta(wi);
-  const ny::Rgb F = ny::schlick_fresnel(p_.C_R, cos_i);
-  const ny::Rgb e_TT = (ny::make_rgb(1.0f) - F) * p_.C_TT;
+  ny::Rgb F, e_TT;
+  ny::fiber_energies(p_, wi, &F, &e_TT);
   *albedo = F + e_TT;
   /* Lobe energies weighted by the path's throughput: then the channel sum of the throughput can never grow
-   * (sum_c beta_c e_kc / p_k = <beta, albedo>), however differently the lobes are coloured. With the plain
-   * channel mean, a blue-heavy path meeting blue-heavy TT events (cotton) multiplies its blue weight by
-   * ~2 per event without bound. */
-  float a_R = throughput.r * F.r + throughput.g * F.g + throughput.b * F.b;
-  float a_TT = throughput.r * e_TT.r + throughput.g * e_TT.g + throughput.b * e_TT.b;
-  if (plain_ || !(a_R + a_TT > 0.0f)) {
-    a_R = ny::average(F);
-    a_TT = ny::average(e_TT);
-  }
+   * (sum_c beta_c e_kc / p_k = <beta, albedo>), however differently the lobes are coloured (kernel/fiber_bsdf.h). */
   *weight = ny::make_rgb(0.0f);
-  if (!(a_R + a_TT > 0.0f)) {
+  if (!(ny::average(F) + ny::average(e_TT) > 0.0f)) {
     return false;
   }
-  const float p_R = a_R / (a_R + a_TT);
+  const float p_R = plain_ ? ny::fiber_probability_R(F, e_TT) : ny::fiber_probability_R(F, e_TT, throughput);
   const bool choose_R = uniform() < p_R;
   const float beta = choose_R ? p_.beta_R : p_.beta_TT;
   const float mu = -theta_i;
