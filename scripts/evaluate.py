@@ -587,7 +587,7 @@ def fit_baseline(a, scene: str, preset: str, method: str, env_ref: dict, what: s
         with open(path) as f:
             table = json.load(f)
     key = {"reference": env_ref["scene_sha256"], "ref_spp": env_ref["spp"], "width": a.width, "height": a.height,
-           **BASELINE_FIT}
+           "cycles_sha256": env_ref["cycles_sha256"], **BASELINE_FIT}
     name = f"{scene}_{preset}_{method}"
     if name in table and table[name]["key"] == key:
         log(f"{what}: cached")
