@@ -24,7 +24,7 @@ std::vector<AlbedoRow> fiber_albedo_table(const FiberPreset &preset, const std::
     row.theta_i_deg = theta_i_deg[k];
     const ny::Vec3 wi = ny::direction_from_angles(float(theta_i_deg[k] * kDeg), 0.0f);
     const ny::FiberLobes lobes = ny::fiber_lobes(params, wi);
-    row.fresnel = lobes.F;
+    row.fresnel = lobes.energy_R;
     row.analytic = ny::fiber_albedo(lobes);
     row.p_R = lobes.p_R;
 

@@ -62,8 +62,7 @@ struct FiberBsdfParams {
 /* Everything that depends on w_i only, computed once per shading point. */
 struct FiberLobes {
   float theta_i, phi_i, cos_theta_i;
-  Rgb F;       /* Schlick Fresnel F_R(theta_i)            */
-  Rgb energy_R;  /* F: the R lobe's share of the albedo     */
+  Rgb energy_R;  /* F = F_R(theta_i), Schlick: the R lobe's share of the albedo */
   Rgb energy_TT; /* (1 - F) C_TT                            */
   float p_R;     /* probability of sampling R               */
   float kappa_TT;
@@ -111,7 +110,6 @@ NY_KERNEL_FN FiberLobes fiber_lobes(const FiberBsdfParams &p, Vec3 wi, bool with
   l.theta_i = theta_of(wi);
   l.phi_i = phi_of(wi);
   fiber_energies(p, wi, &l.energy_R, &l.energy_TT);
-  l.F = l.energy_R;
   l.p_R = fiber_probability_R(l.energy_R, l.energy_TT);
   l.kappa_TT = 1.0f / (p.gamma_TT * p.gamma_TT);
   const float mu = -l.theta_i;
