@@ -3,6 +3,7 @@
 # clamp broke this (two lights gave 1.76x: each light sample divided by its selection probability 1/2 hit
 # the clamp), so the scenes turn clamping off; this test keeps it so.
 #   cmake -DNY=<neuralyarn> -DCYCLES=<cycles> -DOUT=<dir> -DPRESET=<preset> -P lights_additive.cmake
+include(${CMAKE_CURRENT_LIST_DIR}/image_mean.cmake)
 file(MAKE_DIRECTORY "${OUT}")
 set(base "${OUT}/additive_${PRESET}")
 execute_process(COMMAND ${NY} cycles-scene --preset ${PRESET} --out ${base}.xml RESULT_VARIABLE rc ERROR_VARIABLE e)
@@ -29,9 +30,8 @@ foreach(v one two)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "cycles failed on ${v}: ${e}")
   endif()
-  execute_process(COMMAND oiiotool ${base}_${v}.exr --ch R,G,B --printstats OUTPUT_VARIABLE s)
-  string(REGEX MATCH "Stats Avg: ([0-9.eE+-]+) ([0-9.eE+-]+) ([0-9.eE+-]+)" _ "${s}")
-  list(APPEND means "${CMAKE_MATCH_1}" "${CMAKE_MATCH_2}" "${CMAKE_MATCH_3}")
+  ny_image_mean(${base}_${v}.exr "" mean)
+  list(APPEND means ${mean})
 endforeach()
 # Same seed in both renders (correlated noise); measured (96 x 48, 64 spp): ratio 2.000 without the clamp,
 # 1.76 with Cycles' default clamp; tolerance 0.08 (4 %).

@@ -4,6 +4,7 @@
 #   cmake -DNY=<neuralyarn> -DCYCLES=<cycles> -DOUT=<dir> -DPRESET=<preset> -DLIGHTS=<rig> -DSAMPLES=<n>
 #         -DSEEDS="1;2;..." -DTOL=<relative> -P seeds_agree.cmake
 # Prints "seed spread R G B" (the largest relative distance of a seed's channel mean from the seeds' mean).
+include(${CMAKE_CURRENT_LIST_DIR}/image_mean.cmake)
 file(MAKE_DIRECTORY "${OUT}")
 set(means "")
 foreach(seed ${SEEDS})
@@ -19,12 +20,9 @@ foreach(seed ${SEEDS})
     message(FATAL_ERROR "cycles failed on seed ${seed}: ${e}")
   endif()
   # The ply's middle: 120 x 8 pixels where it crosses the frame (as render_check.cmake).
-  execute_process(COMMAND oiiotool ${base}.exr --ch R,G,B --cut 120x8+20+36 --printstats OUTPUT_VARIABLE s)
-  string(REGEX MATCH "Stats Avg: ([0-9.eE+-]+) ([0-9.eE+-]+) ([0-9.eE+-]+)" _ "${s}")
-  if(NOT CMAKE_MATCH_3)
-    message(FATAL_ERROR "no statistics for seed ${seed}: ${s}")
-  endif()
-  list(APPEND means "${CMAKE_MATCH_1},${CMAKE_MATCH_2},${CMAKE_MATCH_3}")
+  ny_image_mean(${base}.exr 120x8+20+36 mean)
+  string(REPLACE ";" "," mean "${mean}")
+  list(APPEND means "${mean}")
 endforeach()
 execute_process(COMMAND python3 -c "
 import sys
