@@ -40,8 +40,9 @@ geometry::Yarn one_ply_yarn(const FiberPreset &p, uint64_t seed)
 
 /* A one-ply "yarn" walked through Embree's explicit, finite fibers is the ply that PlyTracer walks through
  * exactly (same cross-section, same helices): the energies of T, R and M agree within their noise. Guards the
- * yarn tracer's far side, normals, mirror image and entry region; a tracer that skipped the far side (paths
- * continuing from the hit point into the fiber) moves M by ~10 % and fails. */
+ * yarn tracer's crossing of a fiber (Embree reports the tube's exit, which the tracer culls), normals, mirror
+ * image and entry region; a tracer that stopped at the exit (a path into the fiber scattering again inside
+ * it) fails. */
 TEST(YarnTracer, OnePlyYarnWalksLikeThePly)
 {
   const FiberPreset p = find_preset("polyester");

@@ -82,13 +82,13 @@ EmbreePly::~EmbreePly()
 }
 
 bool EmbreePly::intersect(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, EmbreeHit *hit, int exclude,
-                          float exclude_distance) const
+                          float exclude_distance, bool cull_exits) const
 {
   for (int round = 0; round < 64; round++) {
     if (!intersect_once(o, d, tnear, tfar, hit)) {
       return false;
     }
-    if (hit->fiber != exclude || hit->t >= exclude_distance) {
+    if ((hit->fiber != exclude || hit->t >= exclude_distance) && (hit->entering || !cull_exits)) {
       return true;
     }
     tnear = hit->t * (1.0f + 1e-6f) + 1e-7f;
@@ -121,8 +121,10 @@ bool EmbreePly::intersect_once(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, 
   }
   hit->t = rh.ray.tfar;
   hit->fiber = segments_per_fiber_ > 0 ? int(rh.hit.primID / unsigned(segments_per_fiber_)) : -1;
+  /* Embree's Ng of a round curve points out of the tube. */
   hit->normal = ny::normalize(ny::make_vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
-  if (ny::dot(hit->normal, d) > 0.0f) {
+  hit->entering = ny::dot(hit->normal, d) < 0.0f;
+  if (!hit->entering) {
     hit->normal = -hit->normal;
   }
   const size_t v0 = impl_->indices[rh.hit.primID];

@@ -267,7 +267,7 @@ void trace_path(const Medium *const media[2], const std::vector<double> &cos_the
       alive = false;
       break;
     }
-    /* Into the fiber, the path crosses it and leaves from the far side (D7). */
+    /* From the hit point; into the fiber, the path crosses it (D32). */
     tracer.leave_fiber(hit, ny::normalize(ny::to_world(frame, wo_f)), &ray);
     exclude = hit.fiber;
     /* Russian roulette: survive with q = min(1, max channel), then divide by q. */

@@ -196,15 +196,9 @@ float PlyTracer::intersect_tube(const Tube &f, Vec3 o, Vec3 d) const
   return C / (-B + std::sqrt(disc));
 }
 
-Vec3 PlyTracer::far_side(int fiber, Vec3 p, Vec3 d) const
-{
-  const Tube &f = fibers_[size_t(fiber)];
-  return fiber_far_side(f.a + f.axis * ny::dot(p - f.a, f.axis), f.axis, r_, p, d);
-}
-
 void PlyTracer::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
 {
-  ray->o = ny::dot(d, hit.normal) < 0.0f ? far_side(hit.fiber, hit.point, d) : hit.point;
+  ray->o = hit.point;
   ray->d = d;
   canonicalize(ray);
 }

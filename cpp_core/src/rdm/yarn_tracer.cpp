@@ -33,7 +33,9 @@ bool YarnTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHi
 {
   const Vec3 o = ray->o, d = ray->d;
   EmbreeHit h;
-  if (curves_->intersect(o, d, 0.0f, std::numeric_limits<float>::infinity(), &h, exclude, exclude_distance)) {
+  if (curves_->intersect(o, d, 0.0f, std::numeric_limits<float>::infinity(), &h, exclude, exclude_distance,
+                        /*cull_exits=*/true))
+  {
     hit->t = h.t;
     hit->fiber = h.fiber;
     hit->point = o + d * h.t;
@@ -57,9 +59,8 @@ bool YarnTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHi
 
 void YarnTracer::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
 {
-  /* Into the fiber: leave from the far side of its cross-section (D7). */
-  ray->o = ny::dot(d, hit.normal) < 0.0f ? fiber_far_side(hit.point - hit.normal * r_, hit.axis, r_, hit.point, d)
-                                         : hit.point;
+  /* Into the fiber: trace() culls the tube's exit, so the path crosses it (D32). */
+  ray->o = hit.point;
   ray->d = d;
 }
 

@@ -17,6 +17,7 @@ struct EmbreeHit {
   int fiber = -1;
   ny::Vec3 normal;  /* geometric normal, unit, facing against the ray */
   ny::Vec3 tangent; /* unit direction of the hit segment (the fiber tangent, +x-ward) */
+  bool entering = true; /* the ray enters the tube here (false: it leaves it, its origin was inside) */
 };
 
 class EmbreePly {
@@ -32,9 +33,11 @@ class EmbreePly {
   EmbreePly &operator=(const EmbreePly &) = delete;
 
   /* Nearest fiber hit with t in (tnear, tfar); false if none. Hits on fiber `exclude` closer than
-   * `exclude_distance` are skipped (the fiber a walk just left, as PlyTracer::trace does). */
+   * `exclude_distance` are skipped (the fiber a walk just left, as PlyTracer::trace does); with
+   * `cull_exits`, so are hits where the ray leaves a tube (a renderer's backface culling: PlyTracer reports
+   * entries only). */
   bool intersect(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, EmbreeHit *hit, int exclude = -1,
-                 float exclude_distance = 0.0f) const;
+                 float exclude_distance = 0.0f, bool cull_exits = false) const;
   size_t num_segments() const { return segments_; }
 
  private:

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 //
 // What a random walk needs of the fibers it walks through (rdm/gather.h): ray queries that stop at tube
-// entries, the far side a path leaves a fiber from, and the cylinder paths enter and leave through.
+// entries (a path crosses the fiber it scattered into), and the cylinder paths enter and leave through.
 // PlyTracer (one infinite ply, exact, D7) is the gather's own; YarnTracer (rdm/yarn_tracer.h, a finite
 // explicit K-ply yarn in Embree) implements this interface for the yarn level (docs/decisions.md D27).
 #pragma once

@@ -6,8 +6,8 @@
 // Each path enters the ply's bounding cylinder (radius R) at a uniformly random point with direction -w_i,
 // w_i on the upper hemisphere of the entry frame (x = ply axis, z = outward normal n, y = z x x), and
 // random-walks through the fibers: at every tube entry the fiber BSDF is sampled in the fiber's frame
-// (x = chord tangent, z = tube normal); an outgoing direction that points into the fiber is carried
-// through it and leaves from the tube's far side. Fiber events are counted explicitly:
+// (x = chord tangent, z = tube normal) and the path continues from the hit point, through the fiber when
+// the direction points into it, as a renderer's ray does (D32). Fiber events are counted explicitly:
 //     T: 0 events;   R: exactly 1 event and w_o . n > 0;   M: everything else that leaves,
 // where w_o is the exit direction in the entry frame (far field: the exit point is only a diagnostic).
 // Russian roulette with survival probability min(1, max channel throughput) keeps it unbiased.

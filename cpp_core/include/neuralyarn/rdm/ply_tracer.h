@@ -22,8 +22,9 @@
 // Rays enter and leave through the bounding cylinder of radius bound_radius() (R plus a hair: no tube
 // reaches it). Hits are tube *entries*: a ray whose origin lies inside a tube (neighbouring helical tubes of a packed
 // cross-section interpenetrate slightly in the outer layers, because the packing is done in the x = const
-// slice) passes through that tube. The fiber a path just scattered on is ignored for `exclude_distance`
-// after it leaves, so that the kink between two chords never produces a spurious second event.
+// slice) passes through that tube, and so does a path that scatters into the fiber it is on. The fiber a
+// path just scattered on is ignored for `exclude_distance` after it leaves, so that the kink between two
+// chords never produces a spurious second event.
 #pragma once
 
 #include <algorithm>
@@ -75,16 +76,6 @@ inline float cylinder_exit(ny::Vec3 o, ny::Vec3 d, float radius)
   return std::max(std::max(t1, t2), 0.0f);
 }
 
-/* The far side of a fiber of radius r (unit axis, c on its centre line in p's cross-section) that a path at p
- * scattered into, direction d: c + r d_perp / |d_perp| (PlyTracer::far_side, D7); p itself when d runs
- * along the axis (no side to leave from). */
-inline ny::Vec3 fiber_far_side(ny::Vec3 c, ny::Vec3 axis, float r, ny::Vec3 p, ny::Vec3 d)
-{
-  const ny::Vec3 dp = d - axis * ny::dot(d, axis);
-  const float len = ny::length(dp);
-  return len > 1e-12f ? c + dp * (r / len) : p;
-}
-
 class PlyTracer {
  public:
   PlyTracer(const geometry::Ply &ply, const TracerOptions &options = {});
@@ -105,16 +96,10 @@ class PlyTracer {
    * the first `exclude_distance` of travel. Returns true on a hit (filled into *hit). */
   bool trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const;
 
-  /* Where a path that scatters at `p` on tube `fiber` into direction d (pointing into the fiber) leaves
-   * it: the point of the same perpendicular cross-section in the direction of d's component
-   * perpendicular to the axis, c + r d_perp / |d_perp|. The fiber BSDF is a far-field model, so the
-   * outgoing ray starts on the far side of the fiber's cross-section rather than after a straight chord
-   * through the tube, which for d nearly along the axis would run far along the tube (docs/decisions.md
-   * D7). The result lies on the tube's surface with d pointing outward there. */
-  ny::Vec3 far_side(int fiber, ny::Vec3 p, ny::Vec3 d) const;
-
-  /* The ray a path continues with after scattering at `hit` into direction d: from the hit point if d
-   * points out of the tube, else from far_side(); in canonical coordinates of the slab it starts in. */
+  /* The ray a path continues with after scattering at `hit` into direction d: from the hit point, in
+   * canonical coordinates of the slab it starts in. A direction into the fiber crosses it, as a renderer's
+   * ray does (Cycles, Mitsuba: a ray leaving a curve's surface inward does not hit that curve): the tracer
+   * reports tube entries only (docs/decisions.md D32). */
   void leave_fiber(const TubeHit &hit, ny::Vec3 d, SlabRay *ray) const;
 
   /* Entry distance of the ray (canonical coordinates) into tube `fiber` of the slab, ignoring the slab's
