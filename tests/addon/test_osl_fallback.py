@@ -328,7 +328,7 @@ def test_fallback_renders_the_tables(bpy, addon, body, preset, tmp_path, request
     # Colour: the tables' energies. Blender 3.x's Cycles evaluates GGX with the separable Smith masking
     # G1(i) G1(o) (4.0 changed it to the height-correlated form the weights were fitted with,
     # model/cycles_lobes.h), which reflects a few per cent less: there the stock-node body is darker by
-    # a measured up to 7.3 % (of value + 0.02), a 3.x limit documented in osl/README.md.
+    # a measured up to 7.8 % (of value + 0.02), a 3.x limit documented in osl/README.md.
     colour_tol = 0.04 if bpy.app.version >= (4, 0, 0) else 0.10
     rows = [r for r in range(RES) if abs(scene.row_height(r)) < 0.9 * RADIUS]
     assert len(rows) >= 20
@@ -347,8 +347,11 @@ def test_fallback_renders_the_tables(bpy, addon, body, preset, tmp_path, request
         for c in range(3):
             expect = WORLD * sum(lookup(fb, k, theta, phi, c) for k in ("E_R", "E_M_up", "E_M_down"))
             worst_rel = max(worst_rel, abs(got[c] - expect) / (expect + 0.02))
-            # Measured: within 2.3 % of (value + 0.02) (gabardine; cotton 0.13 %), 768 samples per row.
-            assert got[c] == pytest.approx(expect, rel=colour_tol, abs=0.002), f"row {r} (phi {math.degrees(phi):.0f}) channel {c}"
+            # The tolerance is of (value + 0.02), the measure printed below. Measured with the models of D32,
+            # 768 samples per row: on 4.5 within 1.9-3.5 % (silk worst, phi -55 degrees), on 3.4 within 5.2-7.8 %
+            # (silk worst).
+            assert abs(got[c] - expect) <= colour_tol * (expect + 0.02), (
+                f"row {r} (phi {math.degrees(phi):.0f}) channel {c}: {got[c]:.5f} against {expect:.5f}")
 
     # Close-up of the upper silhouette: rows from phi = -50 to -90 degrees.
     scene.frame(0.0885, 0.03)

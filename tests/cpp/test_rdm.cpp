@@ -4,6 +4,7 @@
 //   * the lobe sampler against quadrature of the kernel's eval (unbiasedness);
 //   * PlyTracer against brute force over every fiber, and P(T) against straight rays through Embree;
 //   * the R map against next-event estimation with Embree (an estimator that never samples a direction);
+//   * multiple scattering against a renderer's walk through Embree curves (where a path restarts after an event);
 //   * energy bookkeeping, symmetry, determinism across threads, agreement of independent halves;
 //   * the map file's round trip and its corruption errors.
 // Statistical comparisons use fixed seeds and a chi^2 over all compared numbers with p > 1e-4 (a correct
