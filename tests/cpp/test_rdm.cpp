@@ -83,6 +83,27 @@ rdm::GatherOptions small_options(uint64_t paths, rdm::MapResolution bins, bool s
   return o;
 }
 
+/* An entry as the gather draws one, for the tests that cast rays or walk paths on their own: w_i uniform in
+ * solid angle in incident bin (ti, pi) of the entry frame (x = ply axis, z = n, y = ey), n at an azimuth
+ * uniform around the axis; `uniform` is called for cos theta_i, phi_i and the azimuth, in that order. */
+struct Entry {
+  ny::Vec3 n, ey, wi;
+};
+
+template <class Uniform>
+Entry draw_entry(const rdm::MapResolution &bins, int ti, int pi, Uniform &&uniform)
+{
+  const double c0 = std::cos(0.5 * kPi * ti / bins.theta_i), c1 = std::cos(0.5 * kPi * (ti + 1) / bins.theta_i);
+  const double ct = c0 + (c1 - c0) * uniform(), st = std::sqrt(1 - ct * ct);
+  const double ph = -kPi + 2 * kPi * (pi + uniform()) / bins.phi_i;
+  const double a = 2 * kPi * uniform();
+  Entry e;
+  e.n = ny::make_vec3(0.0f, float(std::cos(a)), float(std::sin(a)));
+  e.ey = ny::make_vec3(0.0f, float(std::sin(a)), float(-std::cos(a)));
+  e.wi = ny::make_vec3(float(st * std::cos(ph)), 0.0f, 0.0f) + e.ey * float(st * std::sin(ph)) + e.n * float(ct);
+  return e;
+}
+
 }  // namespace
 
 /* ------------------------------------------------------------------------------------------------ */
@@ -330,19 +351,11 @@ TEST(Gather, TransmissionProbabilityMatchesStraightEmbreeRays)
         const int n_rays = 4000;
         int passed = 0;
         for (int k = 0; k < n_rays; k++) {
-          const double c0 = std::cos(0.5 * kPi * ti / bins.theta_i), c1 = std::cos(0.5 * kPi * (ti + 1) / bins.theta_i);
-          const double ct = c0 + (c1 - c0) * U(rng), st = std::sqrt(1 - ct * ct);
-          const double ph = -kPi + 2 * kPi * (pi + U(rng)) / bins.phi_i;
-          const double a = 2 * kPi * U(rng);
+          const Entry e = draw_entry(bins, ti, pi, [&] { return U(rng); });
           const double x0 = period * (U(rng) - 0.5);
-          const ny::Vec3 n = ny::make_vec3(0.0f, float(std::cos(a)), float(std::sin(a)));
-          const ny::Vec3 ey = ny::make_vec3(0.0f, float(std::sin(a)), float(-std::cos(a)));
-          const ny::Vec3 wi = ny::make_vec3(float(st * std::cos(ph)), 0.0f, 0.0f) + ey * float(st * std::sin(ph)) + n * float(ct);
-          const ny::Vec3 o = n * Rb + ny::make_vec3(float(x0), 0.0f, 0.0f);
-          const ny::Vec3 d = -wi;
-          const float a2 = d.y * d.y + d.z * d.z;
-          const float b = o.y * d.y + o.z * d.z, c = o.y * o.y + o.z * o.z - Rb * Rb;
-          const float tfar = a2 > 0 ? (-b + std::sqrt(std::max(b * b - a2 * c, 0.0f))) / a2 : 1e30f;
+          const ny::Vec3 o = e.n * Rb + ny::make_vec3(float(x0), 0.0f, 0.0f);
+          const ny::Vec3 d = -e.wi;
+          const float tfar = rdm::cylinder_exit(o, d, Rb);
           if (std::abs(o.x + tfar * d.x) > len - 1.0) {
             escaped_ends++;
           }
@@ -386,11 +399,7 @@ TEST(Gather, ReflectionMapMatchesNextEventEstimation)
   const ny::FiberBsdfParams fp = preset.fiber_params();
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> U(0.0, 1.0);
-  auto exit_distance = [&](ny::Vec3 o, ny::Vec3 d) {
-    const float a2 = d.y * d.y + d.z * d.z;
-    const float b = o.y * d.y + o.z * d.z, c = o.y * o.y + o.z * o.z - Rb * Rb;
-    return a2 > 0 ? (-b + std::sqrt(std::max(b * b - a2 * c, 0.0f))) / a2 : 1e30f;
-  };
+  auto exit_distance = [&](ny::Vec3 o, ny::Vec3 d) { return rdm::cylinder_exit(o, d, Rb); };
   ZTest zt;
   const int n_out_up = (bins.theta_o / 2) * bins.phi_o;
   for (int ti = 0; ti < bins.theta_i; ti++) {
@@ -398,17 +407,11 @@ TEST(Gather, ReflectionMapMatchesNextEventEstimation)
       const int n_rays = 3000;
       std::vector<double> sum(size_t(n_out_up) * 3, 0.0), sq(size_t(n_out_up) * 3, 0.0);
       for (int k = 0; k < n_rays; k++) {
-        const double c0 = std::cos(0.5 * kPi * ti / bins.theta_i), c1 = std::cos(0.5 * kPi * (ti + 1) / bins.theta_i);
-        const double ct = c0 + (c1 - c0) * U(rng), st = std::sqrt(1 - ct * ct);
-        const double ph = -kPi + 2 * kPi * (pi + U(rng)) / bins.phi_i;
-        const double a = 2 * kPi * U(rng);
+        const Entry e = draw_entry(bins, ti, pi, [&] { return U(rng); });
         const double x0 = ply.pitch() * (U(rng) - 0.5);
-        const ny::Vec3 n = ny::make_vec3(0.0f, float(std::cos(a)), float(std::sin(a)));
-        const ny::Vec3 ey = ny::make_vec3(0.0f, float(std::sin(a)), float(-std::cos(a)));
-        const ny::Vec3 ex = ny::make_vec3(1.0f, 0.0f, 0.0f);
-        const ny::Vec3 wi = ex * float(st * std::cos(ph)) + ey * float(st * std::sin(ph)) + n * float(ct);
+        const ny::Vec3 n = e.n, ey = e.ey, ex = ny::make_vec3(1.0f, 0.0f, 0.0f);
         const ny::Vec3 o = n * Rb + ex * float(x0);
-        const ny::Vec3 d = -wi;
+        const ny::Vec3 d = -e.wi;
         const rdm::EmbreePly &geo = (k & 1) ? ply_b : ply_a;
         rdm::EmbreeHit h;
         std::vector<double> v(size_t(n_out_up) * 3, 0.0);
@@ -510,11 +513,7 @@ TEST(Gather, HemisphereEnergiesMatchARendererWalkThroughEmbreeCurves)
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> U(0.0, 1.0);
   auto uniform = [&] { return float(U(rng)); };
-  auto exit_distance = [&](ny::Vec3 o, ny::Vec3 d) {
-    const float a2 = d.y * d.y + d.z * d.z;
-    const float b = o.y * d.y + o.z * d.z, c = o.y * o.y + o.z * o.z - Rb * Rb;
-    return a2 > 0 ? (-b + std::sqrt(std::max(b * b - a2 * c, 0.0f))) / a2 : 1e30f;
-  };
+  auto exit_distance = [&](ny::Vec3 o, ny::Vec3 d) { return rdm::cylinder_exit(o, d, Rb); };
   ZTest zt;
   int lost = 0;
   std::string table;
@@ -522,16 +521,10 @@ TEST(Gather, HemisphereEnergiesMatchARendererWalkThroughEmbreeCurves)
     for (int pi = 0; pi < bins.phi_i; pi++) {
       double sum[3] = {0.0, 0.0, 0.0}, sq[3] = {0.0, 0.0, 0.0};
       for (int k = 0; k < n_walks; k++) {
-        const double c0 = std::cos(0.5 * kPi * ti / bins.theta_i), c1 = std::cos(0.5 * kPi * (ti + 1) / bins.theta_i);
-        const double ct = c0 + (c1 - c0) * U(rng), st = std::sqrt(1 - ct * ct);
-        const double ph = -kPi + 2 * kPi * (pi + U(rng)) / bins.phi_i;
-        const double a = 2 * kPi * U(rng);
-        const ny::Vec3 n = ny::make_vec3(0.0f, float(std::cos(a)), float(std::sin(a)));
-        const ny::Vec3 ey = ny::make_vec3(0.0f, float(std::sin(a)), float(-std::cos(a)));
-        const ny::Vec3 ex = ny::make_vec3(1.0f, 0.0f, 0.0f);
-        const ny::Vec3 wi = ex * float(st * std::cos(ph)) + ey * float(st * std::sin(ph)) + n * float(ct);
+        const Entry e = draw_entry(bins, ti, pi, [&] { return U(rng); });
+        const ny::Vec3 n = e.n, ey = e.ey, ex = ny::make_vec3(1.0f, 0.0f, 0.0f);
         const rdm::EmbreePly &geo = (k & 1) ? ply_b : ply_a;
-        ny::Vec3 o = n * Rb, d = -wi;
+        ny::Vec3 o = n * Rb, d = -e.wi;
         ny::Rgb beta = ny::make_rgb(1.0f);
         int events = 0, exclude = -1;
         bool alive = true;
@@ -571,9 +564,9 @@ TEST(Gather, HemisphereEnergiesMatchARendererWalkThroughEmbreeCurves)
         }
         int band, po;
         rdm::outgoing_bin(bins, ny::dot(d, ex), ny::dot(d, ey), ny::dot(d, n), &band, &po);
-        const double e = (double(beta.r) + beta.g + beta.b) / 3.0;
-        sum[band] += e;
-        sq[band] += e * e;
+        const double energy = (double(beta.r) + beta.g + beta.b) / 3.0;
+        sum[band] += energy;
+        sq[band] += energy * energy;
       }
       for (int band = 0; band < bins.theta_o; band++) {
         double gathered = 0.0, var = 0.0;
