@@ -59,6 +59,14 @@ void add_train_options(CLI::App *cmd, TrainModelOptions *o)
   add_network_options(cmd, "r", &o->R);
   add_network_options(cmd, "m", &o->M);
   cmd->add_option("--train-seed", o->seed, "Seed of weights, training samples and mini-batches")->capture_default_str();
+  /* One M network unless asked: keeping the best of several by their fit to the training maps does not pick
+   * the one that renders closer to independent maps (docs/decisions.md D33); the option is the tool that
+   * measured it. */
+  cmd->add_option("--m-candidates", o->m_candidates,
+                  "M networks to train from different seeds; the model keeps the one whose lobe is closest to "
+                  "the training maps")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
   cmd->add_option("--fit-samples", o->fit.samples, "M exits drawn for the proxy fit")
       ->check(CLI::Range(100, 100000000))
       ->capture_default_str();
@@ -172,7 +180,8 @@ std::function<void(const std::string &, double)> bar_callback(ProgressBar *bar, 
       *current = stage;
       bar->stage(stage == "fit" ? "fit  " : "train " + stage, stage == "fit" ? "" : "steps");
     }
-    const int steps = stage == "T" ? o.T.steps : stage == "R" ? o.R.steps : stage == "M" ? o.M.steps : 1;
+    /* "M", then "M2", "M3", ... for the M candidates */
+    const int steps = stage == "T" ? o.T.steps : stage == "R" ? o.R.steps : stage[0] == 'M' ? o.M.steps : 1;
     bar->update(uint64_t(f * steps + 0.5), uint64_t(std::max(1, steps)));
   };
 }
@@ -503,6 +512,15 @@ class Commands : public ModelCommands {
     print_network("T", m.T);
     print_network("R", m.R);
     print_network("M", m.M);
+    if (m.provenance.contains("m_candidates")) {
+      const auto &c = m.provenance["m_candidates"];
+      std::printf("M candidates     mean M lobe L1 against the training maps:");
+      for (const auto &k : c["candidates"]) {
+        std::printf(" %.2f %% (seed %llu)", 100 * k.value("score", 0.0),
+                    (unsigned long long)k.value("seed", uint64_t(0)));
+      }
+      std::printf("; kept #%zu\n", c.value("kept", size_t(0)) + 1);
+    }
     print_proxy(m);
     if (m.fallback) {
       print_fallback(*m.fallback);

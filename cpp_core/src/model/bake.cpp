@@ -6,6 +6,7 @@
 #include "neuralyarn/io.h"
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/calibration.h"
+#include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/model/r_shape.h"
 #include "neuralyarn/train/dataset.h"
 #include "neuralyarn/version.h"
@@ -136,6 +137,54 @@ ProxyFitResult fit_model_proxy(YarnModel *model, const rdm::RdmMaps &maps, const
   return r;
 }
 
+double candidate_score(const LobeComparison &m_lobe)
+{
+  double sum = 0.0;
+  for (double l1 : m_lobe.l1_raw) {
+    sum += l1;
+  }
+  return m_lobe.l1_raw.empty() ? 0.0 : sum / double(m_lobe.l1_raw.size());
+}
+
+namespace {
+/* Trains candidates 2..K of the M network (candidate 1 is model->M), each calibrated for its own network,
+ * and keeps the one with the lowest candidate_score; every candidate's seed and score go into the
+ * provenance. */
+void select_m_candidate(YarnModel *model, const rdm::RdmMaps &maps, const TrainModelOptions &o,
+                        const train::Mlp<float> &transmission,
+                        const std::function<std::function<void(double)>(const char *)> &stage)
+{
+  const LobeGrid map_M = pool_map_lobe(maps, Lobe::kM);
+  auto score = [&](const YarnModel &m) {
+    return candidate_score(compare_lobes(model_lobe_grid(m, maps.bins, Lobe::kM), map_M));
+  };
+  YarnModel best = *model;
+  double best_score = score(best);
+  size_t best_k = 0;
+  json candidates = json::array();
+  candidates.push_back({{"seed", o.seed + 2}, {"score", best_score}});
+  for (int k = 1; k < o.m_candidates; k++) {
+    const uint64_t seed = o.seed + 2 + 100 * uint64_t(k);
+    const std::string name = "M" + std::to_string(k + 1);
+    YarnModel m = *model;
+    m.M = train_one("M", maps, o.M, ny::kMlpHeadExp, seed, o.threads, stage(name.c_str()), &transmission);
+    m.calibration = calibrate_energy(m, maps, o.threads);
+    const double s = score(m);
+    candidates.push_back({{"seed", seed}, {"score", s}});
+    if (s < best_score) {
+      best = std::move(m);
+      best_score = s;
+      best_k = size_t(k);
+    }
+  }
+  *model = std::move(best);
+  model->provenance["m_candidates"] = {{"score", "mean over theta_i of the M lobe's relative L1 against the "
+                                                 "training maps (model/bake.h candidate_score)"},
+                                       {"candidates", candidates},
+                                       {"kept", best_k}};
+}
+}  // namespace
+
 YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
 {
   YarnModel m;
@@ -167,13 +216,16 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
   for (double &a : m.albedo_M) {
     a /= wsum;
   }
-  /* The R lobe's shape (its energy is unchanged by it), then the energies. */
+  /* The R lobe's shape (its energy is unchanged by it; it depends on R alone), then the energies. */
   m.r_shape = fit_r_shape(m, maps);
   m.calibration = calibrate_energy(m, maps, o.threads);
   m.provenance = {{"maps", maps_provenance(maps)},
                   {"training_seed", o.seed},
                   {"created", utc_now()},
                   {"code_version", std::string(kVersion) + "+" + kGitRevision}};
+  if (o.m_candidates > 1) {
+    select_m_candidate(&m, maps, o, transmission, stage);
+  }
   if (o.fit_proxy) {
     if (o.progress) {
       o.progress("fit", 0.0);

@@ -8,6 +8,7 @@
 #include <functional>
 #include <string>
 
+#include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/model/proxy_fit.h"
 #include "neuralyarn/rdm/gather.h"
@@ -34,6 +35,11 @@ struct TrainModelOptions {
    * the reflection peak, which is where the transmitted light is (0.03-0.5x of the maps through the ply). */
   NetworkOptions M{"6-21-21-3", 2000000, 20000, 4096, 1e-2f, 0.05f, train::Loss::kRelativeMse, 1e-3f};
   uint64_t seed = 1;
+  /* M networks trained from different seeds (weights, samples, mini-batches; candidate k from seed + 2 +
+   * 100 (k - 1), so the first is the single-seed model); the model keeps the one whose lobe is closest to
+   * the training maps (candidate_score). One by default: that choice does not pick the network that renders
+   * closer to independent maps (docs/decisions.md D33). */
+  int m_candidates = 1;
   int threads = 0;
   ProxyFitOptions fit;
   bool fit_proxy = true;
@@ -47,6 +53,11 @@ struct TrainModelOptions {
 NetworkRecord train_one(const char *name, const rdm::RdmMaps &maps, const NetworkOptions &options, ny::MlpHead head,
                         uint64_t seed, int threads, const std::function<void(double)> &progress,
                         const train::Mlp<float> *transmission);
+
+/* How close a calibrated model's M lobe is to the maps it was trained on: the mean over the theta_i bins of
+ * the lobe's energy-weighted relative L1 (model/lobe_fidelity.h, raw: the maps' noise is the same for
+ * every candidate, so it does not reorder them). Lower is better. */
+double candidate_score(const LobeComparison &m_lobe);
 
 /* The whole model from maps. */
 YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &options);
