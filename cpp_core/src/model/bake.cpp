@@ -147,6 +147,12 @@ double candidate_score(const LobeComparison &m_lobe)
 }
 
 namespace {
+/* Seed of M candidate k (0-based): candidate 0 is the single-seed model's network. */
+uint64_t m_candidate_seed(uint64_t seed, int k)
+{
+  return seed + 2 + 100 * uint64_t(k);
+}
+
 /* Trains candidates 2..K of the M network (candidate 1 is model->M), each calibrated for its own network,
  * and keeps the one with the lowest candidate_score; every candidate's seed and score go into the
  * provenance. */
@@ -162,9 +168,9 @@ void select_m_candidate(YarnModel *model, const rdm::RdmMaps &maps, const TrainM
   double best_score = score(best);
   size_t best_k = 0;
   json candidates = json::array();
-  candidates.push_back({{"seed", o.seed + 2}, {"score", best_score}});
+  candidates.push_back({{"seed", m_candidate_seed(o.seed, 0)}, {"score", best_score}});
   for (int k = 1; k < o.m_candidates; k++) {
-    const uint64_t seed = o.seed + 2 + 100 * uint64_t(k);
+    const uint64_t seed = m_candidate_seed(o.seed, k);
     const std::string name = "M" + std::to_string(k + 1);
     YarnModel m = *model;
     m.M = train_one("M", maps, o.M, ny::kMlpHeadExp, seed, o.threads, stage(name.c_str()), &transmission);
@@ -199,7 +205,7 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
   m.T = train_one("T", maps, o.T, ny::kMlpHeadSigmoid, o.seed, o.threads, stage("T"), nullptr);
   m.R = train_one("R", maps, o.R, ny::kMlpHeadExp, o.seed + 1, o.threads, stage("R"), nullptr);
   const train::Mlp<float> transmission = train::Mlp<float>::from_flat(m.T.flat);
-  m.M = train_one("M", maps, o.M, ny::kMlpHeadExp, o.seed + 2, o.threads, stage("M"), &transmission);
+  m.M = train_one("M", maps, o.M, ny::kMlpHeadExp, m_candidate_seed(o.seed, 0), o.threads, stage("M"), &transmission);
   /* Mean M albedo over w_i uniform on the hemisphere (the renderer's closure-weight estimate). */
   const std::vector<double> EM = maps.energy(maps.m);
   double wsum = 0.0;
