@@ -2,12 +2,14 @@
 //
 // RDM gathering throughput (docs/benchmarks.md, "RDM gathering"). Two parts:
 //
-//   1. end to end: `neuralyarn::rdm::gather` per preset at the paper's resolution, paths/s and peak memory;
+//   1. end to end: `neuralyarn::rdm::gather` per preset at the paper's resolution, paths/s and peak memory
+//      (with --level yarn: `gather_yarn`, the walk through an explicit 3-ply yarn in Embree);
 //   2. the intersector: the same recorded walk queries answered by PlyTracer and by Embree 3 round linear
 //      curves over an explicit ply (queries/s, and how often the two disagree on the fiber hit).
 //
 // Usage: bench_gather [--presets fleece,silk,...] [--paths 1e7] [--threads 2] [--bins 22x90x45x90]
 //                     [--cell 2] [--sagitta 0.01] [--queries 200000] [--skip-gather] [--skip-queries]
+//                     [--level ply|yarn [--plies 3] [--ply-twist 0.5]]
 #include <sys/resource.h>
 
 #include <chrono>
@@ -27,6 +29,7 @@
 #include "neuralyarn/rdm/fiber_lobe_sampler.h"
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/rdm/ply_tracer.h"
+#include "cli_common.h"
 
 using namespace neuralyarn;
 using Clock = std::chrono::steady_clock;
@@ -169,6 +172,7 @@ int main(int argc, char **argv)
   int threads = 2;
   size_t queries = 200000;
   bool skip_gather = false, skip_queries = false, noise = false;
+  cli::LevelOptions level; /* the CLI's --level, --plies, --ply-twist and their defaults */
   app.add_option("--presets", presets);
   app.add_option("--paths", paths);
   app.add_option("--threads", threads);
@@ -178,6 +182,7 @@ int main(int argc, char **argv)
   app.add_option("--queries", queries);
   app.add_flag("--skip-gather", skip_gather);
   app.add_flag("--skip-queries", skip_queries);
+  cli::add_level_options(&app, &level);
   app.add_flag("--noise", noise, "Map noise per second: our estimator vs. the plain one (two seeds each)");
   CLI11_PARSE(app, argc, argv);
 
@@ -233,14 +238,14 @@ int main(int argc, char **argv)
     }
   }
   if (!skip_gather) {
-    std::printf("# End to end: gather, %d threads, bins %s\n", threads, bins.c_str());
+    std::printf("# End to end: gather, %s level, %d threads, bins %s\n", level.level.c_str(), threads, bins.c_str());
     for (const auto &n : names) {
       rdm::GatherOptions opt;
       opt.paths = uint64_t(paths);
       opt.threads = threads;
       opt.bins = rdm::parse_resolution(bins);
       opt.tracer = topt;
-      const rdm::RdmMaps maps = rdm::gather(find_preset(n), opt);
+      const rdm::RdmMaps maps = cli::gather_level(find_preset(n), level, opt);
       const rdm::GatherStats &s = maps.stats;
       std::printf("%-10s paths %.0e: %.3f s (tracing %.3f s), %.3f M paths/s (tracing alone %.3f M/s), events/path %.2f (p95 %d), queries/path %.2f, "
                   "slab crossings/path %.2f, peak RSS %.0f MB\n",

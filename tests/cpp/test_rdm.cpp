@@ -481,6 +481,63 @@ TEST(Gather, ReflectionMapMatchesNextEventEstimation)
   EXPECT_GT(zt.p_value(), 1e-4) << zt.report();
 }
 
+/* EmbreePly skips a walk's unwanted hits (the exits of the tube a ray starts in or crosses; the fiber it
+ * just left, within two radii) inside one traversal, with an intersection filter. It must find the hit that
+ * re-tracing finds: the nearest plain hit, then the next past it, until one is wanted. Rays as a walk casts
+ * them: from points on the fibers, in every direction (into the tube and out of it). */
+TEST(EmbreePly, FilterFindsTheHitReTracingFinds)
+{
+  const FiberPreset &preset = find_preset("cotton"); /* dense: many tubes touch */
+  const geometry::Ply ply = make_ply(preset);
+  const rdm::EmbreePly geo(ply, -20.0, 20.0, 128);
+  const rdm::PlyTracer tracer(ply);
+  const float Rb = tracer.bound_radius(), r = tracer.fiber_radius();
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  auto direction = [&] { return ny::sample_uniform_sphere(U(rng), U(rng)); };
+  auto retrace = [&](ny::Vec3 o, ny::Vec3 d, int exclude, rdm::EmbreeHit *h, int *rounds) {
+    float tnear = 0.0f;
+    for (*rounds = 1; *rounds <= 64; ++*rounds) {
+      if (!geo.intersect(o, d, tnear, rdm::cylinder_exit(o, d, Rb), h)) {
+        return false;
+      }
+      if ((h->fiber != exclude || h->t >= 2.0f * r) && h->entering) {
+        return true;
+      }
+      tnear = h->t * (1.0f + 1e-6f) + 1e-7f;
+    }
+    return false;
+  };
+  int rays = 0, hits = 0, skipped = 0, differ = 0;
+  while (rays < 40000) {
+    /* A first hit from inside the bounding cylinder gives a point on a fiber. */
+    const ny::Vec3 o0 = ny::make_vec3(float(4.0 * (U(rng) - 0.5)), 0.0f, 0.0f);
+    const ny::Vec3 d0 = direction();
+    rdm::EmbreeHit h0;
+    if (!geo.intersect(o0, d0, 0.0f, rdm::cylinder_exit(o0, d0, Rb), &h0, -1, 0.0f, /*cull_exits=*/true)) {
+      continue;
+    }
+    const ny::Vec3 p = o0 + d0 * h0.t;
+    for (int k = 0; k < 4; k++, rays++) {
+      const ny::Vec3 d = direction();
+      rdm::EmbreeHit a, b;
+      int rounds = 0;
+      const bool got_a = geo.intersect(p, d, 0.0f, rdm::cylinder_exit(p, d, Rb), &a, h0.fiber, 2.0f * r, true);
+      const bool got_b = retrace(p, d, h0.fiber, &b, &rounds);
+      hits += got_b ? 1 : 0;
+      skipped += rounds > 1 ? 1 : 0;
+      if (got_a != got_b || (got_b && (a.fiber != b.fiber || std::abs(a.t - b.t) > 1e-5f * std::max(b.t, r)))) {
+        differ++;
+      }
+    }
+  }
+  /* The rays exercise both: half go into their own tube and skip its exit; most hit another fiber. */
+  EXPECT_GT(skipped, rays / 3);
+  EXPECT_GT(hits, rays / 2);
+  /* Re-tracing also steps over hits within 1e-6 t past a skipped one (its tnear); a filter keeps them. */
+  EXPECT_LE(differ, rays / 10000) << differ << " of " << rays << " rays differ";
+}
+
 /* ------------------------------------------------------------------------------------------------ */
 /* Bookkeeping, symmetry, determinism, convergence.                                                   */
 /* ------------------------------------------------------------------------------------------------ */

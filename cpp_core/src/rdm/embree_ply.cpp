@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "neuralyarn/rdm/embree_ply.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -15,6 +16,41 @@ struct EmbreePly::Impl {
   const float *vertices = nullptr; /* owned by the geometry, which the scene keeps alive */
   const unsigned *indices = nullptr;
 };
+
+namespace {
+
+/* The context of a query that skips hits: Embree passes it to the filter, which rejects them inside one
+ * traversal (re-tracing from each skipped hit costs a traversal per skip, D32's culled exits at least one
+ * per step). */
+struct SkipContext {
+  RTCIntersectContext base; /* first: Embree sees a plain context */
+  ny::Vec3 d;
+  int exclude;
+  float exclude_distance;
+  bool cull_exits;
+  int segments_per_fiber;
+};
+
+void skip_filter(const RTCFilterFunctionNArguments *args)
+{
+  const auto *ctx = reinterpret_cast<const SkipContext *>(args->context);
+  for (unsigned i = 0; i < args->N; i++) {
+    if (args->valid[i] != -1) {
+      continue;
+    }
+    /* Embree's Ng of a round curve points out of the tube: facing along the ray, the ray leaves it. */
+    const bool leaving = !(ctx->d.x * RTCHitN_Ng_x(args->hit, args->N, i) + ctx->d.y * RTCHitN_Ng_y(args->hit, args->N, i) +
+                             ctx->d.z * RTCHitN_Ng_z(args->hit, args->N, i) < 0.0f);
+    const int fiber = int(RTCHitN_primID(args->hit, args->N, i) / unsigned(ctx->segments_per_fiber));
+    /* tfar holds the distance of the hit under test. */
+    const bool excluded = fiber == ctx->exclude && RTCRayN_tfar(args->ray, args->N, i) < ctx->exclude_distance;
+    if ((leaving && ctx->cull_exits) || excluded) {
+      args->valid[i] = 0;
+    }
+  }
+}
+
+}  // namespace
 
 EmbreePly::EmbreePly(const geometry::Ply &ply, double x0, double x1, int segments_per_turn)
     : EmbreePly(geometry::export_fibers(ply, x0, x1, segments_per_turn))
@@ -33,6 +69,7 @@ EmbreePly::EmbreePly(const geometry::CurveSet &curves, const char *device_config
     throw std::runtime_error("Embree: cannot create a device (error " + std::to_string(rtcGetDeviceError(nullptr)) + ")");
   }
   impl_->scene = rtcNewScene(impl_->device);
+  rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
   rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
   RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_ROUND_LINEAR_CURVE);
   const size_t nv = curves.points.size();
@@ -84,22 +121,22 @@ EmbreePly::~EmbreePly()
 bool EmbreePly::intersect(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, EmbreeHit *hit, int exclude,
                           float exclude_distance, bool cull_exits) const
 {
-  for (int round = 0; round < 64; round++) {
-    if (!intersect_once(o, d, tnear, tfar, hit)) {
-      return false;
-    }
-    if ((hit->fiber != exclude || hit->t >= exclude_distance) && (hit->entering || !cull_exits)) {
-      return true;
-    }
-    tnear = hit->t * (1.0f + 1e-6f) + 1e-7f;
+  SkipContext ctx;
+  rtcInitIntersectContext(&ctx.base);
+  ctx.d = d;
+  ctx.exclude = segments_per_fiber_ > 0 ? exclude : -1;
+  ctx.exclude_distance = exclude_distance;
+  ctx.cull_exits = cull_exits;
+  ctx.segments_per_fiber = std::max(segments_per_fiber_, 1);
+  if (ctx.exclude >= 0 || cull_exits) {
+    ctx.base.filter = skip_filter;
   }
-  return false;
+  return intersect_once(o, d, tnear, tfar, &ctx.base, hit);
 }
 
-bool EmbreePly::intersect_once(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, EmbreeHit *hit) const
+bool EmbreePly::intersect_once(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, RTCIntersectContext *ctx,
+                               EmbreeHit *hit) const
 {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
   RTCRayHit rh;
   rh.ray.org_x = o.x;
   rh.ray.org_y = o.y;
@@ -115,7 +152,7 @@ bool EmbreePly::intersect_once(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, 
   rh.ray.flags = 0;
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(impl_->scene, &ctx, &rh);
+  rtcIntersect1(impl_->scene, ctx, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
     return false;
   }

@@ -10,6 +10,8 @@
 #include "neuralyarn/geometry/ply.h"
 #include "neuralyarn/kernel/platform.h"
 
+struct RTCIntersectContext; /* Embree's; the header stays free of Embree */
+
 namespace neuralyarn::rdm {
 
 struct EmbreeHit {
@@ -41,7 +43,8 @@ class EmbreePly {
   size_t num_segments() const { return segments_; }
 
  private:
-  bool intersect_once(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, EmbreeHit *hit) const;
+  bool intersect_once(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, ::RTCIntersectContext *ctx,
+                      EmbreeHit *hit) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
   size_t segments_ = 0;
