@@ -180,138 +180,163 @@ Vec3 world_point(const FiberMedium &, const SlabRay &r) { return r.o; }
 Vec3 world_dir(const PlyTracer &t, const SlabRay &r) { return t.to_world_dir(r.d, r.slab); }
 Vec3 world_dir(const FiberMedium &, const SlabRay &r) { return r.d; }
 
-/* One path. */
+/* Where a path enters: its incident bin, the entry frame (n the envelope's normal, ex the axis, ey = z x x)
+ * and the entry point. */
+struct Entry {
+  size_t in_bin = 0;
+  Vec3 n, ex, ey, point;
+};
+
+/* How a walk ended: left the medium (alive) or not, its throughput and what its events absorbed. */
+struct Walk {
+  SlabRay ray; /* the last ray: the exit, when alive */
+  float beta[3] = {1.0f, 1.0f, 1.0f};
+  uint64_t absorbed_fx[3] = {0, 0, 0};
+  int events = 0;
+  bool alive = true;
+};
+
+/* w_i uniform in solid angle inside the bin (cos(theta) uniform, phi uniform); the entry frame at a
+ * uniform azimuth a on the ring x = 0 (screw invariance makes one ring enough), or at a uniform x over the
+ * entry length of a medium that has none. */
 template <class Medium>
-void trace_path(const Medium *const media[2], const std::vector<double> &cos_theta_edge, const FiberLobeSampler &sampler,
-                const GatherOptions &opt, uint64_t k, Accumulators &acc, LocalStats &ls)
+Entry enter(const Medium &tracer, const MapResolution &b, const std::vector<double> &cos_theta_edge, size_t in_bin,
+            PathRng &rng, SlabRay *ray)
 {
-  const MapResolution &b = opt.bins;
-  const size_t n_in = b.incident();
-  const size_t in_bin = size_t(k % n_in);
-  const int mirrored = int((k / n_in) & 1u);
-  const Medium &tracer = *media[mirrored];
   const int ti = int(in_bin / size_t(b.phi_i));
   const int pi = int(in_bin % size_t(b.phi_i));
-  PathRng rng(opt.seed, k);
-
-  /* w_i uniform in solid angle inside the bin: cos(theta) uniform, phi uniform. */
   const double c0 = cos_theta_edge[size_t(ti)], c1 = cos_theta_edge[size_t(ti) + 1];
   const double cos_t = c0 + (c1 - c0) * rng.uniform_double();
   const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
   const double phi = -kPi + 2.0 * kPi * (pi + rng.uniform_double()) / b.phi_i;
   const Vec3 wi_local = make_vec3(float(sin_t * std::cos(phi)), float(sin_t * std::sin(phi)), float(cos_t));
-  /* Entry frame at a uniform azimuth a on the ring x = 0 (screw invariance makes one ring enough), or at
-   * a uniform x over the entry length of a medium that has none. */
   double sin_a, cos_a;
   sincos(2.0 * kPi * rng.uniform_double(), &sin_a, &cos_a);
   const double L_entry = entry_length(tracer);
   const float x_entry = L_entry > 0.0 ? float(L_entry * (rng.uniform_double() - 0.5)) : 0.0f;
-  const Vec3 n = make_vec3(0.0f, float(cos_a), float(sin_a));
-  const Vec3 ey = make_vec3(0.0f, float(sin_a), float(-cos_a)); /* z x x */
-  const Vec3 ex = make_vec3(1.0f, 0.0f, 0.0f);
-  const float R = tracer.bound_radius();
-  const Vec3 wi = ex * wi_local.x + ey * wi_local.y + n * wi_local.z;
+  Entry e;
+  e.in_bin = in_bin;
+  e.n = make_vec3(0.0f, float(cos_a), float(sin_a));
+  e.ey = make_vec3(0.0f, float(sin_a), float(-cos_a));
+  e.ex = make_vec3(1.0f, 0.0f, 0.0f);
+  e.point = e.n * tracer.bound_radius() + e.ex * x_entry;
+  const Vec3 wi = e.ex * wi_local.x + e.ey * wi_local.y + e.n * wi_local.z;
+  ray->o = e.point;
+  ray->d = -wi;
+  ray->slab = 0;
+  return e;
+}
 
-  const Vec3 entry = n * R + ex * x_entry;
-  SlabRay ray;
-  ray.o = entry;
-  ray.d = -wi;
-  ray.slab = 0;
-  float beta[3] = {1.0f, 1.0f, 1.0f};
-  int events = 0;
+/* The random walk from the entry ray: fiber events sampled by the lobe sampler until the path leaves the
+ * medium, is absorbed (Russian roulette) or runs past opt.max_events. */
+template <class Medium>
+Walk walk(const Medium &tracer, const FiberLobeSampler &sampler, const GatherOptions &opt, const SlabRay &entry_ray,
+          PathRng &rng, LocalStats &ls)
+{
+  Walk w;
+  w.ray = entry_ray;
+  float *beta = w.beta;
   int exclude = -1;
   const float exclude_distance = 2.0f * tracer.fiber_radius();
-  uint64_t absorbed_fx[3] = {0, 0, 0};
-  bool alive = true;
   TubeHit hit;
   for (;;) {
-    const int64_t slab_before = ray.slab;
-    const bool got = tracer.trace(&ray, exclude, exclude_distance, &hit);
-    ls.slab_crossings += uint64_t(std::llabs(ray.slab - slab_before));
+    const int64_t slab_before = w.ray.slab;
+    const bool got = tracer.trace(&w.ray, exclude, exclude_distance, &hit);
+    ls.slab_crossings += uint64_t(std::llabs(w.ray.slab - slab_before));
     if (!got) {
-      break;
+      return w;
     }
-    events++;
-    if (events > opt.max_events) {
+    w.events++;
+    if (w.events > opt.max_events) {
       ls.truncated++;
       for (int c = 0; c < 3; c++) {
         ls.lost[c] += to_fixed(beta[c]);
       }
-      alive = false;
-      break;
+      w.alive = false;
+      return w;
     }
     /* Scatter in the fiber frame: x = tangent, z = tube normal. */
     ny::Frame frame;
     frame.x = hit.axis;
     frame.z = hit.normal;
     frame.y = ny::cross(frame.z, frame.x);
-    const Vec3 wi_f = ny::to_local(frame, -ray.d);
+    const Vec3 wi_f = ny::to_local(frame, -w.ray.d);
     Vec3 wo_f = make_vec3(0.0f, 0.0f, 1.0f);
-    Rgb w, albedo;
+    Rgb weight, albedo;
     const bool scattered = sampler.sample(wi_f, ny::make_rgb(beta[0], beta[1], beta[2]), [&rng] { return rng.uniform(); },
-                                          &wo_f, &w, &albedo);
+                                          &wo_f, &weight, &albedo);
     /* Expected absorption at this event, for the energy bookkeeping: beta (1 - albedo). */
-    absorbed_fx[0] += to_fixed(beta[0] * (1.0f - albedo.r));
-    absorbed_fx[1] += to_fixed(beta[1] * (1.0f - albedo.g));
-    absorbed_fx[2] += to_fixed(beta[2] * (1.0f - albedo.b));
+    w.absorbed_fx[0] += to_fixed(beta[0] * (1.0f - albedo.r));
+    w.absorbed_fx[1] += to_fixed(beta[1] * (1.0f - albedo.g));
+    w.absorbed_fx[2] += to_fixed(beta[2] * (1.0f - albedo.b));
     if (!scattered) {
-      alive = false;
+      w.alive = false;
       ls.terminated++;
-      break;
+      return w;
     }
-    beta[0] *= w.r;
-    beta[1] *= w.g;
-    beta[2] *= w.b;
+    beta[0] *= weight.r;
+    beta[1] *= weight.g;
+    beta[2] *= weight.b;
     if (!(std::isfinite(beta[0]) && std::isfinite(beta[1]) && std::isfinite(beta[2]))) {
       ls.invalid++;
-      alive = false;
-      break;
+      w.alive = false;
+      return w;
     }
     /* From the hit point; into the fiber, the path crosses it (D32). */
-    tracer.leave_fiber(hit, ny::normalize(ny::to_world(frame, wo_f)), &ray);
+    tracer.leave_fiber(hit, ny::normalize(ny::to_world(frame, wo_f)), &w.ray);
     exclude = hit.fiber;
     /* Russian roulette: survive with q = min(1, max channel), then divide by q. */
     const float q = std::min(1.0f, std::max(beta[0], std::max(beta[1], beta[2])));
     if (q < 1.0f) {
       if (!(rng.uniform() < q)) {
-        alive = false;
+        w.alive = false;
         ls.terminated++;
-        break;
+        return w;
       }
       beta[0] /= q;
       beta[1] /= q;
       beta[2] /= q;
     }
   }
+}
 
+/* A finished walk into the accumulators: its incident bin's count and absorption, the energy balance, and,
+ * if it left, its label (T, R or M), exit energy, displacement and map record. */
+template <class Medium>
+void score(const Medium &tracer, const GatherOptions &opt, const Entry &e, const Walk &w, Accumulators &acc,
+           LocalStats &ls)
+{
+  const MapResolution &b = opt.bins;
+  const size_t in_bin = e.in_bin;
+  const float *beta = w.beta;
   atomic_add(&acc.count[in_bin], 1);
   for (int c = 0; c < 3; c++) {
-    atomic_add(&acc.absorbed[in_bin * 3 + size_t(c)], absorbed_fx[c]);
-    ls.absorbed[c] += absorbed_fx[c];
+    atomic_add(&acc.absorbed[in_bin * 3 + size_t(c)], w.absorbed_fx[c]);
+    ls.absorbed[c] += w.absorbed_fx[c];
   }
   /* Energy balance of this path: what left + what was absorbed + what was cut off. */
   for (int c = 0; c < 3; c++) {
-    const double out = alive ? double(beta[c]) : 0.0;
-    const double lost = (!alive && events > opt.max_events) ? double(beta[c]) : 0.0;
-    const double total = out + double(absorbed_fx[c]) * kInvFixedScale + lost;
+    const double out = w.alive ? double(beta[c]) : 0.0;
+    const double lost = (!w.alive && w.events > opt.max_events) ? double(beta[c]) : 0.0;
+    const double total = out + double(w.absorbed_fx[c]) * kInvFixedScale + lost;
     ls.balance[c] += total;
     ls.balance_sq[c] += total * total;
   }
-  ls.events[size_t(std::min(events, kEventBins - 1))]++;
-  ls.events_total += uint64_t(events);
-  ls.max_events = std::max(ls.max_events, events);
-  if (!alive) {
+  ls.events[size_t(std::min(w.events, kEventBins - 1))]++;
+  ls.events_total += uint64_t(w.events);
+  ls.max_events = std::max(ls.max_events, w.events);
+  if (!w.alive) {
     return;
   }
 
   /* Exit: direction and point in world coordinates, then in the entry frame. */
-  const Vec3 d_w = world_dir(tracer, ray);
-  const Vec3 p_w = world_point(tracer, ray);
+  const Vec3 d_w = world_dir(tracer, w.ray);
+  const Vec3 p_w = world_point(tracer, w.ray);
   if (std::abs(double(p_w.x)) > half_length(tracer)) {
     ls.past_ends++;
   }
-  const Vec3 wo = make_vec3(ny::dot(d_w, ex), ny::dot(d_w, ey), ny::dot(d_w, n));
-  const int label = events == 0 ? 0 : (events == 1 && wo.z > 0.0f ? 1 : 2);
+  const Vec3 wo = make_vec3(ny::dot(d_w, e.ex), ny::dot(d_w, e.ey), ny::dot(d_w, e.n));
+  const int label = w.events == 0 ? 0 : (w.events == 1 && wo.z > 0.0f ? 1 : 2);
   ls.paths[label]++;
   for (int c = 0; c < 3; c++) {
     if (!(beta[c] <= kMaxWeight)) {
@@ -329,7 +354,7 @@ void trace_path(const Medium *const media[2], const std::vector<double> &cos_the
     atomic_add(&acc.count_t[in_bin], 1);
     return;
   }
-  const double disp = std::sqrt(double(ny::dot(p_w - entry, p_w - entry))) / double(envelope_radius(tracer));
+  const double disp = std::sqrt(double(ny::dot(p_w - e.point, p_w - e.point))) / double(envelope_radius(tracer));
   const size_t dbin = size_t(std::min(disp / kDisplacementBin, double(kDisplacementBins - 1)));
   const uint64_t disp_fx = uint64_t(std::llround(disp * 1e6));
   ls.displacement[dbin]++;
@@ -353,6 +378,20 @@ void trace_path(const Medium *const media[2], const std::vector<double> &cos_the
     rec.w2[c] = opt.variance ? to_fixed(beta[c] * beta[c]) : 0;
   }
   ls.records.push_back(rec);
+}
+
+/* Path k: incident bin k mod (bins), alternating between the medium and its mirror image per sweep over
+ * the bins; its own random stream. */
+template <class Medium>
+void trace_path(const Medium *const media[2], const std::vector<double> &cos_theta_edge, const FiberLobeSampler &sampler,
+                const GatherOptions &opt, uint64_t k, Accumulators &acc, LocalStats &ls)
+{
+  const size_t n_in = opt.bins.incident();
+  const Medium &tracer = *media[(k / n_in) & 1u];
+  PathRng rng(opt.seed, k);
+  SlabRay ray;
+  const Entry e = enter(tracer, opt.bins, cos_theta_edge, size_t(k % n_in), rng, &ray);
+  score(tracer, opt, e, walk(tracer, sampler, opt, ray, rng, ls), acc, ls);
 }
 
 void flush_records(LocalStats &ls, Accumulators &acc, bool variance)
@@ -513,16 +552,13 @@ void validate(const GatherOptions &o)
 
 namespace {
 
-RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &opt,
-                  Geometry &geo, std::chrono::steady_clock::time_point t_start)
+/* The walks, in parallel over chunks of paths, into the accumulators and the shared statistics; returns the
+ * seconds spent tracing (without the allocations). */
+double accumulate(const FiberPreset &preset, const GatherOptions &opt, const Geometry &geo, tbb::task_arena &arena,
+                Accumulators &acc, SharedStats &shared)
 {
   const FiberLobeSampler sampler(preset.fiber_params(), opt.plain_estimator);
-  for (int t = 0; t <= opt.bins.theta_i; t++) {
-    geo.cos_theta_edge.push_back(std::cos(0.5 * kPi * t / opt.bins.theta_i));
-  }
-
   const MapResolution &b = opt.bins;
-  Accumulators acc;
   acc.n_in = b.incident();
   acc.n_map = b.incident() * b.outgoing() * 3;
   acc.count.assign(acc.n_in, 0);
@@ -535,7 +571,6 @@ RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &stru
     acc.r2.assign(acc.n_map, 0);
     acc.m2.assign(acc.n_map, 0);
   }
-  SharedStats shared;
   shared.events.assign(kEventBins, 0);
   shared.displacement.assign(kDisplacementBins, 0);
   shared.displacement_M.assign(kDisplacementBins, 0);
@@ -568,25 +603,18 @@ RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &stru
       }
     }
   };
-  const int threads = opt.threads > 0 ? opt.threads : tbb::this_task_arena::max_concurrency();
-  tbb::task_arena arena(threads);
   const auto t_trace = std::chrono::steady_clock::now();
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n_chunks, 1), work, tbb::simple_partitioner());
   });
-  const double seconds_tracing = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_trace).count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t_trace).count();
+}
 
-  /* Finalise: fixed point -> estimates. */
-  RdmMaps maps;
-  maps.bins = b;
-  maps.preset = preset;
-  maps.structure = structure;
-  maps.seed = opt.seed;
-  maps.packing_seed = opt.packing_seed;
-  maps.paths = opt.paths;
-  maps.fiber_radius = geo.ply[0] ? geo.ply[0]->fiber_radius() : geo.medium[0]->fiber_radius();
-  maps.slab_length = geo.ply[0] ? geo.ply[0]->slab_length() : 2.0 * geo.medium[0]->half_length();
-  maps.sagitta = opt.tracer.sagitta;
+/* Fixed point -> estimates, per incident bin; with symmetrisation a bin is the mean of itself and its
+ * half-turn image. */
+void finalize(const Accumulators &acc, const GatherOptions &opt, tbb::task_arena &arena, RdmMaps &maps)
+{
+  const MapResolution &b = opt.bins;
   maps.count = acc.count;
   maps.p_t.assign(acc.n_in, 0.0f);
   maps.exit_energy.assign(acc.n_in * 3, 0.0);
@@ -674,8 +702,12 @@ RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &stru
     tbb::parallel_for(size_t(0), acc.n_in, [&](size_t i) { finalize_bin(i); });
   });
   maps.symmetrized = opt.symmetrize;
+}
 
-  GatherStats &st = maps.stats;
+/* The shared statistics -> the gather's summary (all but its timings). */
+void summarize(const SharedStats &shared, const GatherOptions &opt, GatherStats &st)
+{
+  const uint64_t n_chunks = shared.balance.size() / 3;
   st.paths = opt.paths;
   const double np = double(opt.paths);
   for (int c = 0; c < 3; c++) {
@@ -711,8 +743,34 @@ RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &stru
   st.mean_displacement_M = shared.disp_count_M ? double(shared.disp_sum_M) * 1e-6 / double(shared.disp_count_M) : 0.0;
   st.p95_displacement = percentile(shared.displacement, 0.95, kDisplacementBin);
   st.p95_displacement_M = percentile(shared.displacement_M, 0.95, kDisplacementBin);
-  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-  st.seconds_tracing = seconds_tracing;
+}
+
+RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &opt,
+                  Geometry &geo, std::chrono::steady_clock::time_point t_start)
+{
+  for (int t = 0; t <= opt.bins.theta_i; t++) {
+    geo.cos_theta_edge.push_back(std::cos(0.5 * kPi * t / opt.bins.theta_i));
+  }
+  const int threads = opt.threads > 0 ? opt.threads : tbb::this_task_arena::max_concurrency();
+  tbb::task_arena arena(threads);
+  Accumulators acc;
+  SharedStats shared;
+  const double seconds_tracing = accumulate(preset, opt, geo, arena, acc, shared);
+
+  RdmMaps maps;
+  maps.bins = opt.bins;
+  maps.preset = preset;
+  maps.structure = structure;
+  maps.seed = opt.seed;
+  maps.packing_seed = opt.packing_seed;
+  maps.paths = opt.paths;
+  maps.fiber_radius = geo.ply[0] ? geo.ply[0]->fiber_radius() : geo.medium[0]->fiber_radius();
+  maps.slab_length = geo.ply[0] ? geo.ply[0]->slab_length() : 2.0 * geo.medium[0]->half_length();
+  maps.sagitta = opt.tracer.sagitta;
+  finalize(acc, opt, arena, maps);
+  summarize(shared, opt, maps.stats);
+  maps.stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  maps.stats.seconds_tracing = seconds_tracing;
   return maps;
 }
 
