@@ -191,19 +191,24 @@ void save_maps(const RdmMaps &maps, const std::string &path)
   }
 }
 
-RdmMaps load_maps(const std::string &path)
+namespace {
+
+/* A map file's parts: the format version, the parsed header and a view of the payload (the bulk of the
+ * file, 192 MB at paper resolution: not copied). Checks the magic, version, lengths and payload hash. */
+struct Container {
+  uint32_t version = 0;
+  json header;
+  std::string_view payload;
+};
+
+Container open_container(const std::string &path, const std::string &data)
 {
-  std::string data;
-  try {
-    data = read_file(path);
-  }
-  catch (const std::runtime_error &e) {
-    fail(path, e.what());
-  }
+  Container c;
+  json &h = c.header;
   if (data.size() < 20 || std::memcmp(data.data(), kMagic, 8) != 0) {
     fail(path, "not a neuralyarn RDM file (bad magic; was it transferred in text mode or truncated?)");
   }
-  const uint32_t version = read_le<uint32_t>(data.data() + 8);
+  const uint32_t version = c.version = read_le<uint32_t>(data.data() + 8);
   if (version != kMapFileVersion && version != kMapFileVersionYarn) {
     fail(path, "format version " + std::to_string(version) + " is not supported (this build reads versions " +
                    std::to_string(kMapFileVersion) + " and " + std::to_string(kMapFileVersionYarn) + ")");
@@ -212,16 +217,13 @@ RdmMaps load_maps(const std::string &path)
   if (hlen > data.size() - 20) {
     fail(path, "truncated: header of " + std::to_string(hlen) + " bytes, file has " + std::to_string(data.size()));
   }
-  json h;
   try {
     h = json::parse(data.substr(20, hlen));
   }
   catch (const json::exception &e) {
     fail(path, std::string("corrupt header: ") + e.what());
   }
-  /* A view, not a copy: the payload is the bulk of the file (192 MB at paper resolution). */
-  const std::string_view payload = std::string_view(data).substr(20 + hlen);
-  RdmMaps maps;
+  const std::string_view payload = c.payload = std::string_view(data).substr(20 + hlen);
   try {
     if (h.at("format").get<std::string>() != "neuralyarn-rdm") {
       fail(path, "header format is not 'neuralyarn-rdm'");
@@ -233,47 +235,6 @@ RdmMaps load_maps(const std::string &path)
     if (h.at("payload_fnv1a64").get<std::string>() != hex(fnv1a(payload))) {
       fail(path, "corrupt: payload hash mismatch");
     }
-    const json &b = h.at("bins");
-    maps.bins.theta_i = b.at("theta_i").get<int>();
-    maps.bins.phi_i = b.at("phi_i").get<int>();
-    maps.bins.theta_o = b.at("theta_o").get<int>();
-    maps.bins.phi_o = b.at("phi_o").get<int>();
-    if (maps.bins.theta_i < 1 || maps.bins.phi_i < 1 || maps.bins.theta_o < 1 || maps.bins.phi_o < 1 ||
-        maps.bins.theta_i > 100000 || maps.bins.phi_i > 100000 || maps.bins.theta_o > 100000 || maps.bins.phi_o > 100000) {
-      fail(path, "invalid bin counts in header");
-    }
-    maps.preset = preset_from_json(h.at("preset"), "map");
-    if (version == kMapFileVersionYarn) {
-      maps.structure = geometry::structure_from_json(h.at("structure"));
-    }
-    else if (h.contains("structure")) {
-      fail(path, "a version 1 file with a yarn structure (version 2 holds yarns)");
-    }
-    maps.seed = h.at("gather").at("seed").get<uint64_t>();
-    maps.paths = h.at("gather").at("paths").get<uint64_t>();
-    maps.symmetrized = h.at("gather").at("symmetrized").get<bool>();
-    maps.packing_seed = h.at("geometry").at("packing_seed").get<uint64_t>();
-    maps.fiber_radius = h.at("geometry").at("fiber_radius").get<double>();
-    maps.slab_length = h.at("geometry").at("slab_length").get<double>();
-    maps.sagitta = h.at("geometry").at("chord_sagitta_fiber_radii").get<double>();
-    const json &s = h.at("summary");
-    GatherStats &st = maps.stats;
-    st.paths = s.at("paths").get<uint64_t>();
-    st.seconds = s.at("seconds").get<double>();
-    for (int c = 0; c < 3; c++) {
-      st.energy_T[c] = s.at("energy_T")[size_t(c)].get<double>();
-      st.energy_R[c] = s.at("energy_R")[size_t(c)].get<double>();
-      st.energy_M[c] = s.at("energy_M")[size_t(c)].get<double>();
-      st.absorbed[c] = s.at("absorbed")[size_t(c)].get<double>();
-      st.lost[c] = s.at("lost")[size_t(c)].get<double>();
-    }
-    st.mean_events = s.at("mean_events").get<double>();
-    st.p95_events = s.at("p95_events").get<int>();
-    st.events_histogram = s.at("events_histogram").get<std::vector<uint64_t>>();
-    st.mean_displacement = s.at("mean_displacement_R").get<double>();
-    st.p95_displacement = s.at("p95_displacement_R").get<double>();
-    st.mean_displacement_M = s.at("mean_displacement_M_R").get<double>();
-    st.p95_displacement_M = s.at("p95_displacement_M_R").get<double>();
   }
   catch (const MapFileError &) {
     throw;
@@ -281,7 +242,61 @@ RdmMaps load_maps(const std::string &path)
   catch (const std::exception &e) {
     fail(path, std::string("header is missing a key or has a wrong type: ") + e.what());
   }
+  return c;
+}
 
+/* The header's bins, fiber, structure, gather and geometry. */
+void read_description(const std::string &path, const json &h, uint32_t version, RdmMaps &maps)
+{
+  const json &b = h.at("bins");
+  maps.bins.theta_i = b.at("theta_i").get<int>();
+  maps.bins.phi_i = b.at("phi_i").get<int>();
+  maps.bins.theta_o = b.at("theta_o").get<int>();
+  maps.bins.phi_o = b.at("phi_o").get<int>();
+  if (maps.bins.theta_i < 1 || maps.bins.phi_i < 1 || maps.bins.theta_o < 1 || maps.bins.phi_o < 1 ||
+      maps.bins.theta_i > 100000 || maps.bins.phi_i > 100000 || maps.bins.theta_o > 100000 || maps.bins.phi_o > 100000) {
+    fail(path, "invalid bin counts in header");
+  }
+  maps.preset = preset_from_json(h.at("preset"), "map");
+  if (version == kMapFileVersionYarn) {
+    maps.structure = geometry::structure_from_json(h.at("structure"));
+  }
+  else if (h.contains("structure")) {
+    fail(path, "a version 1 file with a yarn structure (version 2 holds yarns)");
+  }
+  maps.seed = h.at("gather").at("seed").get<uint64_t>();
+  maps.paths = h.at("gather").at("paths").get<uint64_t>();
+  maps.symmetrized = h.at("gather").at("symmetrized").get<bool>();
+  maps.packing_seed = h.at("geometry").at("packing_seed").get<uint64_t>();
+  maps.fiber_radius = h.at("geometry").at("fiber_radius").get<double>();
+  maps.slab_length = h.at("geometry").at("slab_length").get<double>();
+  maps.sagitta = h.at("geometry").at("chord_sagitta_fiber_radii").get<double>();
+}
+
+/* The header's summary: what stats_json wrote (the parts a loaded map is asked for). */
+void read_summary(const json &s, GatherStats &st)
+{
+  st.paths = s.at("paths").get<uint64_t>();
+  st.seconds = s.at("seconds").get<double>();
+  for (int c = 0; c < 3; c++) {
+    st.energy_T[c] = s.at("energy_T")[size_t(c)].get<double>();
+    st.energy_R[c] = s.at("energy_R")[size_t(c)].get<double>();
+    st.energy_M[c] = s.at("energy_M")[size_t(c)].get<double>();
+    st.absorbed[c] = s.at("absorbed")[size_t(c)].get<double>();
+    st.lost[c] = s.at("lost")[size_t(c)].get<double>();
+  }
+  st.mean_events = s.at("mean_events").get<double>();
+  st.p95_events = s.at("p95_events").get<int>();
+  st.events_histogram = s.at("events_histogram").get<std::vector<uint64_t>>();
+  st.mean_displacement = s.at("mean_displacement_R").get<double>();
+  st.p95_displacement = s.at("p95_displacement_R").get<double>();
+  st.mean_displacement_M = s.at("mean_displacement_M_R").get<double>();
+  st.p95_displacement_M = s.at("p95_displacement_M_R").get<double>();
+}
+
+/* The payload's arrays, each checked against its descriptor and the bins. */
+void read_arrays(const std::string &path, const json &h, std::string_view payload, RdmMaps &maps)
+{
   const size_t n_in = maps.bins.incident();
   const size_t n_map = n_in * maps.bins.outgoing() * 3;
   auto find = [&](const std::string &name) -> const json * {
@@ -335,6 +350,11 @@ RdmMaps load_maps(const std::string &path)
   catch (const std::exception &e) {
     fail(path, std::string("bad array descriptor: ") + e.what());
   }
+}
+
+/* Every estimate finite and non-negative. */
+void check_values(const std::string &path, const RdmMaps &maps)
+{
   auto check = [&](const auto &v, const char *name) {
     for (size_t i = 0; i < v.size(); i++) {
       if (!(std::isfinite(double(v[i])) && v[i] >= 0)) {
@@ -348,6 +368,33 @@ RdmMaps load_maps(const std::string &path)
   check(maps.absorbed, "absorbed");
   check(maps.r, "r");
   check(maps.m, "m");
+}
+
+}  // namespace
+
+RdmMaps load_maps(const std::string &path)
+{
+  std::string data;
+  try {
+    data = read_file(path);
+  }
+  catch (const std::runtime_error &e) {
+    fail(path, e.what());
+  }
+  const Container c = open_container(path, data);
+  RdmMaps maps;
+  try {
+    read_description(path, c.header, c.version, maps);
+    read_summary(c.header.at("summary"), maps.stats);
+  }
+  catch (const MapFileError &) {
+    throw;
+  }
+  catch (const std::exception &e) {
+    fail(path, std::string("header is missing a key or has a wrong type: ") + e.what());
+  }
+  read_arrays(path, c.header, c.payload, maps);
+  check_values(path, maps);
   return maps;
 }
 
