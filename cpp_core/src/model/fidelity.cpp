@@ -44,17 +44,14 @@ json FidelityReport::to_json() const
           {"lobes", lobes.to_json()}};
 }
 
-FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps_a, const FidelityOptions &o,
-                           const rdm::RdmMaps *maps_b)
+namespace {
+
+/* Albedo, P(T) and the R and M energies of the model against the maps, per incident bin (the bin's centre),
+ * weighted by the bins' solid angles; and their relative errors per theta_i. */
+void check_energies(const ny::YarnBsdfParams &p, const rdm::RdmMaps &maps, FidelityReport &r)
 {
-  const auto t0 = std::chrono::steady_clock::now();
-  const rdm::RdmMaps mean = maps_b ? rdm::mean_of_maps(maps_a, *maps_b) : rdm::RdmMaps{};
-  const rdm::RdmMaps &maps = maps_b ? mean : maps_a;
-  const std::vector<float> flat = model.kernel_flat();
-  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
   const rdm::MapResolution &b = maps.bins;
   const std::vector<double> ER = maps.energy(maps.r), EM = maps.energy(maps.m);
-
   struct Row {
     double w = 0, a_abs = 0, a_rel = 0, a_max = 0, t2 = 0, r_rel = 0, m_rel = 0;
   };
@@ -87,7 +84,6 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps_a, c
     row.r_rel = er_map > 1e-6 ? std::abs(ny::average(e_r) - er_map) / er_map : 0.0;
     row.m_rel = em_map > 1e-6 ? std::abs(ny::average(e_m) - em_map) / em_map : 0.0;
   });
-  FidelityReport r;
   r.albedo_rel_by_theta.assign(size_t(b.theta_i), 0.0);
   r.M_rel_by_theta.assign(size_t(b.theta_i), 0.0);
   r.R_rel_by_theta.assign(size_t(b.theta_i), 0.0);
@@ -113,7 +109,12 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps_a, c
   r.R_energy_mae_rel /= wsum;
   r.M_energy_mae_rel /= wsum;
 
-  /* Sampling efficiency. */
+}
+
+/* Sampling efficiency: relative variance of one-sample estimates of the albedo under uniform sampling, the
+ * model's importance sampling, and importance sampling with the best kappa_R for each w_i. */
+void check_sampling(const ny::YarnBsdfParams &p, const FidelityOptions &o, FidelityReport &r)
+{
   std::vector<double> rv_imp(size_t(o.variance_directions)), rv_uni(rv_imp.size()), rv_opt(rv_imp.size());
   tbb::parallel_for(0, o.variance_directions, [&](int d) {
     std::mt19937_64 rng(o.seed * 7919u + uint64_t(d));
@@ -154,6 +155,21 @@ FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps_a, c
     r.rel_var_uniform += rv_uni[size_t(d)] / o.variance_directions;
     r.rel_var_per_wi_kappa_R += rv_opt[size_t(d)] / o.variance_directions;
   }
+}
+
+}  // namespace
+
+FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps_a, const FidelityOptions &o,
+                           const rdm::RdmMaps *maps_b)
+{
+  const auto t0 = std::chrono::steady_clock::now();
+  const rdm::RdmMaps mean = maps_b ? rdm::mean_of_maps(maps_a, *maps_b) : rdm::RdmMaps{};
+  const rdm::RdmMaps &maps = maps_b ? mean : maps_a;
+  const std::vector<float> flat = model.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  FidelityReport r;
+  check_energies(p, maps, r);
+  check_sampling(p, o, r);
   r.lobes = check_lobes(model, maps_a, maps_b);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
