@@ -125,6 +125,244 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
   return s.invalid_weights ? 1 : 0;
 }
 
+/* `neuralyarn fiber`: a fiber's albedo table and lobe plot. */
+struct FiberCommand {
+  CLI::App *cmd;
+  std::string preset = "fleece", params, out;
+  double theta_i = 30.0, phi_i = 0.0;
+  int samples = 200000;
+  uint64_t seed = 1;
+
+  explicit FiberCommand(CLI::App &app) : cmd(app.add_subcommand("fiber", "Albedo table and scattering-lobe plot of a fiber preset"))
+  {
+    auto *opt_preset = cmd->add_option("--preset", preset, "Built-in preset name")->capture_default_str();
+    cmd->add_option("--params", params, "Fiber parameter file (JSON, docs/file_formats.md)")
+        ->excludes(opt_preset);
+    cmd->add_option("--theta-i", theta_i, "Incident longitudinal angle of the plot, degrees")
+        ->check(finite_range(-90.0, 90.0))
+        ->capture_default_str();
+    cmd->add_option("--phi-i", phi_i, "Incident azimuth of the plot, degrees")
+        ->check(finite_range(-180.0, 180.0))
+        ->capture_default_str();
+    cmd->add_option("--samples", samples, "Monte Carlo samples per albedo row")
+        ->check(CLI::Range(1, 1000000000))
+        ->capture_default_str();
+    cmd->add_option("--seed", seed, "Random seed")->capture_default_str();
+    cmd->add_option("--out", out, "Lobe plot to write (PNG)");
+  }
+  int run() const { return run_fiber(preset, params, theta_i, phi_i, samples, seed, out); }
+};
+
+/* `neuralyarn gather`: radiance distribution maps of a ply or yarn. */
+struct GatherCommand {
+  CLI::App *cmd;
+  std::string preset = "fleece", params, paths = "1e6", bins = "22x90x45x90", out;
+  uint64_t seed = 1, packing_seed = 1;
+  int threads = 0;
+  bool no_sym = false, variance = false, quiet = false;
+  LevelOptions level;
+
+  explicit GatherCommand(CLI::App &app)
+      : cmd(app.add_subcommand("gather", "Trace paths through an explicit ply and write its radiance distribution maps"))
+  {
+    auto *opt_preset = cmd->add_option("--preset", preset, "Built-in preset name")->capture_default_str();
+    cmd->add_option("--params", params, "Fiber parameter file (JSON)")->excludes(opt_preset);
+    cmd->add_option("--paths", paths, "Number of paths (1e7, 10M, ...)")->capture_default_str();
+    cmd->add_option("--seed", seed, "Seed of the paths")->capture_default_str();
+    cmd->add_option("--packing-seed", packing_seed, "Seed of the fiber cross-section")->capture_default_str();
+    cmd->add_option("--threads", threads, "Worker threads (0: all cores); the result does not depend on it")
+        ->capture_default_str();
+    cmd->add_option("--bins", bins, "Map resolution theta_i x phi_i x theta_o x phi_o")->capture_default_str();
+    cmd->add_flag("--no-symmetrize", no_sym, "Keep the raw maps (no 180-degree averaging)");
+    cmd->add_flag("--variance", variance, "Also store per-bin standard errors");
+    cmd->add_flag("--quiet", quiet, "No progress bar");
+    cmd->add_option("--out", out, "Map file to write (.nyrdm)")->required();
+    add_level_options(cmd, &level);
+  }
+  int run() const
+  {
+    return run_gather(preset, params, paths, seed, packing_seed, threads, bins, no_sym, variance, quiet, level, out);
+  }
+};
+
+/* `neuralyarn cycles-scene`: the close-up (or plies, layers, a baseline) for the patched Cycles, and what the
+ * core library predicts of it. */
+struct SceneCommand {
+  CLI::App *cmd;
+  std::string preset = "fleece", params, out;
+  scenes::PlySceneOptions opt;
+  std::vector<double> baseline_colour;
+  std::vector<int> region;
+  std::vector<std::string> predict_maps, predict_lights;
+  bool predict_fallback = false;
+
+  explicit SceneCommand(CLI::App &app)
+      : cmd(app.add_subcommand("cycles-scene", "Write the single-ply close-up (explicit fibers, or aggregated with --model) for the patched Cycles"))
+  {
+    auto *opt_preset = cmd->add_option("--preset", preset, "Built-in preset name")->capture_default_str();
+    cmd->add_option("--params", params, "Fiber parameter file (JSON)")->excludes(opt_preset);
+    cmd->add_option("--width", opt.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
+    cmd->add_option("--height", opt.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
+    cmd->add_option("--packing-seed", opt.packing_seed, "Seed of the fiber cross-section")->capture_default_str();
+    cmd->add_option("--ply-length", opt.ply_length, "Length of the ply along x, centred on the origin (ply radii)")
+        ->check(finite_range(1.0, 1000.0))
+        ->capture_default_str();
+    auto *opt_lights = cmd->add_option("--lights", opt.lights,
+                                       "Light rig: " + scenes::light_rig_names() +
+                                           " (--list-lights), or sun-DEG-normal / sun-DEG-axis: a distant light DEG "
+                                           "degrees from the view")
+                             ->capture_default_str();
+    cmd->add_flag("--white-furnace", opt.white_furnace,
+                  "Uniform white background, no lights (the environment rig) and no Russian roulette")
+        ->excludes(opt_lights);
+    /* A flag that prints a table (name, description; one a line) and exits. It runs while parsing, before the
+     * check for the required --out: `cycles-scene --list-lights` alone works. */
+    const auto list_flag = [this](const std::string &flag, const auto &table, const std::string &what) {
+      cmd->add_flag_callback(
+          flag,
+          [&table] {
+            for (const auto &row : table) {
+              std::printf("%-12s %s\n", row.name.c_str(), row.description.c_str());
+            }
+            throw CLI::Success();
+          },
+          "Print the " + what + " (name, description; one a line) and exit");
+    };
+    list_flag("--list-lights", scenes::light_rigs(), "light rigs");
+    cmd->add_option("--ply-rotation", opt.ply_rotation_deg,
+                    "Explicit version: turn the fibers by this many degrees about the ply axis (another "
+                    "orientation of the same cross-section; references average over several)")
+        ->check(CLI::Range(-360.0, 360.0))
+        ->capture_default_str();
+    cmd->add_option("--max-bounce", opt.max_bounce, "Cycles' bounce limit (Russian roulette ends paths before it)")
+        ->check(CLI::Range(1, 65535))
+        ->capture_default_str();
+    cmd->add_flag("--artist-bounces", opt.artist_bounces,
+                  "Blender's default bounce limits (12, diffuse 4, glossy 4, transmission 12) with the add-on's 64 "
+                  "transparent bounces, instead of --max-bounce for every kind");
+    cmd->add_option("--camera-distance", opt.camera_distance,
+                    "Camera distance from the ply axis (ply radii): the ply's width in pixels is about "
+                    "height / (0.483 distance)")
+        ->check(finite_range(1.0001, 1e4))
+        ->capture_default_str();
+    cmd->add_option("--unit-scale", opt.unit_scale,
+                    "Every length times this (ply radius 1 becomes this; a 0.5 mm ply in metres is 2.5e-4)")
+        ->check(finite_range(1e-6, 1e6))
+        ->capture_default_str();
+    cmd->add_option("--layers", opt.layers,
+                    "Cloth layers: sheets of plies side by side, stacked away from the camera (1: the single ply)")
+        ->check(CLI::Range(1, 256))
+        ->capture_default_str();
+    cmd->add_option("--level", opt.level,
+                    "With --plies and --model (or --baseline): draw the plies (a ply-level model) or the file's yarns "
+                    "(a yarn-level model)")
+        ->check(CLI::IsMember({"plies", "yarns"}))
+        ->capture_default_str();
+    cmd->add_option("--plies", opt.plies,
+                    "Instead of the straight ply: these ply centrelines (a \"neuralyarn-plies 1\" JSON file, e.g. "
+                    "from scripts/garment.py); the explicit version sweeps each ply's fibers along its curve")
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--light-scale", opt.light_scale,
+                    "Point lights' positions and sizes times this, their power times its square (a larger scene)")
+        ->check(finite_range(1e-6, 1e6))
+        ->capture_default_str();
+    cmd->add_option("--segments-per-turn", opt.segments_per_turn,
+                    "Explicit version: curve keys per helix turn of a fiber (Cycles interpolates between them)")
+        ->check(CLI::Range(3, 256))
+        ->capture_default_str();
+    cmd->add_option("--seed", opt.seed, "Cycles' integrator seed: renders with other seeds have independent noise")
+        ->check(CLI::Range(0, 2147483647))
+        ->capture_default_str();
+    auto *opt_model =
+        cmd->add_option("--model", opt.model, "Aggregated version: one thick curve with this neural yarn model");
+    auto *opt_baseline = cmd->add_option("--baseline", opt.baseline,
+                                         "Aggregated geometry with a stock closure instead of a model (--list-baselines)")
+                               ->excludes(opt_model);
+    cmd->add_option("--baseline-colour", baseline_colour, "With --baseline: its colour R G B, each in [0, 1]")
+        ->expected(3)
+        ->needs(opt_baseline);
+    list_flag("--list-baselines", scenes::baselines(), "baselines");
+    cmd->add_flag("--embed-model", opt.embed_model,
+                  "With --model: write the model's JSON into the scene (a self-contained file; cycles_patch 0003)");
+    cmd->add_option("--predict-region", region,
+                    "Print the mean colour the core library predicts over the pixel rectangle X Y W H of a WIDTH x "
+                    "HEIGHT render (see --width/--height) under the environment or a distant-light rig: of the "
+                    "--model, and of each --predict-maps file")
+        ->expected(4);
+    cmd->add_option("--predict-lights", predict_lights,
+                    "With --predict-region: predict under these rigs (default: the scene's), each map file "
+                    "loaded once for all of them")
+        ->delimiter(',');
+    cmd->add_flag("--predict-fallback", predict_fallback,
+                  "With --predict-region and --model: also predict the model's stock-Blender fallback (its "
+                  "fallback tables, as Blender renders them)");
+    cmd->add_option("--predict-maps", predict_maps,
+                    "With --predict-region: also predict with these radiance distribution maps (.nyrdm) as the "
+                    "ply's scattering (the tabulated far field)")
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--out", out, "Scene file to write (.xml)")->required();
+  }
+
+  int run()
+  {
+    scenes::find_light_rig(opt.lights); /* an unknown rig is named before anything else */
+    for (const std::string &name : predict_lights) {
+      scenes::find_light_rig(name);
+    }
+    for (size_t c = 0; c < baseline_colour.size(); c++) {
+      opt.baseline_colour[c] = baseline_colour[c];
+    }
+    check_writable(out);
+    scenes::write_ply_scene(resolve_preset(preset, params), opt, out);
+    std::printf("wrote %s\n", out.c_str());
+    if (!region.empty()) {
+      predict();
+    }
+    else if (!predict_maps.empty() || !predict_lights.empty() || predict_fallback) {
+      throw std::runtime_error("--predict-maps, --predict-lights and --predict-fallback need --predict-region");
+    }
+    return 0;
+  }
+
+  /* One line per prediction and rig: "predicted model R G B RIG", "predicted fallback R G B RIG",
+   * "predicted maps R G B RIG PATH". */
+  void predict()
+  {
+    if (opt.camera_distance != scenes::kCloseupCameraDistance || opt.unit_scale != 1.0 || opt.layers != 1) {
+      throw std::runtime_error("--predict-region predicts the close-up as it is: no --camera-distance, "
+                               "--unit-scale or --layers");
+    }
+    std::vector<scenes::LightRig> rigs;
+    if (predict_lights.empty()) {
+      predict_lights.push_back(opt.white_furnace ? "environment" : opt.lights);
+    }
+    for (const std::string &name : predict_lights) {
+      rigs.push_back(scenes::find_light_rig(name));
+    }
+    const scenes::PixelRegion pixels{opt.width, opt.height, region[0], region[1], region[2], region[3]};
+    const auto print = [&](const scenes::FarField &f, const char *what, const std::string &suffix) {
+      for (const scenes::LightRig &rig : rigs) {
+        const scenes::Rgb3 a = scenes::predict_closeup(f, rig, pixels);
+        std::printf("predicted %s %.5f %.5f %.5f %s%s\n", what, a.r, a.g, a.b, rig.name.c_str(), suffix.c_str());
+      }
+    };
+    if (predict_fallback && opt.model.empty()) {
+      throw std::runtime_error("--predict-fallback needs --model");
+    }
+    if (!opt.model.empty()) {
+      const model::YarnModel m = model::load_model(opt.model);
+      print(scenes::model_far_field(m), "model", "");
+      if (predict_fallback) {
+        print(scenes::fallback_far_field(m), "fallback", "");
+      }
+    }
+    for (const std::string &path : predict_maps) {
+      const rdm::RdmMaps maps = rdm::load_maps(path);
+      print(scenes::maps_far_field(maps), "maps", " " + path);
+    }
+  }
+};
+
 }  // namespace
 
 int main(int argc, char **argv)
@@ -134,157 +372,9 @@ int main(int argc, char **argv)
   app.require_subcommand(1);
 
   auto *presets = app.add_subcommand("presets", "List the built-in fiber presets");
-
-  auto *fiber = app.add_subcommand("fiber", "Albedo table and scattering-lobe plot of a fiber preset");
-  std::string preset_name = "fleece", params_file, out;
-  double theta_i = 30.0, phi_i = 0.0;
-  int samples = 200000;
-  uint64_t seed = 1;
-  auto *opt_preset = fiber->add_option("--preset", preset_name, "Built-in preset name")->capture_default_str();
-  fiber->add_option("--params", params_file, "Fiber parameter file (JSON, docs/file_formats.md)")
-      ->excludes(opt_preset);
-  fiber->add_option("--theta-i", theta_i, "Incident longitudinal angle of the plot, degrees")
-      ->check(finite_range(-90.0, 90.0))
-      ->capture_default_str();
-  fiber->add_option("--phi-i", phi_i, "Incident azimuth of the plot, degrees")
-      ->check(finite_range(-180.0, 180.0))
-      ->capture_default_str();
-  fiber->add_option("--samples", samples, "Monte Carlo samples per albedo row")
-      ->check(CLI::Range(1, 1000000000))
-      ->capture_default_str();
-  fiber->add_option("--seed", seed, "Random seed")->capture_default_str();
-  fiber->add_option("--out", out, "Lobe plot to write (PNG)");
-
-  auto *gather = app.add_subcommand("gather", "Trace paths through an explicit ply and write its radiance distribution maps");
-  std::string g_preset = "fleece", g_params, g_paths = "1e6", g_bins = "22x90x45x90", g_out;
-  uint64_t g_seed = 1, g_packing_seed = 1;
-  int g_threads = 0;
-  bool g_no_sym = false, g_variance = false, g_quiet = false;
-  auto *g_opt_preset = gather->add_option("--preset", g_preset, "Built-in preset name")->capture_default_str();
-  gather->add_option("--params", g_params, "Fiber parameter file (JSON)")->excludes(g_opt_preset);
-  gather->add_option("--paths", g_paths, "Number of paths (1e7, 10M, ...)")->capture_default_str();
-  gather->add_option("--seed", g_seed, "Seed of the paths")->capture_default_str();
-  gather->add_option("--packing-seed", g_packing_seed, "Seed of the fiber cross-section")->capture_default_str();
-  gather->add_option("--threads", g_threads, "Worker threads (0: all cores); the result does not depend on it")
-      ->capture_default_str();
-  gather->add_option("--bins", g_bins, "Map resolution theta_i x phi_i x theta_o x phi_o")->capture_default_str();
-  gather->add_flag("--no-symmetrize", g_no_sym, "Keep the raw maps (no 180-degree averaging)");
-  gather->add_flag("--variance", g_variance, "Also store per-bin standard errors");
-  gather->add_flag("--quiet", g_quiet, "No progress bar");
-  gather->add_option("--out", g_out, "Map file to write (.nyrdm)")->required();
-  LevelOptions g_level;
-  add_level_options(gather, &g_level);
-
-  auto *scene = app.add_subcommand("cycles-scene", "Write the single-ply close-up (explicit fibers, or aggregated with --model) for the patched Cycles");
-  std::string s_preset = "fleece", s_params, s_out;
-  scenes::PlySceneOptions s_opt;
-  auto *s_opt_preset = scene->add_option("--preset", s_preset, "Built-in preset name")->capture_default_str();
-  scene->add_option("--params", s_params, "Fiber parameter file (JSON)")->excludes(s_opt_preset);
-  scene->add_option("--width", s_opt.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
-  scene->add_option("--height", s_opt.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
-  scene->add_option("--packing-seed", s_opt.packing_seed, "Seed of the fiber cross-section")->capture_default_str();
-  scene->add_option("--ply-length", s_opt.ply_length, "Length of the ply along x, centred on the origin (ply radii)")
-      ->check(finite_range(1.0, 1000.0))
-      ->capture_default_str();
-  auto *s_opt_lights = scene->add_option("--lights", s_opt.lights,
-                                         "Light rig: " + scenes::light_rig_names() +
-                                             " (--list-lights), or sun-DEG-normal / sun-DEG-axis: a distant light DEG "
-                                             "degrees from the view")
-                           ->capture_default_str();
-  scene->add_flag("--white-furnace", s_opt.white_furnace,
-                  "Uniform white background, no lights (the environment rig) and no Russian roulette")
-      ->excludes(s_opt_lights);
-  /* A flag that prints a table (name, description; one a line) and exits. It runs while parsing, before the
-   * check for the required --out: `cycles-scene --list-lights` alone works. */
-  const auto list_flag = [&](const std::string &flag, const auto &table, const std::string &what) {
-    scene->add_flag_callback(
-        flag,
-        [&table] {
-          for (const auto &row : table) {
-            std::printf("%-12s %s\n", row.name.c_str(), row.description.c_str());
-          }
-          throw CLI::Success();
-        },
-        "Print the " + what + " (name, description; one a line) and exit");
-  };
-  list_flag("--list-lights", scenes::light_rigs(), "light rigs");
-  scene->add_option("--ply-rotation", s_opt.ply_rotation_deg,
-                    "Explicit version: turn the fibers by this many degrees about the ply axis (another "
-                    "orientation of the same cross-section; references average over several)")
-      ->check(CLI::Range(-360.0, 360.0))
-      ->capture_default_str();
-  scene->add_option("--max-bounce", s_opt.max_bounce, "Cycles' bounce limit (Russian roulette ends paths before it)")
-      ->check(CLI::Range(1, 65535))
-      ->capture_default_str();
-  scene->add_flag("--artist-bounces", s_opt.artist_bounces,
-                  "Blender's default bounce limits (12, diffuse 4, glossy 4, transmission 12) with the add-on's 64 "
-                  "transparent bounces, instead of --max-bounce for every kind");
-  scene->add_option("--camera-distance", s_opt.camera_distance,
-                    "Camera distance from the ply axis (ply radii): the ply's width in pixels is about "
-                    "height / (0.483 distance)")
-      ->check(finite_range(1.0001, 1e4))
-      ->capture_default_str();
-  scene->add_option("--unit-scale", s_opt.unit_scale,
-                    "Every length times this (ply radius 1 becomes this; a 0.5 mm ply in metres is 2.5e-4)")
-      ->check(finite_range(1e-6, 1e6))
-      ->capture_default_str();
-  scene->add_option("--layers", s_opt.layers,
-                    "Cloth layers: sheets of plies side by side, stacked away from the camera (1: the single ply)")
-      ->check(CLI::Range(1, 256))
-      ->capture_default_str();
-  scene->add_option("--level", s_opt.level,
-                    "With --plies and --model (or --baseline): draw the plies (a ply-level model) or the file's yarns "
-                    "(a yarn-level model)")
-      ->check(CLI::IsMember({"plies", "yarns"}))
-      ->capture_default_str();
-  scene->add_option("--plies", s_opt.plies,
-                    "Instead of the straight ply: these ply centrelines (a \"neuralyarn-plies 1\" JSON file, e.g. "
-                    "from scripts/garment.py); the explicit version sweeps each ply's fibers along its curve")
-      ->check(CLI::ExistingFile);
-  scene->add_option("--light-scale", s_opt.light_scale,
-                    "Point lights' positions and sizes times this, their power times its square (a larger scene)")
-      ->check(finite_range(1e-6, 1e6))
-      ->capture_default_str();
-  scene->add_option("--segments-per-turn", s_opt.segments_per_turn,
-                    "Explicit version: curve keys per helix turn of a fiber (Cycles interpolates between them)")
-      ->check(CLI::Range(3, 256))
-      ->capture_default_str();
-  scene->add_option("--seed", s_opt.seed, "Cycles' integrator seed: renders with other seeds have independent noise")
-      ->check(CLI::Range(0, 2147483647))
-      ->capture_default_str();
-  auto *s_opt_model =
-      scene->add_option("--model", s_opt.model, "Aggregated version: one thick curve with this neural yarn model");
-  std::vector<double> s_baseline_colour;
-  auto *s_opt_baseline = scene->add_option("--baseline", s_opt.baseline,
-                                           "Aggregated geometry with a stock closure instead of a model (--list-baselines)")
-                             ->excludes(s_opt_model);
-  scene->add_option("--baseline-colour", s_baseline_colour, "With --baseline: its colour R G B, each in [0, 1]")
-      ->expected(3)
-      ->needs(s_opt_baseline);
-  list_flag("--list-baselines", scenes::baselines(), "baselines");
-  scene->add_flag("--embed-model", s_opt.embed_model,
-                  "With --model: write the model's JSON into the scene (a self-contained file; cycles_patch 0003)");
-  std::vector<int> s_region;
-  std::vector<std::string> s_predict_maps, s_predict_lights;
-  scene->add_option("--predict-region", s_region,
-                    "Print the mean colour the core library predicts over the pixel rectangle X Y W H of a WIDTH x "
-                    "HEIGHT render (see --width/--height) under the environment or a distant-light rig: of the "
-                    "--model, and of each --predict-maps file")
-      ->expected(4);
-  scene->add_option("--predict-lights", s_predict_lights,
-                    "With --predict-region: predict under these rigs (default: the scene's), each map file "
-                    "loaded once for all of them")
-      ->delimiter(',');
-  bool s_predict_fallback = false;
-  scene->add_flag("--predict-fallback", s_predict_fallback,
-                  "With --predict-region and --model: also predict the model's stock-Blender fallback (its "
-                  "fallback tables, as Blender renders them)");
-  scene->add_option("--predict-maps", s_predict_maps,
-                    "With --predict-region: also predict with these radiance distribution maps (.nyrdm) as the "
-                    "ply's scattering (the tabulated far field)")
-      ->check(CLI::ExistingFile);
-  scene->add_option("--out", s_out, "Scene file to write (.xml)")->required();
-
+  FiberCommand fiber(app);
+  GatherCommand gather(app);
+  SceneCommand scene(app);
   auto model_commands = add_model_commands(app);
 
   CLI11_PARSE(app, argc, argv);
@@ -300,63 +390,14 @@ int main(int argc, char **argv)
       }
       return 0;
     }
-    if (scene->parsed()) {
-      scenes::find_light_rig(s_opt.lights); /* an unknown rig is named before anything else */
-      for (const std::string &name : s_predict_lights) {
-        scenes::find_light_rig(name);
-      }
-      for (size_t c = 0; c < s_baseline_colour.size(); c++) {
-        s_opt.baseline_colour[c] = s_baseline_colour[c];
-      }
-      check_writable(s_out);
-      scenes::write_ply_scene(resolve_preset(s_preset, s_params), s_opt, s_out);
-      std::printf("wrote %s\n", s_out.c_str());
-      if (!s_region.empty()) {
-        if (s_opt.camera_distance != scenes::kCloseupCameraDistance || s_opt.unit_scale != 1.0 || s_opt.layers != 1) {
-          throw std::runtime_error("--predict-region predicts the close-up as it is: no --camera-distance, "
-                                   "--unit-scale or --layers");
-        }
-        std::vector<scenes::LightRig> rigs;
-        if (s_predict_lights.empty()) {
-          s_predict_lights.push_back(s_opt.white_furnace ? "environment" : s_opt.lights);
-        }
-        for (const std::string &name : s_predict_lights) {
-          rigs.push_back(scenes::find_light_rig(name));
-        }
-        const scenes::PixelRegion region{s_opt.width, s_opt.height, s_region[0], s_region[1], s_region[2], s_region[3]};
-        /* One line per prediction and rig: "predicted model R G B RIG", "predicted fallback R G B RIG",
-         * "predicted maps R G B RIG PATH". */
-        const auto print = [&](const scenes::FarField &f, const char *what, const std::string &suffix) {
-          for (const scenes::LightRig &rig : rigs) {
-            const scenes::Rgb3 a = scenes::predict_closeup(f, rig, region);
-            std::printf("predicted %s %.5f %.5f %.5f %s%s\n", what, a.r, a.g, a.b, rig.name.c_str(), suffix.c_str());
-          }
-        };
-        if (s_predict_fallback && s_opt.model.empty()) {
-          throw std::runtime_error("--predict-fallback needs --model");
-        }
-        if (!s_opt.model.empty()) {
-          const model::YarnModel m = model::load_model(s_opt.model);
-          print(scenes::model_far_field(m), "model", "");
-          if (s_predict_fallback) {
-            print(scenes::fallback_far_field(m), "fallback", "");
-          }
-        }
-        for (const std::string &path : s_predict_maps) {
-          const rdm::RdmMaps maps = rdm::load_maps(path);
-          print(scenes::maps_far_field(maps), "maps", " " + path);
-        }
-      }
-      else if (!s_predict_maps.empty() || !s_predict_lights.empty() || s_predict_fallback) {
-        throw std::runtime_error("--predict-maps, --predict-lights and --predict-fallback need --predict-region");
-      }
-      return 0;
+    if (scene.cmd->parsed()) {
+      return scene.run();
     }
-    if (gather->parsed()) {
-      return run_gather(g_preset, g_params, g_paths, g_seed, g_packing_seed, g_threads, g_bins, g_no_sym, g_variance, g_quiet, g_level, g_out);
+    if (gather.cmd->parsed()) {
+      return gather.run();
     }
-    if (fiber->parsed()) {
-      return run_fiber(preset_name, params_file, theta_i, phi_i, samples, seed, out);
+    if (fiber.cmd->parsed()) {
+      return fiber.run();
     }
   }
   catch (const std::exception &e) {
