@@ -176,14 +176,17 @@ BounceLimits BounceLimits::blender_addon()
   return b;
 }
 
-void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const std::string &path)
+namespace {
+
+/* What the scene's options allow alone (before any file is read): the light rig they name. */
+LightRig check_options(const FiberPreset &preset, const PlySceneOptions &o)
 {
   validate(preset);
   if (o.white_furnace && o.lights != "key-rim" && o.lights != "environment") {
     throw std::runtime_error("the white furnace is the 'environment' light rig; it cannot use lights '" + o.lights +
                              "'");
   }
-  const LightRig rig = find_light_rig(o.white_furnace ? std::string("environment") : o.lights);
+  LightRig rig = find_light_rig(o.white_furnace ? std::string("environment") : o.lights);
   if (o.max_bounce < 1 || o.max_bounce > 65535) {
     /* Cycles keeps bounce counters in 16 bits. */
     throw std::runtime_error("max_bounce must be in [1, 65535], got " + std::to_string(o.max_bounce));
@@ -204,9 +207,12 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
   if (!o.plies.empty() && o.layers != 1) {
     throw std::runtime_error("a scene of ply curves has its own geometry: no layers");
   }
-  /* Read (and refuse a bad file) before anything is written. */
-  const PlyCurves curves_in = o.plies.empty() ? PlyCurves{} : read_ply_curves(o.plies);
-  const bool yarn_level = o.level == "yarns";
+  return rig;
+}
+
+/* What the level and the baseline allow, given the plies file (if any). */
+void check_level_and_baseline(const PlySceneOptions &o, const PlyCurves &curves_in, bool yarn_level)
+{
   if (!yarn_level && o.level != "plies") {
     throw std::runtime_error("level must be plies or yarns, got '" + o.level + "'");
   }
@@ -214,9 +220,6 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
     throw std::runtime_error("the yarn level draws the yarns of a plies file (--plies with \"yarns\") with a model "
                              "or a baseline");
   }
-  const BounceLimits limits = o.artist_bounces ? BounceLimits::blender_addon()
-                                               : BounceLimits{o.max_bounce, o.max_bounce, o.max_bounce,
-                                                              o.max_bounce, o.max_bounce};
   if (o.white_furnace && o.artist_bounces) {
     throw std::runtime_error("the white furnace runs every path to its end; it cannot use the artist's bounce limits");
   }
@@ -239,43 +242,50 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
       }
     }
   }
-  /* Aggregated geometry: one thick curve per ply, shaded by the neural model or by a baseline. */
-  const bool aggregated = !o.model.empty() || !o.baseline.empty();
-  std::string model_path;
-  if (!o.model.empty()) {
-    /* Refuse a model of another preset (or a broken file) here, with the loader's message. */
-    const model::YarnModel m = model::load_model(o.model);
-    if (preset_to_json(m.preset) != preset_to_json(preset)) {
-      throw std::runtime_error("model '" + o.model + "' was trained for preset '" + m.preset.name +
-                               "' with other parameters than '" + preset.name + "'");
-    }
-    if (m.calibration.empty()) {
-      throw std::runtime_error("model '" + o.model + "' is a version 1 file without a kernel array; re-bake it");
-    }
-    /* A model describes one level: a ply's on yarn curves (or the reverse) would render silently wrong. */
-    if (m.structure.is_yarn() != yarn_level) {
-      throw std::runtime_error("model '" + o.model + "' is a " + (m.structure.is_yarn() ? "yarn" : "ply") +
-                               "-level model; the scene draws " + (yarn_level ? "yarns" : "plies"));
-    }
-    if (yarn_level && (m.structure.plies != curves_in.plies_per_yarn ||
-                       std::abs(m.structure.ply_twist - curves_in.ply_twist) > 1e-6)) {
-      throw std::runtime_error("model '" + o.model + "' was baked for " + std::to_string(m.structure.plies) +
-                               " plies at ply twist " + std::to_string(m.structure.ply_twist) + "; the yarns have " +
-                               std::to_string(curves_in.plies_per_yarn) + " at " + std::to_string(curves_in.ply_twist));
-    }
-    /* Relative to the scene's directory (the XML reader resolves it so): scene and models move together. */
-    const std::filesystem::path scene_dir = std::filesystem::absolute(path).parent_path();
-    model_path = std::filesystem::absolute(o.model).lexically_normal().lexically_relative(scene_dir).string();
-    if (model_path.empty()) {
-      model_path = std::filesystem::absolute(o.model).string();
-    }
+}
+
+/* The model, refused here with the loader's message if it is broken or describes another fiber or level; its
+ * path relative to the scene's directory (the XML reader resolves it so: scene and models move together). */
+std::string scene_model_path(const FiberPreset &preset, const PlySceneOptions &o, const PlyCurves &curves_in,
+                             bool yarn_level, const std::string &path)
+{
+  const model::YarnModel m = model::load_model(o.model);
+  if (preset_to_json(m.preset) != preset_to_json(preset)) {
+    throw std::runtime_error("model '" + o.model + "' was trained for preset '" + m.preset.name +
+                             "' with other parameters than '" + preset.name + "'");
   }
-  /* The plies: one on the x axis, or `layers` sheets of plies side by side (along y, enough to fill the
-   * frame's height at the camera's distance) stacked away from the camera (along +z), touching but for a
-   * small gap. */
-  struct Placement {
-    double y, z, turn_deg;
-  };
+  if (m.calibration.empty()) {
+    throw std::runtime_error("model '" + o.model + "' is a version 1 file without a kernel array; re-bake it");
+  }
+  /* A model describes one level: a ply's on yarn curves (or the reverse) would render silently wrong. */
+  if (m.structure.is_yarn() != yarn_level) {
+    throw std::runtime_error("model '" + o.model + "' is a " + (m.structure.is_yarn() ? "yarn" : "ply") +
+                             "-level model; the scene draws " + (yarn_level ? "yarns" : "plies"));
+  }
+  if (yarn_level && (m.structure.plies != curves_in.plies_per_yarn ||
+                     std::abs(m.structure.ply_twist - curves_in.ply_twist) > 1e-6)) {
+    throw std::runtime_error("model '" + o.model + "' was baked for " + std::to_string(m.structure.plies) +
+                             " plies at ply twist " + std::to_string(m.structure.ply_twist) + "; the yarns have " +
+                             std::to_string(curves_in.plies_per_yarn) + " at " + std::to_string(curves_in.ply_twist));
+  }
+  const std::filesystem::path scene_dir = std::filesystem::absolute(path).parent_path();
+  std::string model_path = std::filesystem::absolute(o.model).lexically_normal().lexically_relative(scene_dir).string();
+  if (model_path.empty()) {
+    model_path = std::filesystem::absolute(o.model).string();
+  }
+  return model_path;
+}
+
+/* Where a straight ply lies in the close-up or in the sheets of a layered scene. */
+struct Placement {
+  double y, z, turn_deg;
+};
+
+/* The plies: one on the x axis, or `layers` sheets of plies side by side (along y, enough to fill the
+ * frame's height at the camera's distance) stacked away from the camera (along +z), touching but for a
+ * small gap. */
+std::vector<Placement> ply_placements(const PlySceneOptions &o)
+{
   std::vector<Placement> plies;
   if (o.layers == 1) {
     plies.push_back({0.0, 0.0, o.ply_rotation_deg});
@@ -290,9 +300,16 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
       }
     }
   }
+  return plies;
+}
+
+/* The explicit version's fibers: swept along the plies file's centrelines, or the straight plies'. */
+geometry::CurveSet explicit_fibers(const FiberPreset &preset, const PlySceneOptions &o, const PlyCurves &curves_in,
+                                   const std::vector<Placement> &plies)
+{
   const double s = o.unit_scale;
   geometry::CurveSet curves;
-  if (!aggregated && !curves_in.plies.empty()) {
+  if (!curves_in.plies.empty()) {
     /* Each ply's fibers swept along its centreline, each ply another orientation of the cross-section. */
     const geometry::PlyParams pp{preset.N, preset.rho, preset.alpha, 1.0};
     /* Refuse before any work a scene that cannot be rendered here. */
@@ -328,8 +345,7 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
       }
     }
   }
-  else if (!aggregated) {
-    /* Only the explicit version packs fibers. */
+  else {
     const geometry::PlyParams pp{preset.N, preset.rho, preset.alpha, 1.0};
     const geometry::Ply ply(pp, geometry::pack_cross_section(pp, o.packing_seed));
     const geometry::CurveSet one =
@@ -349,14 +365,13 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
       }
     }
   }
+  return curves;
+}
 
-  std::ostringstream x;
-  x.precision(7);
-  x << "<?xml version=\"1.0\"?>\n<!-- neuralyarn: " << preset.name
-    << (!o.baseline.empty() ? " ply, aggregated (one thick curve, baseline " + o.baseline + ")"
-        : aggregated       ? std::string(" ply, aggregated (one thick curve, neural_yarn_bsdf)")
-                           : std::string(" ply, explicit fibers (khungurn_fiber_bsdf)"))
-    << " (generated by `neuralyarn cycles-scene`) -->\n<cycles>\n";
+/* Camera, integrator, background and lights. */
+void write_setting(std::ostringstream &x, const PlySceneOptions &o, const LightRig &rig, const BounceLimits &limits)
+{
+  const double s = o.unit_scale;
   x << "<camera width=\"" << o.width << "\" height=\"" << o.height << "\" />\n";
   /* The camera camera_distance radii in front of the ply (-z), looking at the origin along +z. */
   x << "<transform translate=\"0 0 " << -o.camera_distance * s << "\">\n  <camera type=\"perspective\" fov=\""
@@ -412,70 +427,82 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
     }
     x << "</state>\n";
   }
-  if (aggregated) {
-    /* One thick curve along the ply axis, radius 1: the bounding cylinder the maps were gathered on. */
-    x << "<shader name=\"yarn\">\n";
-    if (!o.baseline.empty()) {
-      x << baseline_shader(o.baseline, o.baseline_colour);
-    }
-    else {
-      x << "  <neural_yarn_bsdf name=\"y\" model=\"" << xml_escape(model_path) << "\""
-        << (o.embed_model ? " model_json=\"" + xml_escape(read_text_file(o.model)) + "\"" : std::string()) << " />\n"
-        << "  <connect from=\"y bsdf\" to=\"output surface\" />\n";
-    }
-    x << "</shader>\n";
-    /* The ply curves as given, or each straight ply as 17 keys along x. */
-    std::vector<std::vector<Eigen::Vector3d>> axes = yarn_level ? curves_in.yarns : curves_in.plies;
-    const double curve_radius = yarn_level ? curves_in.yarn_radius : 1.0;
-    if (axes.empty()) {
-      const int keys = 17;
-      for (const Placement &pl : plies) {
-        std::vector<Eigen::Vector3d> axis;
-        for (int k = 0; k < keys; k++) {
-          axis.emplace_back(-0.5 * o.ply_length + o.ply_length * k / (keys - 1), pl.y, pl.z);
-        }
-        axes.push_back(std::move(axis));
-      }
-    }
-    x << "<state shader=\"yarn\">\n<hair nkeys=\"";
-    for (size_t i = 0; i < axes.size(); i++) {
-      x << (i ? " " : "") << axes[i].size();
-    }
-    x << "\" radius=\"" << s * curve_radius << "\"\n  P=\"";
-    bool first = true;
-    for (const auto &axis : axes) {
-      for (const Eigen::Vector3d &p : axis) {
-        x << (first ? "" : " ") << s * p.x() << " " << s * p.y() << " " << s * p.z();
-        first = false;
-      }
-    }
-    x << "\" />\n</state>\n</cycles>\n";
+}
+
+/* One thick curve per ply (or yarn), shaded by the neural model or by a baseline. */
+void write_aggregated(std::ostringstream &x, const PlySceneOptions &o, const std::string &model_path,
+                      const PlyCurves &curves_in, bool yarn_level, const std::vector<Placement> &plies)
+{
+  const double s = o.unit_scale;
+  /* One thick curve along the ply axis, radius 1: the bounding cylinder the maps were gathered on. */
+  x << "<shader name=\"yarn\">\n";
+  if (!o.baseline.empty()) {
+    x << baseline_shader(o.baseline, o.baseline_colour);
   }
   else {
-    x << "<shader name=\"fiber\">\n  <khungurn_fiber_bsdf name=\"f\" C_R=\"" << preset.C_R[0] << " " << preset.C_R[1]
-      << " " << preset.C_R[2] << "\" C_TT=\"" << preset.C_TT[0] << " " << preset.C_TT[1] << " " << preset.C_TT[2]
-      << "\" beta_R=\"" << preset.beta_R_deg * kDeg << "\" beta_TT=\"" << preset.beta_TT_deg * kDeg
-      << "\" gamma_TT=\"" << preset.gamma_TT_deg * kDeg << "\" />\n"
-      << "  <connect from=\"f bsdf\" to=\"output surface\" />\n</shader>\n";
-    x << "<state shader=\"fiber\">\n<hair nkeys=\"";
-    for (int c = 0; c < curves.num_curves(); c++) {
-      x << (c ? " " : "") << curves.offsets[size_t(c) + 1] - curves.offsets[size_t(c)];
-    }
-    x << "\"\n  radius=\"" << curves.radii.at(0) << "\"\n  P=\"";
-    for (size_t i = 0; i < curves.points.size(); i++) {
-      const auto &p = curves.points[i];
-      x << (i ? " " : "") << p.x() << " " << p.y() << " " << p.z();
-    }
-    x << "\" />\n</state>\n</cycles>\n";
+    x << "  <neural_yarn_bsdf name=\"y\" model=\"" << xml_escape(model_path) << "\""
+      << (o.embed_model ? " model_json=\"" + xml_escape(read_text_file(o.model)) + "\"" : std::string()) << " />\n"
+      << "  <connect from=\"y bsdf\" to=\"output surface\" />\n";
   }
+  x << "</shader>\n";
+  /* The ply curves as given, or each straight ply as 17 keys along x. */
+  std::vector<std::vector<Eigen::Vector3d>> axes = yarn_level ? curves_in.yarns : curves_in.plies;
+  const double curve_radius = yarn_level ? curves_in.yarn_radius : 1.0;
+  if (axes.empty()) {
+    const int keys = 17;
+    for (const Placement &pl : plies) {
+      std::vector<Eigen::Vector3d> axis;
+      for (int k = 0; k < keys; k++) {
+        axis.emplace_back(-0.5 * o.ply_length + o.ply_length * k / (keys - 1), pl.y, pl.z);
+      }
+      axes.push_back(std::move(axis));
+    }
+  }
+  x << "<state shader=\"yarn\">\n<hair nkeys=\"";
+  for (size_t i = 0; i < axes.size(); i++) {
+    x << (i ? " " : "") << axes[i].size();
+  }
+  x << "\" radius=\"" << s * curve_radius << "\"\n  P=\"";
+  bool first = true;
+  for (const auto &axis : axes) {
+    for (const Eigen::Vector3d &p : axis) {
+      x << (first ? "" : " ") << s * p.x() << " " << s * p.y() << " " << s * p.z();
+      first = false;
+    }
+  }
+  x << "\" />\n</state>\n</cycles>\n";
+}
 
+/* The fibers with the Khungurn fiber closure. */
+void write_fibers(std::ostringstream &x, const FiberPreset &preset, const geometry::CurveSet &curves)
+{
+  x << "<shader name=\"fiber\">\n  <khungurn_fiber_bsdf name=\"f\" C_R=\"" << preset.C_R[0] << " " << preset.C_R[1]
+    << " " << preset.C_R[2] << "\" C_TT=\"" << preset.C_TT[0] << " " << preset.C_TT[1] << " " << preset.C_TT[2]
+    << "\" beta_R=\"" << preset.beta_R_deg * kDeg << "\" beta_TT=\"" << preset.beta_TT_deg * kDeg
+    << "\" gamma_TT=\"" << preset.gamma_TT_deg * kDeg << "\" />\n"
+    << "  <connect from=\"f bsdf\" to=\"output surface\" />\n</shader>\n";
+  x << "<state shader=\"fiber\">\n<hair nkeys=\"";
+  for (int c = 0; c < curves.num_curves(); c++) {
+    x << (c ? " " : "") << curves.offsets[size_t(c) + 1] - curves.offsets[size_t(c)];
+  }
+  x << "\"\n  radius=\"" << curves.radii.at(0) << "\"\n  P=\"";
+  for (size_t i = 0; i < curves.points.size(); i++) {
+    const auto &p = curves.points[i];
+    x << (i ? " " : "") << p.x() << " " << p.y() << " " << p.z();
+  }
+  x << "\" />\n</state>\n</cycles>\n";
+}
+
+/* Through a temporary file and a rename: a reader never sees half a scene. */
+void write_text_atomically(const std::string &path, const std::string &text)
+{
   const std::string tmp = path + ".tmp";
   {
     std::ofstream out(tmp, std::ios::trunc);
     if (!out) {
       throw std::runtime_error("cannot write scene '" + path + "'");
     }
-    out << x.str();
+    out << text;
     if (!out.flush()) {
       throw std::runtime_error("cannot write scene '" + path + "'");
     }
@@ -483,6 +510,42 @@ void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const 
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
     throw std::runtime_error("cannot move the scene into place at '" + path + "'");
   }
+}
+
+}  // namespace
+
+void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const std::string &path)
+{
+  const LightRig rig = check_options(preset, o);
+  /* Read (and refuse a bad file) before anything is written. */
+  const PlyCurves curves_in = o.plies.empty() ? PlyCurves{} : read_ply_curves(o.plies);
+  const bool yarn_level = o.level == "yarns";
+  check_level_and_baseline(o, curves_in, yarn_level);
+  const BounceLimits limits = o.artist_bounces ? BounceLimits::blender_addon()
+                                               : BounceLimits{o.max_bounce, o.max_bounce, o.max_bounce,
+                                                              o.max_bounce, o.max_bounce};
+  /* Aggregated geometry: one thick curve per ply, shaded by the neural model or by a baseline. */
+  const bool aggregated = !o.model.empty() || !o.baseline.empty();
+  const std::string model_path = o.model.empty() ? std::string() : scene_model_path(preset, o, curves_in, yarn_level, path);
+  const std::vector<Placement> plies = ply_placements(o);
+  /* Only the explicit version packs fibers. */
+  const geometry::CurveSet curves = aggregated ? geometry::CurveSet{} : explicit_fibers(preset, o, curves_in, plies);
+
+  std::ostringstream x;
+  x.precision(7);
+  x << "<?xml version=\"1.0\"?>\n<!-- neuralyarn: " << preset.name
+    << (!o.baseline.empty() ? " ply, aggregated (one thick curve, baseline " + o.baseline + ")"
+        : aggregated       ? std::string(" ply, aggregated (one thick curve, neural_yarn_bsdf)")
+                           : std::string(" ply, explicit fibers (khungurn_fiber_bsdf)"))
+    << " (generated by `neuralyarn cycles-scene`) -->\n<cycles>\n";
+  write_setting(x, o, rig, limits);
+  if (aggregated) {
+    write_aggregated(x, o, model_path, curves_in, yarn_level, plies);
+  }
+  else {
+    write_fibers(x, preset, curves);
+  }
+  write_text_atomically(path, x.str());
 }
 
 }  // namespace neuralyarn::scenes
