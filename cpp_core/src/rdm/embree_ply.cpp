@@ -131,11 +131,11 @@ bool EmbreePly::intersect(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, Embre
   if (ctx.exclude >= 0 || cull_exits) {
     ctx.base.filter = skip_filter;
   }
-  return intersect_once(o, d, tnear, tfar, &ctx.base, hit);
+  return nearest_hit(o, d, tnear, tfar, &ctx.base, hit);
 }
 
-bool EmbreePly::intersect_once(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, RTCIntersectContext *ctx,
-                               EmbreeHit *hit) const
+bool EmbreePly::nearest_hit(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, RTCIntersectContext *ctx,
+                            EmbreeHit *hit) const
 {
   RTCRayHit rh;
   rh.ray.org_x = o.x;

@@ -203,6 +203,82 @@ void PlyTracer::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
   canonicalize(ray);
 }
 
+float PlyTracer::nearest_in_slab(Vec3 o, Vec3 d, float t_end, int exclude, float travelled, float exclude_distance,
+                                 int *fiber) const
+{
+  float best = std::min(t_end, kInf);
+  int best_fiber = -1;
+  int iy = std::clamp(int((o.y + bound_) * inv_cell_), 0, n_ - 1); /* >= 0 up to rounding: cast = floor */
+  int iz = std::clamp(int((o.z + bound_) * inv_cell_), 0, n_ - 1);
+  const int step_y = d.y > 0.0f ? 1 : -1;
+  const int step_z = d.z > 0.0f ? 1 : -1;
+  const float inv_dy = d.y != 0.0f ? 1.0f / d.y : kInf;
+  const float inv_dz = d.z != 0.0f ? 1.0f / d.z : kInf;
+  float next_y = d.y != 0.0f ? ((float(iy + (step_y > 0)) * cell_ - bound_) - o.y) * inv_dy : kInf;
+  float next_z = d.z != 0.0f ? ((float(iz + (step_z > 0)) * cell_ - bound_) - o.z) * inv_dz : kInf;
+  const float delta_y = std::abs(cell_ * inv_dy);
+  const float delta_z = std::abs(cell_ * inv_dz);
+  for (;;) {
+    const size_t c = size_t(iz) * size_t(n_) + size_t(iy);
+    for (uint32_t k = start_[c]; k < start_[c + 1]; k++) {
+      const int f = items_[k].fiber;
+      const float t = intersect_tube(items_[k].tube, o, d);
+      if (!(t < best)) {
+        continue;
+      }
+      if (f == exclude && travelled + t < exclude_distance) {
+        continue;
+      }
+      const float x = o.x + t * d.x;
+      if (x < 0.0f || x > L_) {
+        continue; /* that part of the tube belongs to the neighbouring slab's chord */
+      }
+      best = t;
+      best_fiber = f;
+    }
+    const float t_cell_exit = std::min(next_y, next_z);
+    if (best <= t_cell_exit || t_cell_exit >= t_end) {
+      break;
+    }
+    if (next_y < next_z) {
+      iy += step_y;
+      next_y += delta_y;
+      if (iy < 0 || iy >= n_) {
+        break;
+      }
+    }
+    else {
+      iz += step_z;
+      next_z += delta_z;
+      if (iz < 0 || iz >= n_) {
+        break;
+      }
+    }
+  }
+  *fiber = best_fiber;
+  return best;
+}
+
+void PlyTracer::cross_slab(SlabRay *ray, float t_slab) const
+{
+  Vec3 p = ray->o + ray->d * t_slab;
+  if (ray->d.x > 0.0f) {
+    p.x = 0.0f;
+    rotate_yz(&p, rot_c_, -rot_s_);
+    rotate_yz(&ray->d, rot_c_, -rot_s_);
+    ray->slab += 1;
+  }
+  else {
+    p.x = L_;
+    rotate_yz(&p, rot_c_, rot_s_);
+    rotate_yz(&ray->d, rot_c_, rot_s_);
+    ray->slab -= 1;
+  }
+  /* Keep the direction unit length over thousands of float rotations. */
+  ray->d = ny::normalize(ray->d);
+  ray->o = p;
+}
+
 bool PlyTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const
 {
   float travelled = 0.0f;
@@ -221,66 +297,15 @@ bool PlyTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit
       t_slab = -o.x / d.x;
     }
     t_slab = std::max(t_slab, 0.0f);
-    const float t_end = std::min(t_slab, t_cyl);
-
-    /* 2D DDA over the cells under the (y, z) projection for t in [0, t_end]. */
-    float best = std::min(t_end, kInf);
-    int best_fiber = -1;
-    int iy = std::clamp(int((o.y + bound_) * inv_cell_), 0, n_ - 1); /* >= 0 up to rounding: cast = floor */
-    int iz = std::clamp(int((o.z + bound_) * inv_cell_), 0, n_ - 1);
-    const int step_y = d.y > 0.0f ? 1 : -1;
-    const int step_z = d.z > 0.0f ? 1 : -1;
-    const float inv_dy = d.y != 0.0f ? 1.0f / d.y : kInf;
-    const float inv_dz = d.z != 0.0f ? 1.0f / d.z : kInf;
-    float next_y = d.y != 0.0f ? ((float(iy + (step_y > 0)) * cell_ - bound_) - o.y) * inv_dy : kInf;
-    float next_z = d.z != 0.0f ? ((float(iz + (step_z > 0)) * cell_ - bound_) - o.z) * inv_dz : kInf;
-    const float delta_y = std::abs(cell_ * inv_dy);
-    const float delta_z = std::abs(cell_ * inv_dz);
-    for (;;) {
-      const size_t c = size_t(iz) * size_t(n_) + size_t(iy);
-      for (uint32_t k = start_[c]; k < start_[c + 1]; k++) {
-        const int f = items_[k].fiber;
-        const float t = intersect_tube(items_[k].tube, o, d);
-        if (!(t < best)) {
-          continue;
-        }
-        if (f == exclude && travelled + t < exclude_distance) {
-          continue;
-        }
-        const float x = o.x + t * d.x;
-        if (x < 0.0f || x > L_) {
-          continue; /* that part of the tube belongs to the neighbouring slab's chord */
-        }
-        best = t;
-        best_fiber = f;
-      }
-      const float t_cell_exit = std::min(next_y, next_z);
-      if (best <= t_cell_exit || t_cell_exit >= t_end) {
-        break;
-      }
-      if (next_y < next_z) {
-        iy += step_y;
-        next_y += delta_y;
-        if (iy < 0 || iy >= n_) {
-          break;
-        }
-      }
-      else {
-        iz += step_z;
-        next_z += delta_z;
-        if (iz < 0 || iz >= n_) {
-          break;
-        }
-      }
-    }
-
-    if (best_fiber >= 0) {
-      const Tube &f = fibers_[size_t(best_fiber)];
-      const Vec3 p = o + d * best;
+    int fiber = -1;
+    const float t = nearest_in_slab(o, d, std::min(t_slab, t_cyl), exclude, travelled, exclude_distance, &fiber);
+    if (fiber >= 0) {
+      const Tube &f = fibers_[size_t(fiber)];
+      const Vec3 p = o + d * t;
       const Vec3 w = p - f.a;
       const Vec3 wp = w - f.axis * ny::dot(w, f.axis);
-      hit->t = travelled + best;
-      hit->fiber = best_fiber;
+      hit->t = travelled + t;
+      hit->fiber = fiber;
       hit->point = p;
       hit->normal = ny::normalize(wp);
       hit->axis = f.axis;
@@ -291,25 +316,9 @@ bool PlyTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit
       ray->o = o + d * t_cyl;
       return false;
     }
-    /* Into the neighbouring slab: re-enter the canonical slab through the opposite face. */
     travelled += t_slab;
     t_cyl = std::max(t_cyl - t_slab, 0.0f);
-    Vec3 p = o + d * t_slab;
-    if (d.x > 0.0f) {
-      p.x = 0.0f;
-      rotate_yz(&p, rot_c_, -rot_s_);
-      rotate_yz(&ray->d, rot_c_, -rot_s_);
-      ray->slab += 1;
-    }
-    else {
-      p.x = L_;
-      rotate_yz(&p, rot_c_, rot_s_);
-      rotate_yz(&ray->d, rot_c_, rot_s_);
-      ray->slab -= 1;
-    }
-    /* Keep the direction unit length over thousands of float rotations. */
-    ray->d = ny::normalize(ray->d);
-    ray->o = p;
+    cross_slab(ray, t_slab);
   }
 }
 

@@ -43,8 +43,8 @@ class EmbreePly {
   size_t num_segments() const { return segments_; }
 
  private:
-  bool intersect_once(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, ::RTCIntersectContext *ctx,
-                      EmbreeHit *hit) const;
+  /* One Embree query with `ctx` (its filter, if any, decides which hits count). */
+  bool nearest_hit(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, ::RTCIntersectContext *ctx, EmbreeHit *hit) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
   size_t segments_ = 0;

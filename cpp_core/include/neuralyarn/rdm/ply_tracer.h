@@ -121,6 +121,14 @@ class PlyTracer {
   /* Entry distance of the ray into tube f, or +inf; origin inside the tube gives +inf. */
   float intersect_tube(const Tube &f, ny::Vec3 o, ny::Vec3 d) const;
   void rotate_yz(ny::Vec3 *v, float c, float s) const;
+  /* The nearest tube entry in the slab at t in [0, t_end] along the canonical ray (o, d), by a 2D DDA over
+   * the cells under its (y, z) projection; fiber `exclude` is skipped where the trace, `travelled` before
+   * this slab, is closer than `exclude_distance`. Returns t_end (or +inf) and *fiber = -1 if none. */
+  float nearest_in_slab(ny::Vec3 o, ny::Vec3 d, float t_end, int exclude, float travelled, float exclude_distance,
+                        int *fiber) const;
+  /* The ray from its point at t_slab on a slab face into the neighbouring slab, re-entering the canonical
+   * slab through the opposite face. */
+  void cross_slab(SlabRay *ray, float t_slab) const;
 
   float R_ = 1.0f, bound_ = 1.0f, r_ = 0.0f, L_ = 1.0f;
   double w_ = 0.0;
