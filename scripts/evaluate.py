@@ -115,7 +115,7 @@ REFERENCE_SEEDS = {"A": 1001, "B": 1002}
 PLY_RADIUS = 1.0  # cycles-scene's unit
 # The close-up's ply is longer than cycles-scene's default (16): its ends must lie outside the frame (the
 # frame is 23 radii wide at the ply, 2:1) and far enough from the central region that light entering through
-# an end cap does not reach it (the axis rig: with 16, the central region of the explicit ply is 7 % brighter).
+# an end cap does not reach it (the axis rig: with 16 it does; docs/benchmarks.md).
 CLOSEUP_PLY_LENGTH = 48.0
 CLOSEUP_FOV = 0.9  # cycles-scene's field of view (radians, of the image's shorter side)
 FLIP_PPD = 67.0

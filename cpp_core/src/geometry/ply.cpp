@@ -135,8 +135,8 @@ PlyCrossSection pack_cross_section(const PlyParams &params, uint64_t seed)
    * a slice offset s = (s_r, s_t) (radial, tangential) separates their axes by
    *     |s|_perp = sqrt(s_r^2 + s_t^2 / (1 + w^2 d^2)),
    * so round tubes of radius r are disjoint in 3D iff |s|_perp >= 2 r. (Packing with the slice metric
-   * instead, as the paper's Eq. 1 suggests, lets the outer tubes of a twisted ply interpenetrate: for
-   * fleece about 9 % of a random walk's queries then start inside a neighbouring fiber.) For alpha = 0
+   * instead, as the paper's Eq. 1 suggests, lets the outer tubes of a twisted ply interpenetrate, and a
+   * random walk's queries then start inside neighbouring fibers.) For alpha = 0
    * this is the Euclidean distance. docs/decisions.md D8. */
   const double w = kPi * params.alpha / params.R;
   auto perp_scale = [&](const Eigen::Vector2d &a, const Eigen::Vector2d &b, Eigen::Vector2d *e_r) {

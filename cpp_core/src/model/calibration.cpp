@@ -166,7 +166,7 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
                                       rdm::bin_center(k % b.phi_i, -kPi, kPi, b.phi_i)));
   };
   /* Sums over a window of about 20 degrees in phi_i (same theta_i): at the paper's 90 phi_i bins, 5 bins,
-   * which divides the maps' per-bin noise (R energy: ~3 % at 4e7 paths) by sqrt(5) and keeps the structure
+   * which divides the maps' per-bin noise (docs/benchmarks.md) by sqrt(5) and keeps the structure
    * at 20-degree scale; coarse maps (bins of 10 degrees or more) use single bins. */
   const int half = std::max(0, int(std::lround((20.0 / (360.0 / b.phi_i) - 1.0) / 2.0)));
   const int window = 2 * half + 1;
@@ -226,8 +226,8 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
       v[4 + ch] = ratio(window_sum(EM, 3, k, ch), window_sum(net_M, 3, k, ch));
       /* No bin scatters more than the maps' window says leaves the ply, nor more than it receives: the
        * window's ratios scale R and M by the window's mean, while P_T varies across it (the gaps between
-       * fibers), so where P_T is above the window's mean the three together could exceed it (by up to 6 %
-       * at grazing incidence before this bound, tests/cpp/test_furnace.cpp). */
+       * fibers), so where P_T is above the window's mean the three together could exceed it (at grazing
+       * incidence, without this bound: tests/cpp/test_furnace.cpp). */
       const double total = std::min(1.0, window_sum(maps.exit_energy, 3, k, ch) / window);
       const double scattered = v[1 + ch] * net_R[size_t(k) * 3 + size_t(ch)] + v[4 + ch] * net_M[size_t(k) * 3 + size_t(ch)];
       const double room = std::max(0.0, total - P_T[size_t(k)]);

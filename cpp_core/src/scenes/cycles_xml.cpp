@@ -377,9 +377,8 @@ void write_setting(std::ostringstream &x, const PlySceneOptions &o, const LightR
   x << "<transform translate=\"0 0 " << -o.camera_distance * s << "\">\n  <camera type=\"perspective\" fov=\""
     << kCloseupCameraFov << "\" />\n</transform>\n";
   /* Bounce limits: a limit cuts the long random walks inside bright plies and biases the explicit-fiber
-   * references dark (cotton, key-rim, 160 x 80, 256 spp, same seed: the ply's central region is 4.7 %
-   * darker at 64 bounces than at 4096; 1024 and 4096 gave bit-identical images), so the limit is high and
-   * Cycles' Russian roulette (from the first bounce) ends paths without bias. The white
+   * references dark (cotton most; docs/benchmarks.md), so the limit is high and Cycles' Russian roulette
+   * (from the first bounce) ends paths without bias. The white
    * furnace must not lose energy at all: no roulette there (min_bounce = max_bounce), every path runs
    * until it leaves (an albedo-1 ply lets light out after tens of events). Transparent bounces (the
    * aggregated model's T lobe) and diffuse ones get the same limit. */
@@ -388,8 +387,8 @@ void write_setting(std::ostringstream &x, const PlySceneOptions &o, const LightR
     << "\" transparent_max_bounce=\"" << limits.transparent << "\" min_bounce=\""
     << (o.white_furnace ? limits.total : 0)
     /* No sample clamping: Cycles clamps indirect light at 10 by default, which biases the explicit-fiber
-     * references low (-10 to -15 % with these lights, more with more lights: the clamp acts on each light
-     * sample divided by its selection probability) and makes the image depend on the number of lights. */
+     * references low, the more the more lights there are (the clamp acts on each light sample divided by
+     * its selection probability), and makes the image depend on the number of lights. */
     << "\" sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\""
     /* No adaptive sampling (Cycles' default stops converged pixels after 64 samples): N samples are N
      * samples in every pixel, so renders at equal samples compare and references converge everywhere. */

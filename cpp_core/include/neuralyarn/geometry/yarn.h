@@ -16,8 +16,8 @@
 // t_k × e_r, s(x) the arc length of the centerline and tau = w / (1 + d^2 w^2) the helix's torsion. The
 // radial frame turns against a parallel-transported (rotation-minimising) frame at exactly +tau per unit
 // arc length, so adding tau makes alpha_ply the fiber twist *relative to the ply itself*. Without it the
-// plying would change the fibers' twist by tau, which is not small: 19-180 % of the presets' fiber twist
-// rates for K = 3 and alpha_yarn = 0.1-0.3 (tests/cpp/test_ply_geometry.cpp checks the transport).
+// plying would change the fibers' twist by tau, which is not small against the presets' fiber twist rates
+// (tests/cpp/test_ply_geometry.cpp checks the transport).
 #pragma once
 
 #include <vector>

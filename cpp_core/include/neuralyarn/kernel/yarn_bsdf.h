@@ -22,8 +22,8 @@
 // three energies per incident direction: dP_T is added to P_T, c_R (RGB) multiplies rho_R F, c_M (RGB) the M
 // network. It is computed once at bake time (model/calibration.h) from the maps' energies against the
 // networks' at each incident bin centre. The networks give the shape of the lobes and are smooth; their
-// energies were off the maps by 0.018 rms (P_T), 4-8 % (R) and 9-24 % (M), which a renderer shows directly
-// as a too bright or too dark cloth; the table removes that (docs/decisions.md D16). A model without a
+// energies are off the maps by more than a renderer may show as a too bright or too dark cloth; the
+// table removes that (docs/decisions.md D16). A model without a
 // table (zero bins) uses dP_T = 0, c = 1.
 //
 // The R lobe's azimuth: the fiber's own R lobe is uniform in azimuth about the fiber, but in a ply the

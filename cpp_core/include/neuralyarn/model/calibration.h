@@ -2,8 +2,8 @@
 //
 // Energy calibration of a trained model (docs/decisions.md D16): per incident bin of the maps, the ratio
 // of the map's R and M energies to what the R-energy and M networks integrate to there. The networks are
-// small and smooth; they get the shape of the lobes right but their energies were 4-8 % (R) and 9-24 % (M)
-// off the maps, which the renderer sees directly as a too bright or too dark cloth. The table
+// small and smooth; they get the shape of the lobes right but not their energies (docs/benchmarks.md),
+// which the renderer shows directly as a too bright or too dark cloth. The table
 // (kernel/yarn_bsdf.h yarn_calibration, bilinear between bin centres) removes that error and keeps the
 // networks' shapes.
 #pragma once

@@ -85,9 +85,8 @@ struct FallbackTables {
 
 /* Quadrature of the M energies: midpoint rule on an nt x np grid of polar angle (from the normal) and
  * azimuth about the normal, exact cell solid angles; nt must be even so that the equator is a cell
- * boundary. The rule converges as h^2; measured on the shipped models against 1024 x 2048: 64 x 128 (the
- * grid of model/calibration.h m_lobe_energy) is off by up to 0.8 % of the M energy, 128 x 256 by 0.11 %,
- * the default 256 x 512 by under 0.1 % (tests/cpp/test_fallback.cpp MQuadratureHasConverged). */
+ * boundary. The rule converges as h^2; the default grid is finer than model/calibration.h
+ * m_lobe_energy's, within 0.1 % of the M energy (tests/cpp/test_fallback.cpp MQuadratureHasConverged). */
 struct FallbackOptions {
   int theta_bins = 18, phi_bins = 18;
   int quad_theta = 256, quad_phi = 512;
