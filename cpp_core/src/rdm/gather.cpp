@@ -285,9 +285,11 @@ Walk walk(const Medium &tracer, const FiberLobeSampler &sampler, const GatherOpt
     /* From the hit point; into the fiber, the path crosses it (D32). */
     tracer.leave_fiber(hit, ny::normalize(ny::to_world(frame, wo_f)), &w.ray);
     exclude = hit.fiber;
-    /* Russian roulette: survive with q = min(1, max channel), then divide by q. */
+    /* Russian roulette from the second event on (as pbrt's integrators): survive with q = min(1, max
+     * channel), then divide by q. At the first it would estimate the R map, single scattering, from the
+     * few paths of a dark fiber that survive it, each with a weight near 1 (D34). */
     const float q = std::min(1.0f, std::max(beta[0], std::max(beta[1], beta[2])));
-    if (q < 1.0f) {
+    if (q < 1.0f && w.events > 1) {
       if (!(rng.uniform() < q)) {
         w.alive = false;
         ls.terminated++;
