@@ -10,7 +10,8 @@
 // the direction points into it, as a renderer's ray does (D32). Fiber events are counted explicitly:
 //     T: 0 events;   R: exactly 1 event and w_o . n > 0;   M: everything else that leaves,
 // where w_o is the exit direction in the entry frame (far field: the exit point is only a diagnostic).
-// Russian roulette with survival probability min(1, max channel throughput) keeps it unbiased.
+// Russian roulette from the second event on, with survival probability min(1, max channel throughput),
+// keeps it unbiased (single scattering is never left to it, D34).
 //
 // Incident directions are stratified: path k belongs to incident bin k mod (n_theta_i n_phi_i), so every
 // incident bin gets the same number of paths (+-1), and w_i is uniform in solid angle inside its bin.
