@@ -23,7 +23,8 @@ LEVELS = ("fibers", "plies", "yarns", "surface")
 YARN_MODEL_PLIES, YARN_MODEL_PLY_TWIST = 3, 0.5
 #: Auto draws yarns where a ply is narrower than this many pixels: between the widths of the harness's distance
 #: sweep under the key-rim rig where the yarn level's FLIP is within 10 % of the ply level's and where it is not;
-#: under grazing and back light it is not within 10 % even below this (docs/benchmarks.md, "Level of detail").
+#: under grazing light it is not within 10 % at any width the sweep measured, down to 0.83 px, so no threshold
+#: would be (docs/benchmarks.md, "Level of detail").
 YARNS_BELOW_PLY_PIXELS = 2.0
 #: Auto draws explicit fibers only where a fiber itself is at least this wide: the ply model is the fibers'
 #: mean look and cannot show single fibers. (The harness's close-ups do not reach fibers this wide, so this is
