@@ -1,7 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "neuralyarn/rdm/embree_ply.h"
 
-#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -19,12 +18,17 @@ struct EmbreePly::Impl {
 
 namespace {
 
+/* The fiber of a segment (the primitive id): every curve has the same number of segments. */
+int fiber_of(unsigned segment, int segments_per_fiber)
+{
+  return segments_per_fiber > 0 ? int(segment / unsigned(segments_per_fiber)) : -1;
+}
+
 /* The context of a query that skips hits: Embree passes it to the filter, which rejects them inside one
  * traversal (re-tracing from each skipped hit costs a traversal per skip, D32's culled exits at least one
  * per step). */
 struct SkipContext {
   RTCIntersectContext base; /* first: Embree sees a plain context */
-  ny::Vec3 d;
   int exclude;
   float exclude_distance;
   bool cull_exits;
@@ -39,9 +43,11 @@ void skip_filter(const RTCFilterFunctionNArguments *args)
       continue;
     }
     /* Embree's Ng of a round curve points out of the tube: facing along the ray, the ray leaves it. */
-    const bool leaving = !(ctx->d.x * RTCHitN_Ng_x(args->hit, args->N, i) + ctx->d.y * RTCHitN_Ng_y(args->hit, args->N, i) +
-                             ctx->d.z * RTCHitN_Ng_z(args->hit, args->N, i) < 0.0f);
-    const int fiber = int(RTCHitN_primID(args->hit, args->N, i) / unsigned(ctx->segments_per_fiber));
+    const bool leaving = !(RTCRayN_dir_x(args->ray, args->N, i) * RTCHitN_Ng_x(args->hit, args->N, i) +
+                               RTCRayN_dir_y(args->ray, args->N, i) * RTCHitN_Ng_y(args->hit, args->N, i) +
+                               RTCRayN_dir_z(args->ray, args->N, i) * RTCHitN_Ng_z(args->hit, args->N, i) <
+                           0.0f);
+    const int fiber = fiber_of(RTCHitN_primID(args->hit, args->N, i), ctx->segments_per_fiber);
     /* tfar holds the distance of the hit under test. */
     const bool excluded = fiber == ctx->exclude && RTCRayN_tfar(args->ray, args->N, i) < ctx->exclude_distance;
     if ((leaving && ctx->cull_exits) || excluded) {
@@ -123,12 +129,11 @@ bool EmbreePly::intersect(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, Embre
 {
   SkipContext ctx;
   rtcInitIntersectContext(&ctx.base);
-  ctx.d = d;
-  ctx.exclude = segments_per_fiber_ > 0 ? exclude : -1;
+  ctx.exclude = exclude;
   ctx.exclude_distance = exclude_distance;
   ctx.cull_exits = cull_exits;
-  ctx.segments_per_fiber = std::max(segments_per_fiber_, 1);
-  if (ctx.exclude >= 0 || cull_exits) {
+  ctx.segments_per_fiber = segments_per_fiber_;
+  if (exclude >= 0 || cull_exits) {
     ctx.base.filter = skip_filter;
   }
   return nearest_hit(o, d, tnear, tfar, &ctx.base, hit);
@@ -157,7 +162,7 @@ bool EmbreePly::nearest_hit(ny::Vec3 o, ny::Vec3 d, float tnear, float tfar, RTC
     return false;
   }
   hit->t = rh.ray.tfar;
-  hit->fiber = segments_per_fiber_ > 0 ? int(rh.hit.primID / unsigned(segments_per_fiber_)) : -1;
+  hit->fiber = fiber_of(rh.hit.primID, segments_per_fiber_);
   /* Embree's Ng of a round curve points out of the tube. */
   hit->normal = ny::normalize(ny::make_vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
   hit->entering = ny::dot(hit->normal, d) < 0.0f;
