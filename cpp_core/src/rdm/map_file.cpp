@@ -194,7 +194,7 @@ void save_maps(const RdmMaps &maps, const std::string &path)
 namespace {
 
 /* A map file's parts: the format version, the parsed header and a view of the payload (the bulk of the
- * file, 192 MB at paper resolution: not copied). Checks the magic, version, lengths and payload hash. */
+ * file, 192 MB at paper resolution: not copied). Checks the magic, the version and the header's length. */
 struct Container {
   uint32_t version = 0;
   json header;
@@ -203,14 +203,13 @@ struct Container {
 
 Container open_container(const std::string &path, const std::string &data)
 {
-  Container c;
-  json &h = c.header;
   if (data.size() < 20 || std::memcmp(data.data(), kMagic, 8) != 0) {
     fail(path, "not a neuralyarn RDM file (bad magic; was it transferred in text mode or truncated?)");
   }
-  const uint32_t version = c.version = read_le<uint32_t>(data.data() + 8);
-  if (version != kMapFileVersion && version != kMapFileVersionYarn) {
-    fail(path, "format version " + std::to_string(version) + " is not supported (this build reads versions " +
+  Container c;
+  c.version = read_le<uint32_t>(data.data() + 8);
+  if (c.version != kMapFileVersion && c.version != kMapFileVersionYarn) {
+    fail(path, "format version " + std::to_string(c.version) + " is not supported (this build reads versions " +
                    std::to_string(kMapFileVersion) + " and " + std::to_string(kMapFileVersionYarn) + ")");
   }
   const uint64_t hlen = read_le<uint64_t>(data.data() + 12);
@@ -218,31 +217,28 @@ Container open_container(const std::string &path, const std::string &data)
     fail(path, "truncated: header of " + std::to_string(hlen) + " bytes, file has " + std::to_string(data.size()));
   }
   try {
-    h = json::parse(data.substr(20, hlen));
+    c.header = json::parse(data.substr(20, hlen));
   }
   catch (const json::exception &e) {
     fail(path, std::string("corrupt header: ") + e.what());
   }
-  const std::string_view payload = c.payload = std::string_view(data).substr(20 + hlen);
-  try {
-    if (h.at("format").get<std::string>() != "neuralyarn-rdm") {
-      fail(path, "header format is not 'neuralyarn-rdm'");
-    }
-    if (h.at("payload_bytes").get<uint64_t>() != payload.size()) {
-      fail(path, "truncated or padded: payload is " + std::to_string(payload.size()) + " bytes, header says " +
-                     std::to_string(h.at("payload_bytes").get<uint64_t>()));
-    }
-    if (h.at("payload_fnv1a64").get<std::string>() != hex(fnv1a(payload))) {
-      fail(path, "corrupt: payload hash mismatch");
-    }
-  }
-  catch (const MapFileError &) {
-    throw;
-  }
-  catch (const std::exception &e) {
-    fail(path, std::string("header is missing a key or has a wrong type: ") + e.what());
-  }
+  c.payload = std::string_view(data).substr(20 + hlen);
   return c;
+}
+
+/* The header's format, and the payload against the header's length and hash. */
+void check_payload(const std::string &path, const json &h, std::string_view payload)
+{
+  if (h.at("format").get<std::string>() != "neuralyarn-rdm") {
+    fail(path, "header format is not 'neuralyarn-rdm'");
+  }
+  if (h.at("payload_bytes").get<uint64_t>() != payload.size()) {
+    fail(path, "truncated or padded: payload is " + std::to_string(payload.size()) + " bytes, header says " +
+                   std::to_string(h.at("payload_bytes").get<uint64_t>()));
+  }
+  if (h.at("payload_fnv1a64").get<std::string>() != hex(fnv1a(payload))) {
+    fail(path, "corrupt: payload hash mismatch");
+  }
 }
 
 /* The header's bins, fiber, structure, gather and geometry. */
@@ -384,6 +380,7 @@ RdmMaps load_maps(const std::string &path)
   const Container c = open_container(path, data);
   RdmMaps maps;
   try {
+    check_payload(path, c.header, c.payload);
     read_description(path, c.header, c.version, maps);
     read_summary(c.header.at("summary"), maps.stats);
   }
