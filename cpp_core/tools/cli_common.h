@@ -53,6 +53,14 @@ inline void print_preset(const FiberPreset &p)
               p.beta_R_deg, p.beta_TT_deg, p.gamma_TT_deg);
 }
 
+/* `--preset NAME` (built in) or `--params FILE` (a fiber parameter file), not both: what resolve_preset
+ * takes. */
+inline void add_preset_options(CLI::App *cmd, std::string *preset, std::string *params)
+{
+  auto *by_name = cmd->add_option("--preset", *preset, "Built-in preset name")->capture_default_str();
+  cmd->add_option("--params", *params, "Fiber parameter file (JSON, docs/file_formats.md)")->excludes(by_name);
+}
+
 /* The level the random walks run through (docs/decisions.md D27): `--level ply` (the preset's ply) or
  * `--level yarn --plies K --ply-twist A` (a K-ply yarn of it, the add-on's default plying). */
 struct LevelOptions {

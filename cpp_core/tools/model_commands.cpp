@@ -207,8 +207,7 @@ class Commands : public ModelCommands {
     fit_->add_option("--seed", topt_.fit.seed, "Seed of the drawn exits")->capture_default_str();
 
     bake_ = app.add_subcommand("bake", "Gather maps, train, fit and check: a model from fiber parameters");
-    auto *bp = bake_->add_option("--preset", preset_, "Built-in preset name")->capture_default_str();
-    bake_->add_option("--params", params_, "Fiber parameter file (JSON)")->excludes(bp);
+    add_preset_options(bake_, &preset_, &params_);
     bake_->add_option("--out", out_, "Model file to write (.json)")->required();
     bake_->add_option("--paths", paths_, "Paths to gather (1e7, 40M, ...)")->capture_default_str();
     bake_->add_option("--seed", gopt_.seed, "Seed of the paths")->capture_default_str();

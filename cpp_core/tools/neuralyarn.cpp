@@ -135,9 +135,7 @@ struct FiberCommand {
 
   explicit FiberCommand(CLI::App &app) : cmd(app.add_subcommand("fiber", "Albedo table and scattering-lobe plot of a fiber preset"))
   {
-    auto *opt_preset = cmd->add_option("--preset", preset, "Built-in preset name")->capture_default_str();
-    cmd->add_option("--params", params, "Fiber parameter file (JSON, docs/file_formats.md)")
-        ->excludes(opt_preset);
+    add_preset_options(cmd, &preset, &params);
     cmd->add_option("--theta-i", theta_i, "Incident longitudinal angle of the plot, degrees")
         ->check(finite_range(-90.0, 90.0))
         ->capture_default_str();
@@ -165,8 +163,7 @@ struct GatherCommand {
   explicit GatherCommand(CLI::App &app)
       : cmd(app.add_subcommand("gather", "Trace paths through an explicit ply and write its radiance distribution maps"))
   {
-    auto *opt_preset = cmd->add_option("--preset", preset, "Built-in preset name")->capture_default_str();
-    cmd->add_option("--params", params, "Fiber parameter file (JSON)")->excludes(opt_preset);
+    add_preset_options(cmd, &preset, &params);
     cmd->add_option("--paths", paths, "Number of paths (1e7, 10M, ...)")->capture_default_str();
     cmd->add_option("--seed", seed, "Seed of the paths")->capture_default_str();
     cmd->add_option("--packing-seed", packing_seed, "Seed of the fiber cross-section")->capture_default_str();
@@ -199,8 +196,7 @@ struct SceneCommand {
   explicit SceneCommand(CLI::App &app)
       : cmd(app.add_subcommand("cycles-scene", "Write the single-ply close-up (explicit fibers, or aggregated with --model) for the patched Cycles"))
   {
-    auto *opt_preset = cmd->add_option("--preset", preset, "Built-in preset name")->capture_default_str();
-    cmd->add_option("--params", params, "Fiber parameter file (JSON)")->excludes(opt_preset);
+    add_preset_options(cmd, &preset, &params);
     cmd->add_option("--width", opt.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
     cmd->add_option("--height", opt.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
     cmd->add_option("--packing-seed", opt.packing_seed, "Seed of the fiber cross-section")->capture_default_str();
