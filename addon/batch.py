@@ -56,7 +56,7 @@ DEMO_SCENES = ("auto", "knit", "weave")
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
     p = _Parser(prog="batch.py", description="Render yarns with the Neural Yarn add-on.")
-    p.add_argument("--preset", default="fleece", help="fleece, silk, polyester, cotton or gabardine")
+    p.add_argument("--preset", default="fleece", help="a shipped preset (fleece, silk, ...: the core's preset list)")
     p.add_argument("--model", help="a model file from `neuralyarn bake` instead of a preset")
     p.add_argument("--out", required=True, help="image to write (format from the extension: .png, .exr, .jpg)")
     p.add_argument("--scene", default="auto",
@@ -113,8 +113,6 @@ def frame_path(out: str, frame: int) -> str:
 
 
 def _check(args) -> None:
-    if args.model is None and args.preset not in ("fleece", "silk", "polyester", "cotton", "gabardine"):
-        raise BatchError(f"unknown preset '{args.preset}' (fleece, silk, polyester, cotton, gabardine)")
     if args.resolution is not None and not (1 <= len(args.resolution) <= 2 and
                                             all(1 <= r <= 16384 for r in args.resolution)):
         raise BatchError("--resolution takes one or two sizes between 1 and 16384")
@@ -227,10 +225,17 @@ def run_farm(argv: list[str], args) -> list[str]:
     return [j["out"] for j in jobs]
 
 
+def _check_preset(args, ny) -> None:
+    """--preset against the add-on's preset list (the core's), known once the add-on is loaded."""
+    if args.model is None and args.preset not in ny.resources.PRESETS:
+        raise BatchError(f"unknown preset '{args.preset}' ({', '.join(ny.resources.PRESETS)})")
+
+
 def run(argv: list[str]) -> str:
     args = parse_args(argv)
     _check(args)
     if args.frames is not None:
+        _check_preset(args, addon_module())
         return ";".join(run_farm(argv, args))
     if args.blend:
         bpy.ops.wm.open_mainfile(filepath=os.path.abspath(args.blend))
@@ -238,6 +243,7 @@ def run(argv: list[str]) -> str:
         # No .blend given: a demo scene from an empty file, not the startup file's cube.
         bpy.ops.wm.read_factory_settings(use_empty=True)
     ny = addon_module()
+    _check_preset(args, ny)
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
     if args.osl:

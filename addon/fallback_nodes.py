@@ -4,7 +4,7 @@
 Two interchangeable bodies, both driven by the model file's view-dependent "fallback" tables
 (docs/file_formats.md, osl/README.md):
 
-* OSL: a Script node holding the shader that osl/generate_osl.py makes from the model (CPU, or OptiX);
+* OSL: a Script node holding the shader that fallback/osl.py makes from the model (CPU, or OptiX);
 * NODES: the same computation in stock shader nodes, for SVM (GPU, or Blender without OSL): the view
   direction in the yarn frame from the Geometry node, the tables as four small float images looked up
   bilinearly between cell centres (Linear + Extend, exactly the OSL shader's lookup), and the same
@@ -28,7 +28,9 @@ import sys
 
 import bpy
 
-from . import model_io, resources
+from . import model_io
+from .fallback import lobes as fallback_lobes
+from .fallback import osl as fallback_osl
 
 FALLBACK_MODES = ("OSL", "NODES")
 GROUP_INPUT_TINT = "Tint"
@@ -90,10 +92,9 @@ def table_image(name: str, values: list, theta_bins: int, phi_bins: int, channel
 
 def osl_text(model: model_io.YarnModel, tilt: float):
     """The Text data block holding the model's OSL fallback for a twist tilt (radians)."""
-    gen = resources.osl_generator()
     data = dict(model.data)
     data["fallback"] = dict(data["fallback"], twist_tilt_rad=tilt)
-    source = gen.generate_osl(data)
+    source = fallback_osl.generate_osl(data)
     name = f"{_key(model)} {math.degrees(tilt):.2f}.osl"
     text = bpy.data.texts.get(name) or bpy.data.texts.new(name)
     if text.as_string() != source:
@@ -205,7 +206,6 @@ def build_nodes(tree, model: model_io.YarnModel, tilt: float) -> None:
     ensure_interface(tree)
     g_in, g_out = _clear(tree)
     fb = model.fallback
-    gen = resources.osl_generator()
     key = _key(model)
     K = len(fb.lobes)
     cells = fb.theta_bins * fb.phi_bins
@@ -254,7 +254,7 @@ def build_nodes(tree, model: model_io.YarnModel, tilt: float) -> None:
         color = g.vmath("MULTIPLY", tint, tex[k + 1], y=-300.0 * k)
         g.column = 8
         if lobe["closure"] == "ggx":
-            roughness, anisotropy = gen.glossy_node_inputs(lobe["alpha_x"], lobe["alpha_y"])
+            roughness, anisotropy = fallback_lobes.glossy_node_inputs(lobe["alpha_x"], lobe["alpha_y"])
             node = g.bsdf("ShaderNodeBsdfAnisotropic", color, y=-300.0 * k, Roughness=roughness,
                           Anisotropy=anisotropy, Rotation=0.0, Tangent=t_f)
             node.distribution = "GGX"

@@ -15,41 +15,18 @@ import math
 import os
 from dataclasses import dataclass
 
-from . import resources
+from .fallback import schema
 
 FORMAT = "neuralyarn-model"
 SUPPORTED_VERSIONS = (2, 3, 4, 5)
 #: Version 5: a yarn-level model (layout 4 plus the "structure" it was baked for, docs/decisions.md D27).
 YARN_VERSION = 5
-FALLBACK_VERSION = 2
-FALLBACK_MAX_WEIGHT = 100.0
-PRESETS = ("fleece", "silk", "polyester", "cotton", "gabardine")
 #: Model files are a few hundred KB; anything beyond this is not a model and is refused before parsing.
 MAX_MODEL_BYTES = 64 * 1024 * 1024
 
 
 class ModelFileError(ValueError):
     """A model file is missing, unreadable, of another format or version, or inconsistent."""
-
-
-@dataclass
-class FallbackTables:
-    """View-dependent lobe energies over the front-facing directions of a thick curve.
-
-    Cell centres: theta = -90 + (i + 1/2) 180 / theta_bins degrees (longitudinal angle, positive toward the
-    yarn tangent), phi = -90 + (j + 1/2) 180 / phi_bins degrees (azimuth, 0 along the surface normal).
-    Row-major [theta][phi]; colour tables have 3 floats per cell.
-    """
-
-    theta_bins: int
-    phi_bins: int
-    P_T: list  # theta_bins * phi_bins
-    E_R: list  # theta_bins * phi_bins * 3
-    E_M_up: list
-    E_M_down: list
-    lobes: list  # [{"closure": "ggx", "alpha_x", "alpha_y"} | {"closure": "diffuse" | "translucent"}]
-    W: list  # theta_bins * phi_bins * len(lobes) * 3: the lobes' fitted RGB weights
-    scalars: dict  # beta_R_rad, twist_tilt_rad, beta_M_rad, gamma_M_rad, kappa_M, ...
 
 
 @dataclass
@@ -66,62 +43,15 @@ class YarnModel:
     ply_twist: float = 0.0
 
     @property
-    def fallback(self) -> FallbackTables:
-        return _fallback_tables(self.data, self.source)
+    def fallback(self) -> schema.FallbackTables:
+        try:
+            return schema.parse(self.data)
+        except ValueError as e:
+            raise _fail(self.source, str(e)) from None
 
 
 def _fail(where: str, message: str) -> ModelFileError:
     return ModelFileError(f"{where}: {message}")
-
-
-def _finite_list(values, n: int, key: str, where: str, lo=-math.inf, hi=math.inf) -> list:
-    if not isinstance(values, list) or len(values) != n:
-        got = len(values) if isinstance(values, list) else type(values).__name__
-        raise _fail(where, f"fallback '{key}' must be a list of {n} numbers (got {got})")
-    out = []
-    for k, v in enumerate(values):
-        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-            raise _fail(where, f"fallback '{key}'[{k}] is not a finite number ({v!r})")
-        if not lo <= v <= hi:
-            raise _fail(where, f"fallback '{key}'[{k}] = {v} is outside [{lo}, {hi}]")
-        out.append(float(v))
-    return out
-
-
-def _fallback_tables(data: dict, where: str) -> FallbackTables:
-    fb = data.get("fallback")
-    if fb is None:
-        raise _fail(where, "has no 'fallback' tables (made by an older neuralyarn); "
-                           "run `neuralyarn fallback MODEL` to add them")
-    if not isinstance(fb, dict):
-        raise _fail(where, "'fallback' must be an object")
-    if fb.get("version") != FALLBACK_VERSION:
-        raise _fail(where, f"fallback version {fb.get('version')!r} is not supported (expected {FALLBACK_VERSION})")
-    tb, pb = fb.get("theta_bins"), fb.get("phi_bins")
-    if not (isinstance(tb, int) and isinstance(pb, int) and 2 <= tb <= 1024 and 2 <= pb <= 1024):
-        raise _fail(where, f"fallback bins must be integers in [2, 1024] (got {tb!r} x {pb!r})")
-    cells = tb * pb
-    try:
-        gen = resources.osl_generator()
-        lobes = gen.parse_lobes(fb)  # one validation, shared with the OSL generator
-        gen.check_kernel_flat_digest(data)
-    except ValueError as e:
-        raise _fail(where, str(e)) from None
-    scalars = {k: v for k, v in fb.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
-    for k, v in scalars.items():
-        if not math.isfinite(v):
-            raise _fail(where, f"fallback '{k}' is not finite")
-    return FallbackTables(
-        theta_bins=tb,
-        phi_bins=pb,
-        P_T=_finite_list(fb.get("P_T"), cells, "P_T", where, 0.0, 1.0),
-        E_R=_finite_list(fb.get("E_R"), 3 * cells, "E_R", where, 0.0, 1.5),
-        E_M_up=_finite_list(fb.get("E_M_up"), 3 * cells, "E_M_up", where, 0.0, 1.5),
-        E_M_down=_finite_list(fb.get("E_M_down"), 3 * cells, "E_M_down", where, 0.0, 1.5),
-        lobes=lobes,
-        W=_finite_list(fb.get("W"), 3 * len(lobes) * cells, "W", where, 0.0, FALLBACK_MAX_WEIGHT),
-        scalars=scalars,
-    )
 
 
 # The kernel array's layout (cpp_core/include/neuralyarn/kernel/yarn_bsdf.h, YarnFlatField; mlp.h).

@@ -1,19 +1,41 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Where the add-on finds its shipped files: the five models and the OSL generator.
+"""Where the add-on finds its shipped files: the preset list and the presets' models.
 
 An installed add-on (the zip made by scripts/package_addon.sh) carries them inside the package
-(`models/`, `osl/`); a development checkout loads the add-on straight from the repository's `addon/`
-directory, where they are the repository's top-level `models/` and `osl/`. No bpy here.
+(`presets.json`, `models/`); a development checkout loads the add-on straight from the repository's `addon/`
+directory, where they are the core's `cpp_core/data/presets.json` and the top-level `models/`. No bpy here.
 """
 
 from __future__ import annotations
 
-import importlib.util
+import json
 import os
-import sys
 
 PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__))
-PRESETS = ("fleece", "silk", "polyester", "cotton", "gabardine")
+_PRESETS_FILES = (os.path.join(PACKAGE_DIR, "presets.json"),
+                  os.path.join(os.path.dirname(PACKAGE_DIR), "cpp_core", "data", "presets.json"))
+
+
+def _presets_file() -> str:
+    for path in _PRESETS_FILES:
+        if os.path.isfile(path):
+            return path
+    raise FileNotFoundError(f"the preset list is missing (looked in {', '.join(_PRESETS_FILES)}); "
+                            f"reinstall the add-on from a zip made by scripts/package_addon.sh")
+
+
+def _preset_names(path: str) -> tuple[str, ...]:
+    """The fiber presets' names, in the core's order, from the one preset list (cpp_core/data/presets.json)."""
+    with open(path, encoding="utf-8") as f:
+        data = json.load(f)
+    if data.get("format") != "neuralyarn-fiber-presets" or not isinstance(data.get("presets"), dict) or \
+            not data["presets"]:
+        raise RuntimeError(f"'{path}' is not the neuralyarn preset list; reinstall the add-on")
+    return tuple(data["presets"])
+
+
+PRESETS_FILE = _presets_file()
+PRESETS = _preset_names(PRESETS_FILE)
 
 
 def _candidates(sub: str) -> list[str]:
@@ -41,19 +63,3 @@ def preset_model_path(name: str, level: str = "plies") -> str:
     if not os.path.isfile(path):
         raise FileNotFoundError(f"the shipped model '{path}' is missing; reinstall the add-on")
     return path
-
-
-_generator = None
-
-
-def osl_generator():
-    """The module osl/generate_osl.py (loaded once, under a private name so that it cannot clash)."""
-    global _generator
-    if _generator is None:
-        path = os.path.join(resource_dir("osl"), "generate_osl.py")
-        spec = importlib.util.spec_from_file_location("_neural_yarn_generate_osl", path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[spec.name] = module
-        spec.loader.exec_module(module)
-        _generator = module
-    return _generator

@@ -32,8 +32,7 @@ import numpy as np
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
 sys.path.insert(0, os.path.join(ROOT, "addon"))
 import geometry  # noqa: E402  (addon/geometry: pure numpy)
-
-PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
+from resources import PRESETS  # noqa: E402  (addon/resources.py: the core's preset list)
 
 
 def run(cmd: list[str]) -> str:

@@ -27,7 +27,7 @@ esac
 CLI="$BUILD/cpp_core/neuralyarn"
 [ -x "$CLI" ] || { echo "bake_models.sh: $CLI not built; run scripts/setup.sh --no-run first" >&2; exit 1; }
 PRESETS=("$@")
-[ ${#PRESETS[@]} -gt 0 ] || PRESETS=(fleece silk polyester cotton gabardine)
+[ ${#PRESETS[@]} -gt 0 ] || mapfile -t PRESETS < <("$CLI" presets | cut -d" " -f1)  # the core's preset list
 mkdir -p "$ROOT/models" "$ROOT/docs/images"
 # The M network's widths per preset: the paper's 6-21-21-3, and 6-32-32-3 where the capacity study of
 # docs/decisions.md D22 shows it pays (gabardine: the axis light's fitting error 45 -> 10 %).

@@ -23,7 +23,7 @@ for tool in "$CLI" "$CYCLES" "$PY"; do
 done
 "$PY" -c "import skimage, OpenEXR" 2>/dev/null || "$PY" -m pip install -q scikit-image "OpenEXR>=3.3"
 PRESETS=("$@")
-[ ${#PRESETS[@]} -gt 0 ] || PRESETS=(fleece silk polyester cotton gabardine)
+[ ${#PRESETS[@]} -gt 0 ] || mapfile -t PRESETS < <("$CLI" presets | cut -d" " -f1)  # the core's preset list
 mkdir -p "$OUT"
 native() { "$CYCLES" --background --quiet --samples "$SPP" --threads 0 --width "$W" --height "$H" --output "$2" "$1" > /dev/null; }
 blender() { "$PY" "$ROOT/scripts/fallback_render.py" "$1" "$2" --preset "$3" --body "$4" --samples "$SPP" > /dev/null; }

@@ -16,7 +16,7 @@ PATHS="${NY_PATHS:-2e7}"
 OUT="$BUILD/bench_lobes"
 [ -x "$CLI" ] || { echo "bench_lobes.sh: $CLI not built; run scripts/setup.sh --no-run first" >&2; exit 1; }
 PRESETS=("$@")
-[ ${#PRESETS[@]} -gt 0 ] || PRESETS=(fleece silk polyester cotton gabardine)
+[ ${#PRESETS[@]} -gt 0 ] || mapfile -t PRESETS < <("$CLI" presets | cut -d" " -f1)  # the core's preset list
 mkdir -p "$OUT"
 echo "# models: $MODELS; maps: $PATHS paths, seeds 3001 and 3002, paper resolution; $(nproc) cores: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
 echo "# L1: energy-weighted relative L1 per 12-degree (w_i, w_o) cell with the maps' noise removed, in %;"

@@ -25,7 +25,7 @@ VENV="$ROOT/.venv" # scikit-image and OpenEXR come from scripts/setup.sh
 "$VENV/bin/python" -c "import skimage, OpenEXR" 2>/dev/null || \
   { echo "bench_render.sh: $VENV lacks scikit-image or OpenEXR; run scripts/setup.sh" >&2; exit 1; }
 PRESETS=("$@")
-[ ${#PRESETS[@]} -gt 0 ] || PRESETS=(fleece silk polyester cotton gabardine)
+[ ${#PRESETS[@]} -gt 0 ] || mapfile -t PRESETS < <("$CLI" presets | cut -d" " -f1)  # the core's preset list
 mkdir -p "$OUT"
 
 render() { # scene spp image -> prints "seconds peak_kb"

@@ -88,7 +88,8 @@ CLI = os.path.join(BUILD, "cpp_core", "neuralyarn")
 CYCLES = os.path.join(BUILD, "cycles", "bin", "cycles")
 MODELS = os.path.join(ROOT, "models")
 
-PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
+with open(os.path.join(ROOT, "cpp_core", "data", "presets.json"), encoding="utf-8") as _f:
+    PRESETS = list(json.load(_f)["presets"])  # the core's preset list, in its order
 SCENES = ["closeup", "yarn", "garment"]
 #: Scenes seen from --distances (the others frame themselves).
 DISTANCE_SCENES = ("closeup", "yarn")

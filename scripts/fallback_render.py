@@ -19,7 +19,6 @@ before writing. Exits 1 with a message on a scene it cannot read.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import math
 import os
 import sys
@@ -39,9 +38,8 @@ def floats(text: str) -> np.ndarray:
 
 def load_addon():
     """The add-on of this checkout (addon/), registered, through addon/batch.py's own loader."""
-    spec = importlib.util.spec_from_file_location("_neural_yarn_batch", os.path.join(ROOT, "addon", "batch.py"))
-    batch = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(batch)
+    sys.path.insert(0, os.path.join(ROOT, "addon"))
+    import batch  # addon/batch.py: bpy and the standard library only, no relative imports
     return batch.addon_module()
 
 

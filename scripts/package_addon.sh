@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Builds the installable add-on: addon/ plus the shipped models (models/*.json: ply and yarn level) and the OSL generator
-# (osl/), which live at the repository's top level, staged as one package, validated with Blender's own
-# extension tool (what `blender --command extension validate|build` runs) and zipped.
+# Builds the installable add-on: addon/ plus the shipped models (models/*.json: ply and yarn level, one pair per preset)
+# and the preset list (cpp_core/data/presets.json), which live outside addon/, staged as one package, validated
+# with Blender's own extension tool (what `blender --command extension validate|build` runs) and zipped.
 #
 #   bash scripts/package_addon.sh [OUT_DIR]     # default: build/addon
 #
@@ -24,11 +24,15 @@ PYEOF
 
 STAGE="$OUT/neural_yarn"
 rm -rf "$STAGE"
-mkdir -p "$STAGE/models" "$STAGE/osl"
+mkdir -p "$STAGE/models"
 # Sources only: no caches, no test output.
 tar -C "$ROOT/addon" --exclude='__pycache__' --exclude='*.pyc' -cf - . | tar -C "$STAGE" -xf -
-cp "$ROOT"/models/{fleece,silk,polyester,cotton,gabardine}{,_yarn}.json "$STAGE/models/"
-cp "$ROOT/osl/generate_osl.py" "$ROOT/osl/neural_yarn_fallback.osl.in" "$ROOT/osl/README.md" "$STAGE/osl/"
+cp "$ROOT/cpp_core/data/presets.json" "$STAGE/"
+mapfile -t PRESETS < <("$PY" -c 'import json, sys; print("\n".join(json.load(open(sys.argv[1]))["presets"]))' \
+                       "$ROOT/cpp_core/data/presets.json")
+for p in "${PRESETS[@]}"; do
+  cp "$ROOT/models/$p.json" "$ROOT/models/${p}_yarn.json" "$STAGE/models/"
+done
 cp "$ROOT/LICENSE" "$STAGE/" 2>/dev/null || true
 
 "$PY" "$BLENDER_EXT" validate "$STAGE"

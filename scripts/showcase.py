@@ -17,8 +17,9 @@ import subprocess
 import sys
 import time
 
+from evaluate import PRESETS
+
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
-PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
 PYTHON = os.path.join(ROOT, ".venv", "bin", "python")
 
 

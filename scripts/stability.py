@@ -75,7 +75,7 @@ QUICK = {
 }
 FULL = {
     "width": 128, "height": 64, "ref_spp": 512, "ref_rotations": 4, "spp": 64, "seeds": 3,
-    "presets": ["fleece", "silk", "polyester", "cotton", "gabardine"], "methods": RENDER_METHODS,
+    "presets": list(ev.PRESETS), "methods": RENDER_METHODS,
     "views": ["sun-0-normal", "sun-30-normal", "sun-60-normal", "sun-80-normal", "sun-89-normal",
               "sun-89.9-normal", "sun-45-axis", "sun-80-axis", "sun-89.9-axis", "sun-150-normal", "sun-180-normal",
               "environment"],

@@ -30,6 +30,10 @@ def main(zip_path: str, out: str) -> None:
     models = ny.resources.resource_dir("models")
     if not models.startswith(os.path.dirname(ny.__file__)):
         raise SystemExit(f"install_smoke: models found outside the installed package: {models}")
+    # So must the preset list (the core's presets.json, copied in by scripts/package_addon.sh).
+    if not ny.resources.PRESETS_FILE.startswith(os.path.dirname(ny.__file__)) or "fleece" not in ny.resources.PRESETS:
+        raise SystemExit(f"install_smoke: the preset list {ny.resources.PRESETS} came from "
+                         f"{ny.resources.PRESETS_FILE}, not from the installed package")
     assert bpy.ops.neural_yarn.add_knit(rows=3, stitches=3, preset="fleece") == {"FINISHED"}
     obj = bpy.context.active_object
     scene = bpy.context.scene

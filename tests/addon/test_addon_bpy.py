@@ -22,7 +22,7 @@ import pytest
 
 np = pytest.importorskip("numpy")
 
-PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
+from resources import PRESETS  # noqa: E402  (addon/ is on sys.path: conftest.py)
 RES = 64
 
 
@@ -575,7 +575,18 @@ def _corruptions():
         ("a layout 3 array in a version 4 file", lambda data: json.dumps(_as_version3(data, version=4))),
         ("a kernel weight changed", flat(lambda f: f.__setitem__(60, f[60] + 0.25))),
         ("stale fallback tables", stale_tables),
+        ("no fallback bins", lambda data: _edit(["fallback", "theta_bins"], 0)(data)),
+        ("1025 fallback bins", lambda data: _edit(["fallback", "phi_bins"], 1025)(data)),
     ]
+
+
+def _core_fallback(model: str, out, theta_bins: int, phi_bins: int) -> str:
+    """The model's text with fallback tables of the given size, as the core computes them."""
+    import subprocess
+    r = subprocess.run([_CLI, "fallback", model, "--out", str(out), "--theta-bins", str(theta_bins),
+                        "--phi-bins", str(phi_bins)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return out.read_text()
 
 
 def _as_version3(data, version=3, fnv=None):
@@ -598,15 +609,19 @@ def _as_version3(data, version=3, fnv=None):
     return out
 
 
-@pytest.mark.parametrize("case", [c[0] for c in _corruptions()] + ["the shipped model", "a version 3 file"])
+@pytest.mark.parametrize("case", [c[0] for c in _corruptions()] +
+                         ["the shipped model", "a version 3 file", "1 x 1 fallback tables"])
 def test_model_files_the_core_refuses_are_refused(bpy, addon, tmp_path, case):
     if not os.path.isfile(_CLI):
         pytest.skip(f"the core's CLI is not built at {_CLI}")
     import subprocess
-    data = json.loads(open(os.path.join(addon.resources.resource_dir("models"), "cotton.json")).read())
-    fnv = addon.resources.osl_generator()._fnv1a64_hex
-    accepted = {"the shipped model": json.dumps(data), "a version 3 file": json.dumps(_as_version3(data, fnv=fnv))}
-    text = accepted[case] if case in accepted else dict(_corruptions())[case](data)
+    shipped = os.path.join(addon.resources.resource_dir("models"), "cotton.json")
+    data = json.loads(open(shipped).read())
+    fnv = addon.fallback.schema.fnv1a64_hex
+    accepted = {"the shipped model": lambda: json.dumps(data),
+                "a version 3 file": lambda: json.dumps(_as_version3(data, fnv=fnv)),
+                "1 x 1 fallback tables": lambda: _core_fallback(shipped, tmp_path / "one.json", 1, 1)}
+    text = accepted[case]() if case in accepted else dict(_corruptions())[case](data)
     path = tmp_path / "model.json"
     path.write_text(text)
     core = subprocess.run([_CLI, "cycles-scene", "--preset", "cotton", "--model", str(path), "--out",
@@ -644,14 +659,14 @@ _REJECTIONS = [
     ("no preset", _edit(["preset"], None), "missing 'preset' object with a 'name'"),
     ("negative alpha", _edit(["preset", "alpha"], -0.1), "preset 'alpha' must be a finite number >= 0"),
     ("no kernel", _edit(["kernel_flat"], None), "missing 'kernel_flat'"),
-    ("no fallback", _edit(["fallback"], None), "has no 'fallback' tables"),
-    ("fallback not an object", _edit(["fallback"], [1, 2]), "'fallback' must be an object"),
-    ("fallback version", _edit(["fallback", "version"], 99), "fallback version 99 is not supported"),
-    ("fallback bins", _edit(["fallback", "theta_bins"], 1), "fallback bins must be integers in \\[2, 1024\\]"),
+    ("no fallback", _edit(["fallback"], None), "has no \"fallback\" tables"),
+    ("fallback not an object", _edit(["fallback"], [1, 2]), "fallback: must be an object"),
+    ("fallback version", _edit(["fallback", "version"], 99), "fallback: version 99 is not supported"),
+    ("fallback bins", _edit(["fallback", "theta_bins"], 0), "fallback: 'theta_bins' must be an integer in \\[1, 1024\\]"),
     ("P_T above 1", lambda data: _edit(["fallback", "P_T"], [1.5] + data["fallback"]["P_T"][1:])(data),
-     "fallback 'P_T'\\[0\\] = 1.5 is outside"),
+     "fallback: 'P_T' entry 0 = 1.5 is outside"),
     ("E_R short", lambda data: _edit(["fallback", "E_R"], data["fallback"]["E_R"][:-1])(data),
-     "fallback 'E_R' must be a list of"),
+     "fallback: 'E_R' has 971 values, expected 972"),
 ]
 
 

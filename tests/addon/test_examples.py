@@ -2,16 +2,16 @@
 """examples/make_examples.py's explicit-fiber sweep (no Blender): fibers carried along a ply curve."""
 from __future__ import annotations
 
-import importlib.util
 import math
 import os
+import sys
 
 import numpy as np
 
 REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir, os.pardir))
-spec = importlib.util.spec_from_file_location("make_examples", os.path.join(REPO, "examples", "make_examples.py"))
-make_examples = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(make_examples)
+sys.path.insert(0, os.path.join(REPO, "examples"))
+import make_examples  # noqa: E402
+
 geometry = make_examples.geometry
 
 

@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The OSL fallback (osl/generate_osl.py + osl/neural_yarn_fallback.osl.in) for the five shipped models.
+"""The OSL fallback (addon/fallback/: schema, lobes, osl and the template; osl/generate_osl.py its command
+line) for the five shipped models.
 
 Generator (plain Python): it refuses models without, or with corrupt or stale, "fallback" tables with a
 ValueError before Blender sees anything, and fills every placeholder.
@@ -36,12 +37,12 @@ import pytest
 
 REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir, os.pardir))
 OSL_DIR = os.path.join(REPO, "osl")
-if OSL_DIR not in sys.path:
-    sys.path.insert(0, OSL_DIR)
 
-import generate_osl  # noqa: E402
-
-PRESETS = ["fleece", "silk", "polyester", "cotton", "gabardine"]
+# addon/ is on sys.path (conftest.py): the add-on's pure packages, as Blender runs them.
+from fallback.lobes import glossy_node_inputs  # noqa: E402
+from fallback.osl import generate_osl  # noqa: E402
+from fallback.schema import fnv1a64_hex  # noqa: E402
+from resources import PRESETS  # noqa: E402
 RADIUS = 0.1
 TILT = math.radians(30.0)   # the curve's axis against the image plane: theta = -30 degrees
 WORLD = 0.5                 # grey world
@@ -66,8 +67,8 @@ def silk() -> dict:
 def test_generator_refuses_a_model_without_fallback(silk):
     m = copy.deepcopy(silk)
     del m["fallback"]
-    with pytest.raises(ValueError, match=r"no \"fallback\" tables; re-run `neuralyarn fallback MODEL`"):
-        generate_osl.generate_osl(m)
+    with pytest.raises(ValueError, match=r"has no \"fallback\" tables; re-run `neuralyarn fallback MODEL`"):
+        generate_osl(m)
 
 
 @pytest.mark.parametrize("edit, message", [
@@ -94,7 +95,7 @@ def test_generator_refuses_corrupt_tables(silk, edit, message):
     m = copy.deepcopy(silk)
     edit(m["fallback"])
     with pytest.raises(ValueError, match=message):
-        generate_osl.generate_osl(m)
+        generate_osl(m)
 
 
 def test_generator_refuses_tables_of_a_changed_model(silk):
@@ -102,16 +103,16 @@ def test_generator_refuses_tables_of_a_changed_model(silk):
     m = copy.deepcopy(silk)
     m["kernel_flat"][-1] = m["kernel_flat"][-1] * 0.5 + 0.25
     with pytest.raises(ValueError, match=r"re-run `neuralyarn fallback MODEL`"):
-        generate_osl.generate_osl(m)
-    assert generate_osl._fnv1a64_hex([]) == "cbf29ce484222325"
-    assert generate_osl._fnv1a64_hex([1.0, -0.0, 2.5]) == "9a4c6dab8532d978"  # as tests/cpp/test_fallback.cpp
+        generate_osl(m)
+    assert fnv1a64_hex([]) == "cbf29ce484222325"
+    assert fnv1a64_hex([1.0, -0.0, 2.5]) == "9a4c6dab8532d978"  # as tests/cpp/test_fallback.cpp
 
 
 def test_generator_fills_the_template(silk):
-    src = generate_osl.generate_osl(silk)
+    src = generate_osl(silk)
     assert not re.search(r"@[A-Z0-9_]+@", src), "a placeholder was left"
     assert "shader neural_yarn_fallback_silk(" in src
-    assert generate_osl.generate_osl(silk, shader_name="my yarn").count("shader my_yarn(") == 1
+    assert generate_osl(silk, shader_name="my yarn").count("shader my_yarn(") == 1
     fb = silk["fallback"]
     # Every table value is written with float precision, in order.
     body = src[src.index("float P_T[324] = {") + len("float P_T[324] = {"):]
@@ -133,7 +134,7 @@ def test_generator_fills_the_template(silk):
     assert [lobe["closure"] for lobe in fb["lobes"]] == ["ggx"] * 4 + ["diffuse", "translucent"]
     # The Glossy node's (Roughness, Anisotropy) give Cycles' alphas back (roughness squared, then split).
     for ax, ay in ((0.016, 1.0), (0.3, 0.3), (0.001, 1.0)):
-        rough, aniso = generate_osl.glossy_node_inputs(ax, ay)
+        rough, aniso = glossy_node_inputs(ax, ay)
         r = rough * rough
         assert math.isclose(r * (1 - aniso), ax, rel_tol=1e-9) and math.isclose(r / (1 - aniso), ay, rel_tol=1e-9)
         assert 0.0 <= aniso <= 0.99
@@ -305,7 +306,7 @@ def test_fallback_renders_the_tables(bpy, addon, body, preset, tmp_path, request
     t0 = time.monotonic()
     model = load_model(preset)
     fb = model["fallback"]
-    scene = Scene(bpy, generate_osl.generate_osl(model), tmp_path, body, preset)
+    scene = Scene(bpy, generate_osl(model), tmp_path, body, preset)
     assert scene.compiled, f"the generated OSL did not compile: {scene.reports}"
     assert "BSDF" in scene.sockets
     theta = -TILT
