@@ -224,13 +224,13 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
     for (int ch = 0; ch < 3; ch++) {
       v[1 + ch] = ratio(window_sum(ER, 3, k, ch), window_sum(net_R, 3, k, ch));
       v[4 + ch] = ratio(window_sum(EM, 3, k, ch), window_sum(net_M, 3, k, ch));
-      /* No bin scatters more than the maps' window says leaves the ply, nor more than it receives: the
-       * window's ratios scale R and M by the window's mean, while P_T varies across it (the gaps between
-       * fibers), so where P_T is above the window's mean the three together could exceed it (at grazing
-       * incidence, without this bound: tests/cpp/test_furnace.cpp). */
-      const double total = std::min(1.0, window_sum(maps.exit_energy, 3, k, ch) / window);
+      /* No bin scatters more than it receives: the window's ratios scale R and M by the window's mean,
+       * while P_T varies across it (the gaps between fibers), so where P_T is above the window's mean the
+       * three together could exceed 1 (at grazing incidence, without this bound: tests/cpp/test_furnace.cpp).
+       * The bound is 1, not the window's exit energy: that one would hand the T network's error at the bin
+       * to R and M (a dark fiber's R cut by 68 % at 88 deg, docs/decisions.md D35). */
       const double scattered = v[1 + ch] * net_R[size_t(k) * 3 + size_t(ch)] + v[4 + ch] * net_M[size_t(k) * 3 + size_t(ch)];
-      const double room = std::max(0.0, total - P_T[size_t(k)]);
+      const double room = std::max(0.0, 1.0 - P_T[size_t(k)]);
       if (scattered > room && scattered > 0.0) {
         v[1 + ch] = float(v[1 + ch] * room / scattered);
         v[4 + ch] = float(v[4 + ch] * room / scattered);
