@@ -95,7 +95,8 @@ NY_KERNEL_FN float fiber_probability_R(Rgb e_R, Rgb e_TT, Rgb throughput)
 }
 
 /* The lobes' energies at incidence w_i: e_R = F and e_TT = (1 - F) C_TT (their sum is the albedo). */
-NY_KERNEL_FN void fiber_energies(const FiberBsdfParams &p, Vec3 wi, Rgb *e_R, Rgb *e_TT)
+NY_KERNEL_FN void fiber_energies(NY_PRIVATE const FiberBsdfParams &p, Vec3 wi, NY_PRIVATE Rgb *e_R,
+                                 NY_PRIVATE Rgb *e_TT)
 {
   *e_R = schlick_fresnel(p.C_R, cos_theta(wi));
   *e_TT = (make_rgb(1.0f) - *e_R) * p.C_TT;
@@ -103,7 +104,7 @@ NY_KERNEL_FN void fiber_energies(const FiberBsdfParams &p, Vec3 wi, Rgb *e_R, Rg
 
 /* The w_i-dependent setup. `with_eval` = false skips the two cos^2 normalisers, which eval, pdf and sample need
  * (they are the expensive part: up to 2 x 32 exp/cos); m_R and m_TT are then left zero. */
-NY_KERNEL_FN FiberLobes fiber_lobes(const FiberBsdfParams &p, Vec3 wi, bool with_eval = true)
+NY_KERNEL_FN FiberLobes fiber_lobes(NY_PRIVATE const FiberBsdfParams &p, Vec3 wi, bool with_eval = true)
 {
   FiberLobes l;
   l.cos_theta_i = cos_theta(wi);
@@ -127,7 +128,7 @@ NY_KERNEL_FN FiberLobes fiber_lobes(const FiberBsdfParams &p, Vec3 wi, bool with
 }
 
 /* Albedo: integral of eval over the sphere, F + (1 - F) C_TT. */
-NY_KERNEL_FN Rgb fiber_albedo(const FiberLobes &l) { return l.energy_R + l.energy_TT; }
+NY_KERNEL_FN Rgb fiber_albedo(NY_PRIVATE const FiberLobes &l) { return l.energy_R + l.energy_TT; }
 
 
 /* Rejection sampling of theta_o (see the top of this file) where its acceptance rate is at least this; a
@@ -137,13 +138,14 @@ constexpr int kFiberExactMaxRounds = 64;
 
 /* Whether lobe (m, tn) draws theta_o exactly from gbar cos^2: its acceptance rate G / Z = 1 / (beta G^-1 Z)
  * is at least kFiberExactMinAcceptance. Needs the lobe's normaliser (fiber_lobes with eval). */
-NY_KERNEL_FN bool fiber_lobe_exact(const LongitudinalLobe &m, const TruncatedNormal &tn)
+NY_KERNEL_FN bool fiber_lobe_exact(NY_PRIVATE const LongitudinalLobe &m, NY_PRIVATE const TruncatedNormal &tn)
 {
   return m.inv_beta_G > 0.0f && m.beta * m.inv_beta_G * tn.mass * kFiberExactMinAcceptance <= 1.0f;
 }
 
 /* Lobe k's sampling density of theta_o. */
-NY_KERNEL_FN float fiber_theta_pdf(const LongitudinalLobe &m, const TruncatedNormal &tn, float theta)
+NY_KERNEL_FN float fiber_theta_pdf(NY_PRIVATE const LongitudinalLobe &m, NY_PRIVATE const TruncatedNormal &tn,
+                                   float theta)
 {
   if (fiber_lobe_exact(m, tn)) {
     const float c = cosf(theta);
@@ -157,7 +159,7 @@ NY_KERNEL_FN float fiber_theta_pdf(const LongitudinalLobe &m, const TruncatedNor
 constexpr float kFiberMinCosTheta = 1e-7f;
 
 /* Requires lobes set up with eval (the exact branch's density needs the normalisers). */
-NY_KERNEL_FN float fiber_pdf_lobes(const FiberLobes &l, Vec3 wo)
+NY_KERNEL_FN float fiber_pdf_lobes(NY_PRIVATE const FiberLobes &l, Vec3 wo)
 {
   if (!(l.p_R > 0.0f) && !(average(l.energy_TT) > 0.0f)) {
     return 0.0f;
@@ -171,7 +173,7 @@ NY_KERNEL_FN float fiber_pdf_lobes(const FiberLobes &l, Vec3 wo)
   return pdf / fmaxf(cos_theta(wo), kFiberMinCosTheta);
 }
 
-NY_KERNEL_FN Rgb fiber_eval_lobes(const FiberLobes &l, Vec3 wo)
+NY_KERNEL_FN Rgb fiber_eval_lobes(NY_PRIVATE const FiberLobes &l, Vec3 wo)
 {
   const float theta_o = theta_of(wo);
   const float phi_o = phi_of(wo);
@@ -183,7 +185,7 @@ NY_KERNEL_FN Rgb fiber_eval_lobes(const FiberLobes &l, Vec3 wo)
 }
 
 /* eval = S_f(w_i, w_o) cos(theta_o); optionally also returns the sampling pdf of w_o. */
-NY_KERNEL_FN Rgb fiber_eval(const FiberBsdfParams &p, Vec3 wi, Vec3 wo, float *pdf)
+NY_KERNEL_FN Rgb fiber_eval(NY_PRIVATE const FiberBsdfParams &p, Vec3 wi, Vec3 wo, NY_PRIVATE float *pdf)
 {
   const FiberLobes l = fiber_lobes(p, wi);
   if (pdf) {
@@ -192,7 +194,7 @@ NY_KERNEL_FN Rgb fiber_eval(const FiberBsdfParams &p, Vec3 wi, Vec3 wo, float *p
   return fiber_eval_lobes(l, wo);
 }
 
-NY_KERNEL_FN float fiber_pdf(const FiberBsdfParams &p, Vec3 wi, Vec3 wo)
+NY_KERNEL_FN float fiber_pdf(NY_PRIVATE const FiberBsdfParams &p, Vec3 wi, Vec3 wo)
 {
   return fiber_pdf_lobes(fiber_lobes(p, wi), wo);
 }
@@ -201,14 +203,14 @@ NY_KERNEL_FN float fiber_pdf(const FiberBsdfParams &p, Vec3 wi, Vec3 wo)
  * `next()` of further ones for the rejection loop. Returns false (and zero weight) when the fiber scatters
  * nothing (C_R = C_TT = 0 at this angle) or the loop ran out. */
 template<class Uniform>
-NY_KERNEL_FN bool fiber_sample_lobes(const FiberLobes &l,
+NY_KERNEL_FN bool fiber_sample_lobes(NY_PRIVATE const FiberLobes &l,
                                      float u_lobe,
                                      float u_theta,
                                      float u_phi,
-                                     Uniform &&next,
-                                     Vec3 *wo,
-                                     Rgb *weight,
-                                     float *pdf)
+                                     NY_PRIVATE Uniform &&next,
+                                     NY_PRIVATE Vec3 *wo,
+                                     NY_PRIVATE Rgb *weight,
+                                     NY_PRIVATE float *pdf)
 {
   const float e_TT = average(l.energy_TT);
   *weight = make_rgb(0.0f);
@@ -217,8 +219,8 @@ NY_KERNEL_FN bool fiber_sample_lobes(const FiberLobes &l,
     return false;
   }
   const bool lobe_R = u_lobe < l.p_R;
-  const LongitudinalLobe &m = lobe_R ? l.m_R : l.m_TT;
-  const TruncatedNormal &tn = lobe_R ? l.tn_R : l.tn_TT;
+  NY_PRIVATE const LongitudinalLobe &m = lobe_R ? l.m_R : l.m_TT;
+  NY_PRIVATE const TruncatedNormal &tn = lobe_R ? l.tn_R : l.tn_TT;
   float theta_o = sample_truncated_normal(tn, u_theta);
   if (fiber_lobe_exact(m, tn)) {
     for (int round = 1;; round++) {
@@ -255,15 +257,15 @@ NY_KERNEL_FN bool fiber_sample_lobes(const FiberLobes &l,
 }
 
 template<class Uniform>
-NY_KERNEL_FN bool fiber_sample(const FiberBsdfParams &p,
+NY_KERNEL_FN bool fiber_sample(NY_PRIVATE const FiberBsdfParams &p,
                                Vec3 wi,
                                float u_lobe,
                                float u_theta,
                                float u_phi,
-                               Uniform &&next,
-                               Vec3 *wo,
-                               Rgb *weight,
-                               float *pdf)
+                               NY_PRIVATE Uniform &&next,
+                               NY_PRIVATE Vec3 *wo,
+                               NY_PRIVATE Rgb *weight,
+                               NY_PRIVATE float *pdf)
 {
   return fiber_sample_lobes(fiber_lobes(p, wi), u_lobe, u_theta, u_phi, next, wo, weight, pdf);
 }

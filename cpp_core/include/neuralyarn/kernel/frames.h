@@ -43,7 +43,7 @@ struct Frame {
 /* Build the yarn frame from a curve tangent and a surface normal that need not be exactly orthogonal:
  * the normal is kept, the tangent is made orthogonal to it (Gram-Schmidt), y completes the frame.
  * Returns false (and an arbitrary frame) when the tangent is parallel to the normal. */
-NY_KERNEL_FN bool make_frame(Vec3 tangent, Vec3 normal, Frame *frame)
+NY_KERNEL_FN bool make_frame(Vec3 tangent, Vec3 normal, NY_PRIVATE Frame *frame)
 {
   const Vec3 n = normalize(normal);
   const Vec3 t_ortho = tangent - n * dot(tangent, n);
@@ -61,8 +61,11 @@ NY_KERNEL_FN bool make_frame(Vec3 tangent, Vec3 normal, Frame *frame)
   return true;
 }
 
-NY_KERNEL_FN Vec3 to_local(const Frame &f, Vec3 v) { return make_vec3(dot(v, f.x), dot(v, f.y), dot(v, f.z)); }
-NY_KERNEL_FN Vec3 to_world(const Frame &f, Vec3 v) { return f.x * v.x + f.y * v.y + f.z * v.z; }
+NY_KERNEL_FN Vec3 to_local(NY_PRIVATE const Frame &f, Vec3 v)
+{
+  return make_vec3(dot(v, f.x), dot(v, f.y), dot(v, f.z));
+}
+NY_KERNEL_FN Vec3 to_world(NY_PRIVATE const Frame &f, Vec3 v) { return f.x * v.x + f.y * v.y + f.z * v.z; }
 
 /* ------------------------------------------------------------------------------------------------ */
 /* Marschner angles.                                                                                  */
@@ -106,18 +109,18 @@ NY_KERNEL_FN TwistRotation make_twist_rotation(float alpha)
 }
 
 /* omega~ = M omega: yarn frame -> surface-fiber frame. */
-NY_KERNEL_FN Vec3 yarn_to_surface_fiber(const TwistRotation &r, Vec3 w)
+NY_KERNEL_FN Vec3 yarn_to_surface_fiber(NY_PRIVATE const TwistRotation &r, Vec3 w)
 {
   return make_vec3(r.c * w.x - r.s * w.y, r.s * w.x + r.c * w.y, w.z);
 }
 
 /* omega = M^T omega~: surface-fiber frame -> yarn frame. */
-NY_KERNEL_FN Vec3 surface_fiber_to_yarn(const TwistRotation &r, Vec3 w)
+NY_KERNEL_FN Vec3 surface_fiber_to_yarn(NY_PRIVATE const TwistRotation &r, Vec3 w)
 {
   return make_vec3(r.c * w.x + r.s * w.y, -r.s * w.x + r.c * w.y, w.z);
 }
 
 /* The surface fibers' tangent in yarn coordinates, t_f = M^T e_x. */
-NY_KERNEL_FN Vec3 surface_fiber_tangent(const TwistRotation &r) { return make_vec3(r.c, -r.s, 0.0f); }
+NY_KERNEL_FN Vec3 surface_fiber_tangent(NY_PRIVATE const TwistRotation &r) { return make_vec3(r.c, -r.s, 0.0f); }
 
 }  // namespace ny

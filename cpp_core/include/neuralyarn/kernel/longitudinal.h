@@ -107,7 +107,7 @@ NY_KERNEL_FN LongitudinalLobe make_longitudinal_lobe(float mu, float beta, bool 
   return lobe;
 }
 
-NY_KERNEL_FN float longitudinal_eval(const LongitudinalLobe &lobe, float theta)
+NY_KERNEL_FN float longitudinal_eval(NY_PRIVATE const LongitudinalLobe &lobe, float theta)
 {
   if (!(theta >= -kHalfPi && theta <= kHalfPi)) {
     return 0.0f;

@@ -30,7 +30,7 @@ enum MlpHead { kMlpHeadIdentity = 0, kMlpHeadSigmoid = 1, kMlpHeadExp = 2 };
 constexpr float kMlpMaxExpArgument = 80.0f;
 
 /* Number of floats of a network with L weight layers and widths[0..L]. */
-NY_KERNEL_FN int mlp_param_count(int L, const int *widths)
+NY_KERNEL_FN int mlp_param_count(int L, NY_PRIVATE const int *widths)
 {
   int n = L + 3;
   for (int l = 0; l < L; l++) {
@@ -68,19 +68,20 @@ NY_KERNEL_FN float mlp_prelu(bool hidden, float a, float z) { return (hidden && 
  * branch: the model's networks run much slower that way (docs/benchmarks.md, "Neural closure vs Principled
  * Hair"). One body for both, so both give the same result bit for bit (tests/cpp/test_mlp.cpp). */
 template<int NI = 0, int NO = 0>
-NY_KERNEL_FN const float *mlp_layer(const float *p, int n_in, int n_out, bool hidden, const float *in, float *out)
+NY_KERNEL_FN NY_GLOBAL const float *mlp_layer(NY_GLOBAL const float *p, int n_in, int n_out, bool hidden,
+                                             NY_PRIVATE const float *in, NY_PRIVATE float *out)
 {
   const int ni = NI > 0 ? NI : n_in, no = NO > 0 ? NO : n_out;
-  const float *W = p;
-  const float *b = W + no * ni;
-  const float *a = b + no;
+  NY_GLOBAL const float *W = p;
+  NY_GLOBAL const float *b = W + no * ni;
+  NY_GLOBAL const float *a = b + no;
   float z[NO > 0 ? NO : kMlpMaxWidth];
   for (int o = 0; o < no; o++) {
     z[o] = b[o];
   }
   for (int i = 0; i < ni; i++) {
     const float x = in[i];
-    const float *col = W + i * no;
+    NY_GLOBAL const float *col = W + i * no;
     NY_SIMD_LOOP
     for (int o = 0; o < no; o++) {
       z[o] += col[o] * x;
@@ -94,7 +95,8 @@ NY_KERNEL_FN const float *mlp_layer(const float *p, int n_in, int n_out, bool hi
 
 /* A network of two hidden layers of width H with compile-time widths I-H-H-O (`p` past the header). */
 template<int I, int H, int O>
-NY_KERNEL_FN void mlp_forward_sized(const float *p, int head, const float *input, float *output)
+NY_KERNEL_FN void mlp_forward_sized(NY_GLOBAL const float *p, int head, NY_PRIVATE const float *input,
+                                    NY_PRIVATE float *output)
 {
   float h1[H], h2[H], z[O];
   p = mlp_layer<I, H>(p, I, H, true, input, h1);
@@ -107,20 +109,21 @@ NY_KERNEL_FN void mlp_forward_sized(const float *p, int head, const float *input
 
 /* Evaluates the network stored at `params` on `input` (w_0 floats) into `output` (w_L floats), with runtime
  * widths. Uses stack buffers of kMlpMaxWidth floats; no heap. */
-NY_KERNEL_FN void mlp_forward(const float *params, const float *input, float *output)
+NY_KERNEL_FN void mlp_forward(NY_GLOBAL const float *params, NY_PRIVATE const float *input, NY_PRIVATE float *output)
 {
   const int L = (int)params[0];
   const int head = (int)params[L + 2];
-  const float *p = params + L + 3;
+  NY_GLOBAL const float *p = params + L + 3;
   float buf_a[kMlpMaxWidth], buf_b[kMlpMaxWidth];
-  float *in = buf_a, *out = buf_b;
+  NY_PRIVATE float *in = buf_a;
+  NY_PRIVATE float *out = buf_b;
   for (int i = 0; i < (int)params[1]; i++) {
     in[i] = input[i];
   }
   for (int l = 0; l < L; l++) {
     const int n_in = (int)params[1 + l], n_out = (int)params[2 + l];
     p = mlp_layer(p, n_in, n_out, l < L - 1, in, out);
-    float *t = in;
+    NY_PRIVATE float *t = in;
     in = out;
     out = t;
   }
@@ -137,12 +140,14 @@ template<int I, int O> struct MlpIO {
 };
 
 template<int I, int O>
-NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<I, O>, const float *, int, int, const float *, float *)
+NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<I, O>, NY_GLOBAL const float *, int, int, NY_PRIVATE const float *,
+                                            NY_PRIVATE float *)
 {
   return false;
 }
 
-NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<3, 1>, const float *p, int H, int head, const float *input, float *output)
+NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<3, 1>, NY_GLOBAL const float *p, int H, int head,
+                                            NY_PRIVATE const float *input, NY_PRIVATE float *output)
 {
   if (H != 7) {
     return false;
@@ -151,7 +156,8 @@ NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<3, 1>, const float *p, int H, 
   return true;
 }
 
-NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<6, 3>, const float *p, int H, int head, const float *input, float *output)
+NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<6, 3>, NY_GLOBAL const float *p, int H, int head,
+                                            NY_PRIVATE const float *input, NY_PRIVATE float *output)
 {
   if (H == 21) {
     mlp_forward_sized<6, 21, 3>(p, head, input, output);
@@ -167,7 +173,7 @@ NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<6, 3>, const float *p, int H, 
 /* H when the network at `params` is I-H-H-O (two hidden layers of one width, the trainer's form), else 0;
  * its layers then start at params + 6 and its head is params[5]. */
 template<int I, int O>
-NY_KERNEL_FN int mlp_two_hidden_width(const float *params)
+NY_KERNEL_FN int mlp_two_hidden_width(NY_GLOBAL const float *params)
 {
   return (params[0] == 3.0f && params[1] == (float)I && params[4] == (float)O && params[2] == params[3]) ?
              (int)params[2] :
@@ -178,7 +184,7 @@ NY_KERNEL_FN int mlp_two_hidden_width(const float *params)
  * the trainer's shapes with compile-time widths, bit-identical to mlp_forward(); any other through
  * mlp_forward(). */
 template<int I, int O>
-NY_KERNEL_FN void mlp_forward_io(const float *params, const float *input, float *output)
+NY_KERNEL_FN void mlp_forward_io(NY_GLOBAL const float *params, NY_PRIVATE const float *input, NY_PRIVATE float *output)
 {
   const int H = mlp_two_hidden_width<I, O>(params);
   if (H > 0 && mlp_forward_trainer_shape(MlpIO<I, O>(), params + 6, H, (int)params[5], input, output)) {

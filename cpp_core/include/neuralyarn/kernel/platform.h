@@ -8,12 +8,39 @@
 //   * every function is declared with NY_KERNEL_FN (one macro; Cycles maps it to ccl_device_inline);
 //   * vectors and colours are the tiny POD types below, converted at the boundary by the host code.
 //
-// The only library this layer touches is the C math library (<cmath> float overloads), which both the
-// Cycles CPU kernel and the host already use.
+// On the host and in Cycles' CPU kernel the only library this layer touches is the C math library (<cmath>
+// float functions: sqrtf, expf, ...). A GPU device (NY_KERNEL_DEVICE, which Cycles' __KERNEL_GPU__ sets)
+// includes no library header at all: the kernel language, or Cycles' util headers included before these,
+// give those functions and uint32_t, and NY_FLOAT_AS_UINT the bit cast. Pointers and references say where
+// their data lives: NY_GLOBAL (the model's array in device memory: Cycles' ccl_global) or NY_PRIVATE (the
+// thread's own values: ccl_private), so that address-space languages (Metal, OpenCL-style oneAPI) take them;
+// on the host both are empty. tests/device compiles every header in device mode with clang, the global
+// space a distinct address space, and no system header.
 #pragma once
 
-#include <cmath>
-#include <cstdint>
+#if defined(__KERNEL_GPU__) && !defined(NY_KERNEL_DEVICE)
+#  define NY_KERNEL_DEVICE
+#  define NY_FLOAT_AS_UINT(f) __float_as_uint(f)
+#endif
+#if defined(ccl_global) && !defined(NY_GLOBAL)
+#  define NY_GLOBAL ccl_global
+#  define NY_PRIVATE ccl_private
+#endif
+#ifndef NY_GLOBAL
+#  define NY_GLOBAL
+#endif
+#ifndef NY_PRIVATE
+#  define NY_PRIVATE
+#endif
+
+#ifndef NY_KERNEL_DEVICE
+#  include <cmath>
+#  include <cstdint>
+#  include <cstring>
+#  define NY_INFINITY INFINITY
+#else
+#  define NY_INFINITY __builtin_inff() /* the device compilers are clang (Metal, HIP, oneAPI) or NVCC */
+#endif
 
 #ifndef NY_KERNEL_FN
 #  define NY_KERNEL_FN inline
@@ -128,5 +155,17 @@ NY_KERNEL_FN float wrap_angle(float a)
 /* True for a finite float (not NaN, not +-inf); written without std::isfinite so that it also works in
  * device compilers whose fast-math mode folds isfinite away. */
 NY_KERNEL_FN bool is_finite(float x) { return (x - x) == 0.0f; }
+
+/* The bits of a float: memcpy on the host (the defined way in C++17), the device's own cast there. */
+NY_KERNEL_FN uint32_t float_bits(float f)
+{
+#ifdef NY_FLOAT_AS_UINT
+  return NY_FLOAT_AS_UINT(f);
+#else
+  uint32_t u;
+  std::memcpy(&u, &f, sizeof(u));
+  return u;
+#endif
+}
 
 }  // namespace ny

@@ -22,13 +22,6 @@ namespace ny {
 /* A kernel receives a fixed number of random numbers per sample (Cycles gives three). A rejection
  * sampler that needs more continues with a hash chain seeded from the bits of the numbers it was given:
  * deterministic, stateless, and independent enough for a loop that runs 1.5 times on average. */
-NY_KERNEL_FN uint32_t float_bits(float f)
-{
-  uint32_t u;
-  __builtin_memcpy(&u, &f, sizeof(u));
-  return u;
-}
-
 /* PCG-style integer hash (Jarzynski & Olano, "Hash Functions for GPU Rendering", JCGT 2020). */
 NY_KERNEL_FN uint32_t hash_pcg(uint32_t v)
 {
@@ -38,7 +31,7 @@ NY_KERNEL_FN uint32_t hash_pcg(uint32_t v)
 }
 
 /* Next uniform float in [0, 1) from the chain state (24 random bits, exactly representable). */
-NY_KERNEL_FN float hash_next_uniform(uint32_t *state)
+NY_KERNEL_FN float hash_next_uniform(NY_PRIVATE uint32_t *state)
 {
   *state = hash_pcg(*state);
   return (float)(*state >> 8) * (1.0f / 16777216.0f);
@@ -82,7 +75,7 @@ NY_KERNEL_FN TruncatedNormal make_truncated_normal(float mu, float sigma, float 
 }
 
 /* Density with respect to x. */
-NY_KERNEL_FN float truncated_normal_pdf(const TruncatedNormal &tn, float x)
+NY_KERNEL_FN float truncated_normal_pdf(NY_PRIVATE const TruncatedNormal &tn, float x)
 {
   const float z = (x - tn.mu) / tn.sigma;
   if (!(z >= tn.za && z <= tn.zb) || !(tn.mass > 0.0f)) {
@@ -103,7 +96,7 @@ constexpr float kMinUniform = 2.3283064e-10f; /* 2^-32 */
  * tail when P <= 1/2 and as its complement Q = (1 - Phi(zb)) + (1 - u) * mass otherwise, so every
  * quantile is taken where it is well conditioned. Requires mass > 0 (the interval must reach within
  * ~13 sigma of the mean for its mass to be a float); otherwise the result is a bound. */
-NY_KERNEL_FN float sample_truncated_normal(const TruncatedNormal &tn, float u)
+NY_KERNEL_FN float sample_truncated_normal(NY_PRIVATE const TruncatedNormal &tn, float u)
 {
   u = fmaxf(u, kMinUniform);
   float z;

@@ -75,10 +75,10 @@ NY_KERNEL_FN float normal_quantile_impl(float p_lower_tail, bool negate)
 NY_KERNEL_FN float normal_quantile(float p)
 {
   if (!(p > 0.0f)) {
-    return -INFINITY;
+    return -NY_INFINITY;
   }
   if (!(p < 1.0f)) {
-    return INFINITY;
+    return NY_INFINITY;
   }
   return (p <= 0.5f) ? normal_quantile_impl(p, false) : normal_quantile_impl(1.0f - p, true);
 }
@@ -87,10 +87,10 @@ NY_KERNEL_FN float normal_quantile(float p)
 NY_KERNEL_FN float normal_quantile_upper(float q)
 {
   if (!(q > 0.0f)) {
-    return INFINITY;
+    return NY_INFINITY;
   }
   if (!(q < 1.0f)) {
-    return -INFINITY;
+    return -NY_INFINITY;
   }
   return (q <= 0.5f) ? normal_quantile_impl(q, true) : normal_quantile_impl(1.0f - q, false);
 }

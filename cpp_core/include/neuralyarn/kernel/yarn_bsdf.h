@@ -105,23 +105,27 @@ constexpr int kYarnCalStride = 7; /* dP_T, c_R.r, c_R.g, c_R.b, c_M.r, c_M.g, c_
 NY_KERNEL_FN int yarn_r_shape_stride(int az_bins) { return az_bins + 3; }
 
 struct YarnBsdfParams {
-  const float *net_T; /* 3 -> 1, sigmoid head: P_T(w_i)          */
-  const float *net_R; /* 3 -> 1, exp head: rho_R(w_i)            */
-  const float *net_M; /* 6 -> 3, exp head: S_M |cos theta_o|     */
+  NY_GLOBAL const float *net_T; /* 3 -> 1, sigmoid head: P_T(w_i)          */
+  NY_GLOBAL const float *net_R; /* 3 -> 1, exp head: rho_R(w_i)            */
+  NY_GLOBAL const float *net_M; /* 6 -> 3, exp head: S_M |cos theta_o|     */
   TwistRotation twist;
   FiberBsdfParams fiber; /* C_R, beta_R of the surface fibers; C_TT = 0 (R only) */
   float kappa_R;
   float beta_M, gamma_M, kappa_M;
   Rgb albedo_M;
-  const float *cal; /* energy calibration table, or null */
+  NY_GLOBAL const float *cal; /* energy calibration table, or null */
   int cal_theta_bins, cal_phi_bins;
-  const float *az;  /* R shape table (azimuth densities, TT share), or null (uniform azimuth, no TT) */
+  NY_GLOBAL const float *az;  /* R shape table (azimuth densities, TT share), or null (uniform azimuth, no TT) */
   int az_theta_bins, az_phi_bins, az_bins;
 };
 
+/* The validation of a flat array runs on the host, before a renderer uploads it (its messages are string
+ * literals, which a device's address spaces do not take as `const char *`). */
+#ifndef NY_KERNEL_DEVICE
+
 /* Checks one network of a flat array: the header at `offset`, its size within [offset, end), its input and
  * output widths and head. */
-NY_KERNEL_FN bool yarn_flat_network_ok(const float *f, int offset, int end, int inputs, int outputs, int head)
+NY_KERNEL_FN bool yarn_flat_network_ok(NY_GLOBAL const float *f, int offset, int end, int inputs, int outputs, int head)
 {
   if (offset < kYarnFlatHeader || offset + 3 > end) {
     return false;
@@ -145,7 +149,7 @@ NY_KERNEL_FN bool yarn_flat_network_ok(const float *f, int offset, int end, int 
 
 /* Validates a flat array of n floats before a renderer uploads it (everything yarn_params_from_flat() and
  * the evaluation rely on). Returns null if it is valid, otherwise what is wrong. */
-NY_KERNEL_FN const char *yarn_flat_check(const float *f, int n)
+NY_KERNEL_FN const char *yarn_flat_check(NY_GLOBAL const float *f, int n)
 {
   if (n < kYarnFlatHeader) {
     return "shorter than the header";
@@ -209,8 +213,10 @@ NY_KERNEL_FN const char *yarn_flat_check(const float *f, int n)
   return nullptr;
 }
 
+#endif /* NY_KERNEL_DEVICE */
+
 /* Reads the parameters from a flat array that the host has validated (model/model.h does). */
-NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(const float *f)
+NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(NY_GLOBAL const float *f)
 {
   YarnBsdfParams p;
   p.net_T = f + (int)f[kYarnFlatOffset_T];
@@ -239,7 +245,7 @@ NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(const float *f)
 
 /* Bilinear weights of a table over incident directions (theta_i in [0, pi/2], nt bins, clamped; phi_i in
  * [-pi, pi), np bins, periodic) between bin centres: the four entries' indices [theta][phi] and weights. */
-NY_KERNEL_FN void yarn_incident_bilinear(int nt, int np, Vec3 wi, int idx[4], float w[4])
+NY_KERNEL_FN void yarn_incident_bilinear(int nt, int np, Vec3 wi, NY_PRIVATE int idx[4], NY_PRIVATE float w[4])
 {
   const float ft = clampf(acosf(clampf(wi.z, -1.0f, 1.0f)) * (2.0f * kInvPi) * (float)nt - 0.5f, 0.0f, (float)(nt - 1));
   float fp = (atan2f(wi.y, wi.x) + kPi) * kInvTwoPi * (float)np - 0.5f;
@@ -253,7 +259,8 @@ NY_KERNEL_FN void yarn_incident_bilinear(int nt, int np, Vec3 wi, int idx[4], fl
 
 /* Energy calibration at w_i (yarn frame, w_i.z > 0): bilinear between bin centres, clamped in theta,
  * periodic in phi. Writes dP_T (0 without a table), c_R and c_M (1 without a table). */
-NY_KERNEL_FN void yarn_calibration(const YarnBsdfParams &p, Vec3 wi, float *dP_T, Rgb *c_R, Rgb *c_M)
+NY_KERNEL_FN void yarn_calibration(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, NY_PRIVATE float *dP_T,
+                                   NY_PRIVATE Rgb *c_R, NY_PRIVATE Rgb *c_M)
 {
   if (!p.cal) {
     *dP_T = 0.0f;
@@ -290,7 +297,7 @@ struct YarnLobes {
   LongitudinalLobe m_R;
   TruncatedNormal tn_R, tn_M;
   float kappa_vm; /* von Mises concentration of the M azimuth */
-  const float *az_row[4]; /* the R azimuth table's rows around w_i and their weights (az_bins 0: uniform) */
+  NY_GLOBAL const float *az_row[4]; /* the R azimuth table's rows around w_i and their weights (az_bins 0: uniform) */
   float az_w[4];
   int az_bins;
   Rgb tau;        /* the R part's TT share (0 without a table or where the TT azimuth has no mass) */
@@ -299,7 +306,7 @@ struct YarnLobes {
   TruncatedNormal tn_TT, tn_TT_phi; /* theta~_o and phi~_o (on the upper half) of the TT part */
 };
 
-NY_KERNEL_FN float yarn_transmission(const YarnBsdfParams &p, Vec3 wi)
+NY_KERNEL_FN float yarn_transmission(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi)
 {
   const float in[3] = {wi.x, wi.y, wi.z};
   float out[1];
@@ -307,7 +314,7 @@ NY_KERNEL_FN float yarn_transmission(const YarnBsdfParams &p, Vec3 wi)
   return clampf(out[0], 0.0f, 1.0f);
 }
 
-NY_KERNEL_FN float yarn_reflection_scale(const YarnBsdfParams &p, Vec3 wi)
+NY_KERNEL_FN float yarn_reflection_scale(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi)
 {
   const float in[3] = {wi.x, wi.y, wi.z};
   float out[1];
@@ -325,7 +332,7 @@ NY_KERNEL_FN float yarn_escape(float P_T) { return fmaxf(1.0f - P_T, kYarnMinEsc
  * azimuth. The table bounds the white furnace at its centres; past the last one it is constant while the
  * networks and the Fresnel factor keep changing toward grazing, where the sum reached 1.2 x the light
  * received (docs/benchmarks.md, "White furnace"). The lobes' shapes keep the true w_i. */
-NY_KERNEL_FN Vec3 yarn_energy_direction(const YarnBsdfParams &p, Vec3 wi)
+NY_KERNEL_FN Vec3 yarn_energy_direction(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi)
 {
   if (!p.cal || !(wi.z > 0.0f)) {
     return wi;
@@ -340,14 +347,14 @@ NY_KERNEL_FN Vec3 yarn_energy_direction(const YarnBsdfParams &p, Vec3 wi)
 }
 
 /* P_T(w_i) given the energy direction and the calibration's dP_T there. */
-NY_KERNEL_FN float yarn_calibrated_transmission(const YarnBsdfParams &p, Vec3 we, float dP_T)
+NY_KERNEL_FN float yarn_calibrated_transmission(NY_PRIVATE const YarnBsdfParams &p, Vec3 we, float dP_T)
 {
   return clampf(yarn_transmission(p, we) + dP_T, 0.0f, 1.0f);
 }
 
 /* P_T(w_i) alone, exactly as yarn_lobes() computes it: all that a shadow ray needs of the yarn (the T lobe is
  * its transparency), at a fraction of the lobes' cost (no R network, normalisers or truncated normals). */
-NY_KERNEL_FN float yarn_transmission_probability(const YarnBsdfParams &p, Vec3 wi)
+NY_KERNEL_FN float yarn_transmission_probability(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi)
 {
   if (!(wi.z > 0.0f)) {
     return 0.0f;
@@ -360,7 +367,7 @@ NY_KERNEL_FN float yarn_transmission_probability(const YarnBsdfParams &p, Vec3 w
 }
 
 /* `with_eval` = false skips the cos^2 normaliser of the R lobe, which only eval needs. */
-NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_eval = true)
+NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, bool with_eval = true)
 {
   YarnLobes l;
   l.wi = wi;
@@ -426,7 +433,7 @@ NY_KERNEL_FN YarnLobes yarn_lobes(const YarnBsdfParams &p, Vec3 wi, bool with_ev
 
 /* The R lobe's energy from w_i, exactly: half of weight_R = c_R rho_R F, the half of the fiber's R lobe whose
  * azimuths leave the surface (each of its parts integrates to it, yarn_eval_R_parts). */
-NY_KERNEL_FN Rgb yarn_energy_R(const YarnLobes &l) { return l.weight_R * 0.5f; }
+NY_KERNEL_FN Rgb yarn_energy_R(NY_PRIVATE const YarnLobes &l) { return l.weight_R * 0.5f; }
 
 /* An outgoing direction in the surface-fiber frame with the angles that every lobe's eval and pdf read:
  * computed once per w_o (two atan2 and a square root) instead of in each of them. */
@@ -446,7 +453,7 @@ NY_KERNEL_FN YarnOutgoing yarn_outgoing(Vec3 wo_f)
 }
 
 /* pi nu(phi~_o | w_i): the R lobe's azimuthal density relative to the uniform 1 / pi (1 without a table). */
-NY_KERNEL_FN float yarn_r_azimuth(const YarnLobes &l, float phi)
+NY_KERNEL_FN float yarn_r_azimuth(NY_PRIVATE const YarnLobes &l, float phi)
 {
   if (l.az_bins == 0) {
     return 1.0f;
@@ -466,7 +473,8 @@ NY_KERNEL_FN float yarn_r_azimuth(const YarnLobes &l, float phi)
  * (its azimuth density nu) and the TT part (0 where it has no share). S_R |cos| = (1 - tau) R + tau TT. The
  * cosine is the fiber's own (longitudinal), so that each part's energy is exactly rho_R F / 2: half of
  * the fiber's albedo, the half whose azimuth leaves the surface. */
-NY_KERNEL_FN void yarn_eval_R_parts(const YarnLobes &l, const YarnOutgoing &o, Rgb *R, Rgb *TT)
+NY_KERNEL_FN void yarn_eval_R_parts(NY_PRIVATE const YarnLobes &l, NY_PRIVATE const YarnOutgoing &o, NY_PRIVATE Rgb *R,
+                                    NY_PRIVATE Rgb *TT)
 {
   *R = *TT = make_rgb(0.0f);
   if (!l.valid || !(o.w.z > 0.0f)) {
@@ -479,22 +487,25 @@ NY_KERNEL_FN void yarn_eval_R_parts(const YarnLobes &l, const YarnOutgoing &o, R
   }
 }
 
-NY_KERNEL_FN void yarn_eval_R_parts(const YarnLobes &l, Vec3 wo_f, Rgb *R, Rgb *TT)
+NY_KERNEL_FN void yarn_eval_R_parts(NY_PRIVATE const YarnLobes &l, Vec3 wo_f, NY_PRIVATE Rgb *R, NY_PRIVATE Rgb *TT)
 {
   yarn_eval_R_parts(l, yarn_outgoing(wo_f), R, TT);
 }
 
 /* S_R |cos theta~_o|, w_o in the surface-fiber frame. */
-NY_KERNEL_FN Rgb yarn_eval_R_fiber(const YarnLobes &l, const YarnOutgoing &o)
+NY_KERNEL_FN Rgb yarn_eval_R_fiber(NY_PRIVATE const YarnLobes &l, NY_PRIVATE const YarnOutgoing &o)
 {
   Rgb R, TT;
   yarn_eval_R_parts(l, o, &R, &TT);
   return (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
 }
 
-NY_KERNEL_FN Rgb yarn_eval_R_fiber(const YarnLobes &l, Vec3 wo_f) { return yarn_eval_R_fiber(l, yarn_outgoing(wo_f)); }
+NY_KERNEL_FN Rgb yarn_eval_R_fiber(NY_PRIVATE const YarnLobes &l, Vec3 wo_f)
+{
+  return yarn_eval_R_fiber(l, yarn_outgoing(wo_f));
+}
 
-NY_KERNEL_FN Rgb yarn_eval_M(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo)
+NY_KERNEL_FN Rgb yarn_eval_M(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo)
 {
   if (!l.valid) {
     return make_rgb(0.0f);
@@ -510,7 +521,8 @@ constexpr float kYarnMinCosTheta = 1e-7f;
 
 /* Densities of the R and M proposals in solid angle, w_o in the surface-fiber frame. The R proposal has
  * two parts (reflection; TT, density 0 when it has no share). */
-NY_KERNEL_FN void yarn_pdf_R_parts(const YarnLobes &l, const YarnOutgoing &o, float *pdf_R, float *pdf_TT)
+NY_KERNEL_FN void yarn_pdf_R_parts(NY_PRIVATE const YarnLobes &l, NY_PRIVATE const YarnOutgoing &o,
+                                   NY_PRIVATE float *pdf_R, NY_PRIVATE float *pdf_TT)
 {
   *pdf_R = *pdf_TT = 0.0f;
   if (!(o.w.z > 0.0f)) {
@@ -523,12 +535,13 @@ NY_KERNEL_FN void yarn_pdf_R_parts(const YarnLobes &l, const YarnOutgoing &o, fl
   }
 }
 
-NY_KERNEL_FN void yarn_pdf_R_parts(const YarnLobes &l, Vec3 wo_f, float *pdf_R, float *pdf_TT)
+NY_KERNEL_FN void yarn_pdf_R_parts(NY_PRIVATE const YarnLobes &l, Vec3 wo_f, NY_PRIVATE float *pdf_R,
+                                   NY_PRIVATE float *pdf_TT)
 {
   yarn_pdf_R_parts(l, yarn_outgoing(wo_f), pdf_R, pdf_TT);
 }
 
-NY_KERNEL_FN float yarn_pdf_R_fiber(const YarnLobes &l, const YarnOutgoing &o)
+NY_KERNEL_FN float yarn_pdf_R_fiber(NY_PRIVATE const YarnLobes &l, NY_PRIVATE const YarnOutgoing &o)
 {
   float r, tt;
   yarn_pdf_R_parts(l, o, &r, &tt);
@@ -537,31 +550,34 @@ NY_KERNEL_FN float yarn_pdf_R_fiber(const YarnLobes &l, const YarnOutgoing &o)
 
 /* The M proxy alone: kappa_M TN(theta~_o) vM(phi~_o) / cos theta~_o + (1 - kappa_M) / 4 pi. The fit
  * (model/proxy_fit.h) maximises the likelihood of exactly this function. */
-NY_KERNEL_FN float yarn_m_proxy_pdf(const TruncatedNormal &tn_M, float kappa_vm, float kappa_M, const YarnOutgoing &o)
+NY_KERNEL_FN float yarn_m_proxy_pdf(NY_PRIVATE const TruncatedNormal &tn_M, float kappa_vm, float kappa_M,
+                                    NY_PRIVATE const YarnOutgoing &o)
 {
   const float lobe = truncated_normal_pdf(tn_M, o.theta) * von_mises_pdf(o.phi, kappa_vm) /
                      fmaxf(o.cos_theta, kYarnMinCosTheta);
   return kappa_M * lobe + (1.0f - kappa_M) * kInvFourPi;
 }
 
-NY_KERNEL_FN float yarn_m_proxy_pdf(const TruncatedNormal &tn_M, float kappa_vm, float kappa_M, Vec3 wo_f)
+NY_KERNEL_FN float yarn_m_proxy_pdf(NY_PRIVATE const TruncatedNormal &tn_M, float kappa_vm, float kappa_M, Vec3 wo_f)
 {
   return yarn_m_proxy_pdf(tn_M, kappa_vm, kappa_M, yarn_outgoing(wo_f));
 }
 
-NY_KERNEL_FN float yarn_pdf_M_fiber(const YarnBsdfParams &p, const YarnLobes &l, const YarnOutgoing &o)
+NY_KERNEL_FN float yarn_pdf_M_fiber(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l,
+                                    NY_PRIVATE const YarnOutgoing &o)
 {
   return yarn_m_proxy_pdf(l.tn_M, l.kappa_vm, p.kappa_M, o);
 }
 
 /* The non-delta sampler's density at o, conditional on not choosing T. */
-NY_KERNEL_FN float yarn_pdf_fiber(const YarnBsdfParams &p, const YarnLobes &l, const YarnOutgoing &o)
+NY_KERNEL_FN float yarn_pdf_fiber(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l,
+                                  NY_PRIVATE const YarnOutgoing &o)
 {
   return p.kappa_R * yarn_pdf_R_fiber(l, o) + (1.0f - p.kappa_R) * yarn_pdf_M_fiber(p, l, o);
 }
 
 /* Non-delta part: eval = (S_R + S_M) |cos theta_o|. */
-NY_KERNEL_FN Rgb yarn_eval_lobes(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo)
+NY_KERNEL_FN Rgb yarn_eval_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo)
 {
   if (!l.valid) {
     return make_rgb(0.0f);
@@ -570,7 +586,7 @@ NY_KERNEL_FN Rgb yarn_eval_lobes(const YarnBsdfParams &p, const YarnLobes &l, Ve
 }
 
 /* Density of the non-delta sampler, conditional on not choosing T (integrates to 1 over the sphere). */
-NY_KERNEL_FN float yarn_pdf_lobes(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo)
+NY_KERNEL_FN float yarn_pdf_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo)
 {
   if (!l.valid) {
     return 0.0f;
@@ -580,7 +596,8 @@ NY_KERNEL_FN float yarn_pdf_lobes(const YarnBsdfParams &p, const YarnLobes &l, V
 
 /* Both at once, as a renderer asks for them (the angles of w_o computed once): yarn_eval_lobes() and
  * yarn_pdf_lobes(), bit for bit. */
-NY_KERNEL_FN Rgb yarn_eval_pdf_lobes(const YarnBsdfParams &p, const YarnLobes &l, Vec3 wo, float *pdf)
+NY_KERNEL_FN Rgb yarn_eval_pdf_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo,
+                                     NY_PRIVATE float *pdf)
 {
   *pdf = 0.0f;
   if (!l.valid) {
@@ -591,7 +608,7 @@ NY_KERNEL_FN Rgb yarn_eval_pdf_lobes(const YarnBsdfParams &p, const YarnLobes &l
   return yarn_eval_R_fiber(l, o) + yarn_eval_M(p, l, wo);
 }
 
-NY_KERNEL_FN Rgb yarn_eval(const YarnBsdfParams &p, Vec3 wi, Vec3 wo, float *pdf)
+NY_KERNEL_FN Rgb yarn_eval(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, Vec3 wo, NY_PRIVATE float *pdf)
 {
   const YarnLobes l = yarn_lobes(p, wi);
   if (pdf) {
@@ -600,7 +617,7 @@ NY_KERNEL_FN Rgb yarn_eval(const YarnBsdfParams &p, Vec3 wi, Vec3 wo, float *pdf
   return yarn_eval_lobes(p, l, wo);
 }
 
-NY_KERNEL_FN float yarn_pdf(const YarnBsdfParams &p, Vec3 wi, Vec3 wo)
+NY_KERNEL_FN float yarn_pdf(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, Vec3 wo)
 {
   return yarn_pdf_lobes(p, yarn_lobes(p, wi, false), wo);
 }
@@ -617,8 +634,8 @@ struct YarnSample {
  * transparent closure); the weight of a non-delta sample is then eval / pdf, and with include_T = true it is
  * eval / ((1 - p_T) pdf), the mixture's weight. Returns false when w_i is not above the surface or nothing is
  * scattered. */
-NY_KERNEL_FN bool yarn_sample_lobes(const YarnBsdfParams &p, const YarnLobes &l, float u_lobe, float u1, float u2,
-                                    bool include_T, YarnSample *s)
+NY_KERNEL_FN bool yarn_sample_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, float u_lobe,
+                                    float u1, float u2, bool include_T, NY_PRIVATE YarnSample *s)
 {
   s->wo = make_vec3(0.0f, 0.0f, 1.0f);
   s->weight = make_rgb(0.0f);
@@ -677,14 +694,14 @@ NY_KERNEL_FN bool yarn_sample_lobes(const YarnBsdfParams &p, const YarnLobes &l,
   return true;
 }
 
-NY_KERNEL_FN bool yarn_sample(const YarnBsdfParams &p, Vec3 wi, float u_lobe, float u1, float u2, bool include_T,
-                              YarnSample *s)
+NY_KERNEL_FN bool yarn_sample(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, float u_lobe, float u1, float u2,
+                              bool include_T, NY_PRIVATE YarnSample *s)
 {
   return yarn_sample_lobes(p, yarn_lobes(p, wi), u_lobe, u1, u2, include_T, s);
 }
 
 /* A closure-weight estimate of the albedo: P_T + the R lobe's exact energy + the mean M albedo. */
-NY_KERNEL_FN Rgb yarn_albedo_estimate(const YarnBsdfParams &p, const YarnLobes &l)
+NY_KERNEL_FN Rgb yarn_albedo_estimate(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l)
 {
   if (!l.valid) {
     return make_rgb(0.0f);
