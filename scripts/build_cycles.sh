@@ -55,7 +55,6 @@ if [[ ! -f "$BUILD/build.ninja" ]] || [[ "$(cat "$BUILD/.neuralyarn-patches" 2>/
     -DWITH_OPENSUBDIV=OFF -DWITH_ALEMBIC=OFF -DWITH_HEADLESS=ON \
     -DWITH_GHOST_X11=OFF -DWITH_GHOST_WAYLAND=OFF \
     -DEMBREE_LIBRARIES="$EMBREE_LIB" -DCMAKE_CXX_FLAGS="-DEMBREE_MAJOR_VERSION=3" \
-    -DNEURALYARN_KERNEL_INCLUDE_DIR="$ROOT/cpp_core/include" \
     -DCMAKE_INSTALL_PREFIX="$BUILD/install"
 fi
 echo "$PATCH_HASH" > "$BUILD/.neuralyarn-patches"
