@@ -2,9 +2,10 @@
 """Neural Yarn: cloth from yarn curves with the neural yarn appearance model (Soh & Montazeri, EGSR 2024).
 
 A Blender extension (blender_manifest.toml, 4.2+) that also loads as a legacy add-on (bl_info, 3.4+).
-Modules: geometry/ (importers and generators, no bpy), model_io (model files, no bpy), resources (shipped
-files), curves_bpy (Curves objects), fallback_nodes + nodes (the Neural Yarn BSDF node), scene_setup
-(camera, lights, render settings), operators, ui, batch (command-line renders).
+Modules: geometry/ (importers and generators, no bpy), model_io (model files, no bpy), fallback/ (the
+fallback's tables, lobes and OSL shader, no bpy), resources (shipped files), curves_bpy (Curves objects),
+fallback_nodes + nodes (the Neural Yarn BSDF node), scene_setup (camera, lights, render settings), operators,
+ui, batch (command-line renders).
 """
 
 bl_info = {
@@ -20,7 +21,8 @@ bl_info = {
 if "bpy" in locals():  # script reload (F8 / Reload Scripts)
     import importlib
 
-    for _m in (model_io, resources, curves_bpy, fallback_nodes, nodes, scene_setup, operators, ui):  # noqa: F821
+    for _m in (fallback.lobes, fallback.schema, fallback.osl, model_io, resources, curves_bpy,  # noqa: F821
+               fallback_nodes, nodes, scene_setup, operators, ui):  # noqa: F821
         importlib.reload(_m)
 
 import bpy  # noqa: E402
