@@ -1,38 +1,12 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The built-in lobes that the fallback tables weight (model/fallback.h, version 2): GGX reflections about
-the surface fibers' tangent, diffuse and translucent. Their schema, their OSL closure and their inputs in
-Blender's Glossy/Anisotropic BSDF node: what the OSL shader and the stock-node body build from a lobe."""
+the surface fibers' tangent, diffuse and translucent. What the OSL shader and the stock-node body build from
+a lobe that schema.parse_lobes has validated: its OSL closure and its inputs in Blender's Glossy/Anisotropic
+BSDF node."""
 
 from __future__ import annotations
 
 import math
-
-CLOSURES = ("ggx", "diffuse", "translucent")
-MAX_LOBES = 8
-# Cycles clamps GGX roughness to [0, 1]; the fit (model/fallback.h) keeps alpha in [0.001, 1].
-ALPHA_MIN, ALPHA_MAX = 0.001, 1.0
-
-
-def parse_lobes(fb: dict) -> list[dict]:
-    """The fallback's lobes ("lobes": {"closure": "ggx", "alpha_x", "alpha_y"} | {"closure": "diffuse"} |
-    {"closure": "translucent"}), validated; ValueError otherwise."""
-    lobes = fb.get("lobes")
-    if not isinstance(lobes, list) or not 1 <= len(lobes) <= MAX_LOBES:
-        raise ValueError(f"fallback: 'lobes' must be a list of 1 to {MAX_LOBES} lobes")
-    out = []
-    for i, lobe in enumerate(lobes):
-        if not isinstance(lobe, dict) or lobe.get("closure") not in CLOSURES:
-            raise ValueError(f"fallback: lobe {i} must be an object whose 'closure' is one of {', '.join(CLOSURES)}")
-        item = {"closure": lobe["closure"]}
-        if lobe["closure"] == "ggx":
-            for key in ("alpha_x", "alpha_y"):
-                x = lobe.get(key)
-                if not _is_number(x) or not math.isfinite(x) or not ALPHA_MIN <= x <= ALPHA_MAX:
-                    raise ValueError(f"fallback: lobe {i} '{key}' must be a number in [{ALPHA_MIN:g}, {ALPHA_MAX:g}], "
-                                     f"got {x!r}")
-                item[key] = float(x)
-        out.append(item)
-    return out
 
 
 def osl_float(x: float) -> str:
@@ -59,6 +33,3 @@ def glossy_node_inputs(alpha_x: float, alpha_y: float) -> tuple[float, float]:
     r = math.sqrt(alpha_x * alpha_y)
     return math.sqrt(r), 1.0 - math.sqrt(alpha_x / alpha_y)
 
-
-def _is_number(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool)

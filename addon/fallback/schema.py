@@ -9,12 +9,37 @@ import math
 import struct
 from dataclasses import dataclass
 
-from .lobes import parse_lobes
-
 VERSION = 2
 MAX_BINS = 1024
 MAX_ENERGY = 1.5
 MAX_WEIGHT = 100.0
+
+CLOSURES = ("ggx", "diffuse", "translucent")
+MAX_LOBES = 8
+# Cycles clamps GGX roughness to [0, 1]; the fit (model/fallback.h) keeps alpha in [0.001, 1].
+ALPHA_MIN, ALPHA_MAX = 0.001, 1.0
+
+
+def parse_lobes(fb: dict) -> list[dict]:
+    """The fallback's lobes ("lobes": {"closure": "ggx", "alpha_x", "alpha_y"} | {"closure": "diffuse"} |
+    {"closure": "translucent"}), validated; ValueError otherwise."""
+    lobes = fb.get("lobes")
+    if not isinstance(lobes, list) or not 1 <= len(lobes) <= MAX_LOBES:
+        raise ValueError(f"fallback: 'lobes' must be a list of 1 to {MAX_LOBES} lobes")
+    out = []
+    for i, lobe in enumerate(lobes):
+        if not isinstance(lobe, dict) or lobe.get("closure") not in CLOSURES:
+            raise ValueError(f"fallback: lobe {i} must be an object whose 'closure' is one of {', '.join(CLOSURES)}")
+        item = {"closure": lobe["closure"]}
+        if lobe["closure"] == "ggx":
+            for key in ("alpha_x", "alpha_y"):
+                x = lobe.get(key)
+                if not _is_number(x) or not math.isfinite(x) or not ALPHA_MIN <= x <= ALPHA_MAX:
+                    raise ValueError(f"fallback: lobe {i} '{key}' must be a number in [{ALPHA_MIN:g}, {ALPHA_MAX:g}], "
+                                     f"got {x!r}")
+                item[key] = float(x)
+        out.append(item)
+    return out
 
 
 @dataclass
