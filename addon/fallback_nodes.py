@@ -20,6 +20,7 @@ a patched Cycles replaces the whole group (cycles_patch/).
 
 from __future__ import annotations
 
+import dataclasses
 import glob
 import hashlib
 import math
@@ -92,9 +93,8 @@ def table_image(name: str, values: list, theta_bins: int, phi_bins: int, channel
 
 def osl_text(model: model_io.YarnModel, tilt: float):
     """The Text data block holding the model's OSL fallback for a twist tilt (radians)."""
-    data = dict(model.data)
-    data["fallback"] = dict(data["fallback"], twist_tilt_rad=tilt)
-    source = fallback_osl.generate_osl(data)
+    tables = dataclasses.replace(model.fallback, twist_tilt_rad=tilt)
+    source = fallback_osl.shader_source(tables, model.preset_name, str(model.data.get("code_version", "?")))
     name = f"{_key(model)} {math.degrees(tilt):.2f}.osl"
     text = bpy.data.texts.get(name) or bpy.data.texts.new(name)
     if text.as_string() != source:

@@ -10,6 +10,7 @@ report it to the user instead of rendering garbage.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -42,8 +43,10 @@ class YarnModel:
     plies: int = 1  # a yarn-level model's plies per yarn
     ply_twist: float = 0.0
 
-    @property
+    @functools.cached_property
     def fallback(self) -> schema.FallbackTables:
+        """The fallback tables, validated once (parse_model asks for them first) and kept: the data is not
+        changed after parsing."""
         try:
             return schema.parse(self.data)
         except ValueError as e:

@@ -5,6 +5,7 @@ weights of built-in GGX, diffuse and translucent lobes) is in osl/README.md and 
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 
@@ -19,22 +20,31 @@ def template_path() -> str:
     return os.path.join(os.path.dirname(os.path.abspath(__file__)), TEMPLATE_NAME)
 
 
+@functools.lru_cache(maxsize=1)
+def _template() -> str:
+    """The template's text, read once (a material rebuilds its shader before every render)."""
+    with open(template_path(), encoding="utf-8") as f:
+        return f.read()
+
+
 def generate_osl(model: dict, *, shader_name: str | None = None) -> str:
     """The OSL source of the fallback shader for `model` (a parsed model file). ValueError if the model has
     no valid, current "fallback" object."""
     if not isinstance(model, dict) or model.get("format") != FORMAT:
         raise ValueError(f'not a neuralyarn model (the key "format" must be "{FORMAT}")')
-    fb = schema.parse(model)
     preset = model.get("preset") if isinstance(model.get("preset"), dict) else {}
-    preset_name = str(preset.get("name", "model"))
+    return shader_source(schema.parse(model), str(preset.get("name", "model")), str(model.get("code_version", "?")),
+                         shader_name=shader_name)
+
+
+def shader_source(fb: schema.FallbackTables, preset_name: str, code_version: str, *,
+                  shader_name: str | None = None) -> str:
+    """The OSL source for tables that schema.parse has validated (the add-on's model keeps them)."""
     name = _identifier(shader_name if shader_name is not None else "neural_yarn_fallback_" + preset_name)
     lobe_sum = "\n                                       + ".join(
         f"ny_weight(W, {k}, k00, k01, k10, k11, w00, w01, w10, w11) * {osl_closure(lobe)}"
         for k, lobe in enumerate(fb.lobes))
-
-    with open(template_path(), encoding="utf-8") as f:
-        text = f.read()
-    source = re.sub(r"[^A-Za-z0-9_.,:+ -]", "_", f"model '{preset_name}' ({model.get('code_version', '?')})")
+    source = re.sub(r"[^A-Za-z0-9_.,:+ -]", "_", f"model '{preset_name}' ({code_version})")
     digest = fb.kernel_flat_fnv1a64
     values = {
         "SOURCE": source,
@@ -58,7 +68,7 @@ def generate_osl(model: dict, *, shader_name: str | None = None) -> str:
             raise ValueError(f"template {TEMPLATE_NAME} has an unknown placeholder @{key}@")
         return values[key]
 
-    return re.sub(r"@([A-Z0-9_]+)@", fill, text)
+    return re.sub(r"@([A-Z0-9_]+)@", fill, _template())
 
 
 def _identifier(text: str) -> str:
