@@ -67,7 +67,8 @@ def neighbour_ply_distance(K: int, d: float, ply_radius: float, alpha_yarn: floa
 def ply_center_distance(K: int, ply_radius: float, alpha_yarn: float) -> float:
     """d: the smallest ply centre distance at which neighbouring ply tubes do not intersect (0 for K = 1).
 
-    Bisection from the axis-normal-plane bound R/sin(pi/K) upwards, as in the C++ Yarn constructor.
+    Bisection from the axis-normal-plane bound R/sin(pi/K) upwards, as the C++ `ply_center_distance` (the
+    tests compare the two through `neuralyarn yarn-geometry`).
     """
     K = _check_int("K", K, 1, MAX_PLIES)
     R = _check_positive("ply_radius", ply_radius)

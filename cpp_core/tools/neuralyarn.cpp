@@ -19,6 +19,7 @@
 #include "cli_common.h"
 #include "model_commands.h"
 #include "neuralyarn/fiber_report.h"
+#include "neuralyarn/geometry/yarn.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/rdm/map_file.h"
@@ -149,6 +150,33 @@ struct FiberCommand {
     cmd->add_option("--out", out, "Lobe plot to write (PNG)");
   }
   int run() const { return run_fiber(preset, params, theta_i, phi_i, samples, seed, out); }
+};
+
+/* `neuralyarn yarn-geometry`: where a K-ply yarn's plies sit, in ply radii (the add-on sizes yarn-level
+ * curves with the same numbers). */
+struct YarnGeometryCommand {
+  CLI::App *cmd;
+  int plies = 3;
+  std::vector<double> ply_twists{0.5};
+
+  explicit YarnGeometryCommand(CLI::App &app)
+      : cmd(app.add_subcommand("yarn-geometry",
+                               "The ply centre distance and yarn radius of a K-ply yarn in ply radii: a JSON line per ply twist"))
+  {
+    cmd->add_option("--plies", plies, "Plies per yarn")->check(CLI::Range(1, 16))->capture_default_str();
+    cmd->add_option("--ply-twist", ply_twists, "Ply twist alpha_yarn (2 R_yarn turns per length); several give a line each")
+        ->check(finite_range(0.0, 8.0))
+        ->capture_default_str();
+  }
+  int run() const
+  {
+    for (const double alpha : ply_twists) {
+      const double d = geometry::ply_center_distance(plies, 1.0, alpha);
+      std::printf("{\"plies\": %d, \"ply_twist\": %.17g, \"ply_distance\": %.17g, \"yarn_radius\": %.17g}\n",
+                  plies, alpha, d, d + 1.0);
+    }
+    return 0;
+  }
 };
 
 /* `neuralyarn gather`: radiance distribution maps of a ply or yarn. */
@@ -371,6 +399,7 @@ int main(int argc, char **argv)
   FiberCommand fiber(app);
   GatherCommand gather(app);
   SceneCommand scene(app);
+  YarnGeometryCommand yarn_geometry(app);
   auto model_commands = add_model_commands(app);
 
   CLI11_PARSE(app, argc, argv);
@@ -394,6 +423,9 @@ int main(int argc, char **argv)
     }
     if (fiber.cmd->parsed()) {
       return fiber.run();
+    }
+    if (yarn_geometry.cmd->parsed()) {
+      return yarn_geometry.run();
     }
   }
   catch (const std::exception &e) {

@@ -7,6 +7,7 @@ import json
 import math
 import os
 import struct
+import subprocess
 import time
 import tracemalloc
 
@@ -570,6 +571,29 @@ def test_ply_center_distance():
     assert d > R / math.sin(math.pi / 3)  # tilted plies need more room
     assert geo.neighbour_ply_distance(3, d, R, 0.25) == pytest.approx(2 * R, rel=1e-9)
     assert geo.ply_center_distance(3, 2 * R, 0.25) == pytest.approx(2 * d, rel=1e-9)  # scale invariance
+
+
+_CLI = os.environ.get("NY_CLI") or os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "build",
+                                                 "cpp_core", "neuralyarn")
+
+
+@pytest.mark.parametrize("K", [1, 2, 3, 5, 16])
+def test_ply_center_distance_is_the_cores(K):
+    """The add-on sizes yarn-level curves (level_of_detail.py) and garments (scripts/garment.py) with its own
+    d; the yarn-level models were baked with the core's. Both bisect to 1e-13 of d and find the neighbour
+    distance's minimum to machine precision, so they agree to rounding; 1e-9 leaves room for libm against
+    numpy while a different algorithm (the planar bound alone, another bracket) is off by 1e-3 or more."""
+    if not os.path.isfile(_CLI):
+        pytest.skip(f"the core's CLI is not built at {_CLI}")
+    alphas = (0.0, 0.1, 0.5, 1.3, 8.0)
+    r = subprocess.run([_CLI, "yarn-geometry", "--plies", str(K), "--ply-twist", *map(repr, alphas)],
+                       capture_output=True, text=True, check=True)
+    lines = [json.loads(line) for line in r.stdout.splitlines()]
+    assert [(c["plies"], c["ply_twist"]) for c in lines] == [(K, a) for a in alphas]
+    for alpha, core in zip(alphas, lines):
+        d = geo.ply_center_distance(K, 1.0, alpha)
+        assert d == pytest.approx(core["ply_distance"], rel=1e-9, abs=1e-12), alpha
+        assert 1.0 + d == pytest.approx(core["yarn_radius"], rel=1e-9), alpha
 
 
 @pytest.mark.parametrize("K, alpha", [(2, 0.2), (3, 0.2), (3, 0.5), (5, 0.3)])

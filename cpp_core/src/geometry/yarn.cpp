@@ -65,34 +65,44 @@ double neighbour_ply_distance(int K, double d, double R_ply, double alpha_yarn)
   return std::sqrt(best);
 }
 
-Yarn::Yarn(const YarnParams &params, uint64_t seed) : params_(params)
+double ply_center_distance(int K, double R_ply, double alpha_yarn)
 {
-  if (params.K < 1 || params.K > kMaxPlies) {
+  if (K < 1 || K > kMaxPlies) {
     throw ParameterError("K", "parameter 'K' (plies per yarn) must be an integer in [1, " + std::to_string(kMaxPlies) +
-                                  "], got " + std::to_string(params.K));
+                                  "], got " + std::to_string(K));
   }
-  if (!(std::isfinite(params.alpha_yarn) && params.alpha_yarn >= 0.0)) {
+  if (!(std::isfinite(R_ply) && R_ply > 0.0)) {
     std::ostringstream s;
-    s << params.alpha_yarn;
+    s << R_ply;
+    throw ParameterError("R", "parameter 'R' (ply radius) must be a finite number > 0, got " + s.str());
+  }
+  if (!(std::isfinite(alpha_yarn) && alpha_yarn >= 0.0)) {
+    std::ostringstream s;
+    s << alpha_yarn;
     throw ParameterError("alpha_yarn", "parameter 'alpha_yarn' (ply twist) must be a finite number >= 0, got " + s.str());
   }
+  if (K == 1) {
+    return 0.0;
+  }
+  double lo = R_ply / std::sin(kPi / K), hi = lo;
+  while (neighbour_ply_distance(K, hi, R_ply, alpha_yarn) < 2.0 * R_ply) {
+    hi *= 1.5;
+  }
+  for (int it = 0; it < 200 && hi - lo > 1e-13 * hi; it++) {
+    const double mid = 0.5 * (lo + hi);
+    (neighbour_ply_distance(K, mid, R_ply, alpha_yarn) < 2.0 * R_ply ? lo : hi) = mid;
+  }
+  return hi;
+}
+
+Yarn::Yarn(const YarnParams &params, uint64_t seed) : params_(params)
+{
+  /* First: it validates K and alpha_yarn before the packing's work. */
+  d_ = ply_center_distance(params.K, params.ply.R, params.alpha_yarn);
   for (int k = 0; k < params.K; k++) {
     sections_.push_back(pack_cross_section(params.ply, seed + uint64_t(k)));
   }
   const double R = params.ply.R;
-  if (params.K > 1) {
-    /* Touching in the axis-normal plane is a lower bound; tilted plies need more room. The neighbour
-     * distance grows with d, so bisect for the smallest d with distance >= 2 R. */
-    double lo = R / std::sin(kPi / params.K), hi = lo;
-    while (neighbour_ply_distance(params.K, hi, R, params.alpha_yarn) < 2.0 * R) {
-      hi *= 1.5;
-    }
-    for (int it = 0; it < 200 && hi - lo > 1e-13 * hi; it++) {
-      const double mid = 0.5 * (lo + hi);
-      (neighbour_ply_distance(params.K, mid, R, params.alpha_yarn) < 2.0 * R ? lo : hi) = mid;
-    }
-    d_ = hi;
-  }
   /* A single ply lies on the axis: there is nothing to twist around, and its radial frame is undefined,
    * so alpha_yarn has no effect (the yarn is exactly the ply of ply.h). */
   w_ = params.K > 1 ? twist_rate(d_, R, params.alpha_yarn) : 0.0;
