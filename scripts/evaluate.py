@@ -472,6 +472,16 @@ def central_region(distance: float, fov: float, width: int, height: int,
 
 # --- metrics -------------------------------------------------------------------------------------------
 
+def region_share(ref: np.ndarray, region: tuple[slice, slice]) -> float | None:
+    """The share of the reference's light (Rec. 709 luminance summed over the frame) that falls in the
+    region. Where it is small — a dark ply lit from behind glows only at its silhouette — the region's mean
+    is the pixel filter's tail of that rim, and its relative error says little about the look: read the
+    frame's error there."""
+    lum = ref[..., :3] @ LUMINANCE
+    total = float(lum.sum())
+    return float(lum[region].sum()) / total if total > 0.0 else None
+
+
 def metrics(img: np.ndarray, ref: np.ndarray, region: tuple[slice, slice]) -> dict:
     import flip_evaluator
 
@@ -483,6 +493,8 @@ def metrics(img: np.ndarray, ref: np.ndarray, region: tuple[slice, slice]) -> di
         "mean_colour_error": rel(m_img, m_ref),
         "mean_colour_error_frame": rel(img.mean(axis=(0, 1)), ref.mean(axis=(0, 1))),
         "mean_luminance_error": float(m_img @ LUMINANCE / (m_ref @ LUMINANCE) - 1.0),
+        "mean_luminance_error_frame": float(img[..., :3].mean(axis=(0, 1)) @ LUMINANCE /
+                                            (ref[..., :3].mean(axis=(0, 1)) @ LUMINANCE) - 1.0),
     }
     _, mean_flip, _ = flip_evaluator.evaluate(np.ascontiguousarray(ref, dtype=np.float32),
                                               np.ascontiguousarray(img, dtype=np.float32), "HDR",
@@ -495,7 +507,8 @@ def metrics(img: np.ndarray, ref: np.ndarray, region: tuple[slice, slice]) -> di
     return out
 
 
-METRIC_KEYS = ["flip", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame", "mean_luminance_error"]
+METRIC_KEYS = ["flip", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame", "mean_luminance_error",
+               "mean_luminance_error_frame"]
 
 
 # --- the run -------------------------------------------------------------------------------------------
@@ -720,7 +733,8 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                     region, region_name = central_region(cam_distance, fov, a.width, a.height, radius), "central"
             except RenderFailed:  # the ply is too thin for a central region: the whole frame
                 region, region_name = (slice(None), slice(None)), "frame"
-        floor = {**group, "region": region_name, "failed": "; ".join(failed.values()) or False}
+        floor = {**group, "region": region_name, "failed": "; ".join(failed.values()) or False,
+                 "region_share": None if ref_failed else region_share(ref_img, region)}
         if not failed:
             floor.update(metrics(read_exr(os.path.join(a.out, refs["B"]["image"])), ref_img, region))
         else:
@@ -866,11 +880,13 @@ def summary(results: dict) -> str:
              "",
              "Errors over the central region of the ply (the whole frame where the ply is under 3 rows), against "
              "reference A; noise floor: reference B against A. Mean over seeds. `closeup d48`: the close-up's camera "
-             "at 48 ply radii.",
+             "at 48 ply radii. frame lum %: the luminance error of the whole frame; region light %: the share of "
+             "reference A's light in the region (where it is small, the region holds the filter's tail of a lit "
+             "silhouette: read the frame's error).",
              "",
-             "| scene | preset | light | method | spp | R % | G % | B % | lum % | lum floor % | FLIP | FLIP floor "
-             "| render s | load s | peak MB | failed |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| scene | preset | light | method | spp | R % | G % | B % | lum % | lum floor % | frame lum % "
+             "| region light % | FLIP | FLIP floor | render s | load s | peak MB | failed |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     floors = {(label(group_of(f)), f["preset"], f["light"]): f for f in results["noise_floor"]}
     groups: dict = {}
     for r in results["runs"]:
@@ -895,6 +911,8 @@ def summary(results: dict) -> str:
             f"| {scene} | {preset} | {light} | {method} | {spp} | {' | '.join(pct)} | "
             f"{fmt(100 * mean([r['mean_luminance_error'] for r in ok]) if ok else None, '+.1f')} | "
             f"{fmt(100 * fl['mean_luminance_error'] if fl['mean_luminance_error'] is not None else None, '+.1f')} | "
+            f"{fmt(100 * mean([r.get('mean_luminance_error_frame') for r in ok]) if ok else None, '+.1f')} | "
+            f"{fmt(100 * fl['region_share'] if fl.get('region_share') is not None else None, '.0f')} | "
             f"{fmt(mean([r['flip'] for r in ok]), '.3f')} | {fmt(fl['flip'], '.3f')} | "
             f"{fmt(mean([r['seconds_render'] for r in cost]), '.2f')} | {fmt(mean([r['seconds_load'] for r in cost]), '.2f')} | "
             f"{fmt(mean([r['peak_rss_mb'] for r in cost]), '.0f')} | {failed.replace('|', '/')[:80]} |")

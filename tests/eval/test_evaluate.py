@@ -19,8 +19,9 @@ EVALUATE = os.path.join(ROOT, "scripts", "evaluate.sh")
 LIGHTS = ["key-rim", "grazing"]
 RUN_FIELDS = ["scene", "method", "preset", "light", "distance", "spp", "seed", "seconds_load", "seconds_render",
               "peak_rss_mb", "baseline_rss_mb", "curve_keys", "flip", "relmse", "ssim", "mean_colour_error",
-              "mean_colour_error_frame", "mean_luminance_error", "failed"]
-METRICS = ["flip", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame", "mean_luminance_error"]
+              "mean_colour_error_frame", "mean_luminance_error", "mean_luminance_error_frame", "failed"]
+METRICS = ["flip", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame", "mean_luminance_error",
+           "mean_luminance_error_frame"]
 
 
 def evaluate(*args):
@@ -74,6 +75,7 @@ def test_noise_floor_and_header(quick):
         assert (f["scene"], f["preset"], f["failed"]) == ("closeup", "fleece", False)
         for k in METRICS:
             assert finite(f[k]), (k, f[k])
+        assert 0.2 < f["region_share"] < 1.0, f["region_share"]  # fleece's body is lit under both lights
     assert results["command"][0] == "scripts/evaluate.sh" and "--quick" in results["command"]
     assert results["machine"]["cores"] >= 1 and results["machine"]["cpu"]
     assert results["date"] and "revision" in results["git"]
@@ -181,6 +183,28 @@ def test_baselines_fitted_under_the_environment_and_speed_against_error(tmp_path
     # A second run reuses the fitted colours.
     again = evaluate("--quick", "--out", str(tmp_path), "--lights", "grazing", "--methods", "chiang", "--spp", "4")
     assert again.returncode == 0 and "chiang closeup fleece colour fit: cached" in again.stderr
+
+
+def test_region_share_tells_a_rim_lit_ply():
+    """A ply lit only at its silhouette rows (a dark yarn under the back light) puts almost none of its light
+    in the central region, so the region's relative error there is one of the pixel filter's tails: the
+    summary prints the share next to the frame's error. Uniform light puts the region's pixel fraction there."""
+    import sys
+    import numpy as np
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    from evaluate import CLOSEUP_DISTANCE, CLOSEUP_FOV, central_region, region_share
+
+    region = central_region(CLOSEUP_DISTANCE, CLOSEUP_FOV, 160, 80)
+    rows, cols = region
+    img = np.zeros((80, 160, 3))
+    img[rows.start - 1, :] = 1.0  # the silhouettes, just outside the region
+    img[rows.stop, :] = 0.1
+    img[rows.start, :] = 0.01  # the filter's tail
+    share = region_share(img, region)
+    assert share == pytest.approx(0.01 * 80 / (160 * 1.11), rel=1e-9)
+    flat = np.ones((80, 160, 3))
+    assert region_share(flat, region) == pytest.approx((rows.stop - rows.start) * (cols.stop - cols.start) / (80 * 160))
+    assert region_share(np.zeros((80, 160, 3)), region) is None  # nothing lit: no share, not a division by zero
 
 
 @pytest.mark.parametrize("light", ["grazing", "back"])
