@@ -474,9 +474,9 @@ def central_region(distance: float, fov: float, width: int, height: int,
 
 def region_share(ref: np.ndarray, region: tuple[slice, slice]) -> float | None:
     """The share of the reference's light (Rec. 709 luminance summed over the frame) that falls in the
-    region. Where it is small — a dark ply lit from behind glows only at its silhouette — the region's mean
-    is the pixel filter's tail of that rim, and its relative error says little about the look: read the
-    frame's error there."""
+    region. Where it is small (a dark ply lit from behind glows only at its silhouette rows, which the
+    region leaves out) the region's mean is a faint remainder and its relative error says little about
+    the look: read the frame's error there."""
     lum = ref[..., :3] @ LUMINANCE
     total = float(lum.sum())
     return float(lum[region].sum()) / total if total > 0.0 else None
@@ -881,8 +881,8 @@ def summary(results: dict) -> str:
              "Errors over the central region of the ply (the whole frame where the ply is under 3 rows), against "
              "reference A; noise floor: reference B against A. Mean over seeds. `closeup d48`: the close-up's camera "
              "at 48 ply radii. frame lum %: the luminance error of the whole frame; region light %: the share of "
-             "reference A's light in the region (where it is small, the region holds the filter's tail of a lit "
-             "silhouette: read the frame's error).",
+             "reference A's light in the region (where it is small, the light is at the ply's silhouettes, outside "
+             "the region: read the frame's error).",
              "",
              "| scene | preset | light | method | spp | R % | G % | B % | lum % | lum floor % | frame lum % "
              "| region light % | FLIP | FLIP floor | render s | load s | peak MB | failed |",

@@ -6,8 +6,9 @@ scripts/bench_fallback.sh:
     .venv/bin/python scripts/fallback_render.py SCENE.xml OUT.exr --preset P --body osl|nodes|diffuse
                      [--samples N] [--seed S]
 
-The scene is rebuilt element by element: <camera width height>, the perspective camera's translation and
-fov (vertical, as the standalone's auto viewplane for width >= height), point lights (tfm translation,
+The scene is rebuilt element by element: <camera width height>, <film> (the pixel filter), the perspective
+camera's translation and fov (vertical, as the standalone's auto viewplane for width >= height), point
+lights (tfm translation,
 strength = Blender's energy, size = radius: what Blender's own light sync passes to Cycles), distant lights
 (a sun: the transform's -Z, strength = its energy, angle), the
 background's strength and colour, the integrator's bounce limits, and the <hair> curves with their radii.
@@ -30,6 +31,10 @@ import bpy
 import mathutils
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
+
+
+#: The standalone's <film filter_type> names and Blender's.
+PIXEL_FILTERS = {"box": "BOX", "gaussian": "GAUSSIAN", "blackman_harris": "BLACKMAN_HARRIS"}
 
 
 def floats(text: str) -> np.ndarray:
@@ -58,7 +63,14 @@ def build(xml_path: str, preset: str, body: str, samples: int, seed: int):
     scene.cycles.sample_clamp_direct = scene.cycles.sample_clamp_indirect = 0.0
     scene.render.film_transparent = False
     scene.view_settings.view_transform = "Standard"
-    scene.render.filter_size = 1.5  # Cycles' default filter width, as in the standalone
+    # The scene's pixel filter (<film>; without one, the standalone's default: a box one pixel wide), not
+    # Blender's default (Blackman-Harris, 1.5 pixels), which spreads a silhouette over more rows.
+    film = root.find("film")
+    filter_type = film.get("filter_type", "box") if film is not None else "box"
+    if filter_type not in PIXEL_FILTERS:
+        raise SystemExit(f"{xml_path}: unknown <film filter_type=\"{filter_type}\"> (known: {', '.join(PIXEL_FILTERS)})")
+    scene.cycles.pixel_filter_type = PIXEL_FILTERS[filter_type]
+    scene.cycles.filter_width = float(film.get("filter_width", "1")) if film is not None else 1.0
     scene.cycles_curves.shape = "THICK"
 
     cam_el = root.find("camera")

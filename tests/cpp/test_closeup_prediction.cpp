@@ -51,6 +51,26 @@ TEST(CloseupPrediction, WhiteFurnaceIsOneOnThePlyAndTheBackground)
   EXPECT_LT(frame, 1.0);
 }
 
+TEST(CloseupPrediction, SilhouetteRowsAreCoveredAsTheBoxFilterCoversThem)
+{
+  /* A black ply under the environment: a row's prediction is 1 - the share of its footprint that the ply
+   * covers. The scenes' pixel filter is Cycles' box, one pixel wide (cycles_xml.h, written into every
+   * scene), so the row the top silhouette crosses is covered over exactly (row + 1 - y_edge) of its height,
+   * and the row above it not at all; a Blackman-Harris filter 1.5 pixels wide (Blender's default, which
+   * the prediction once assumed) covers 0.98 of the first and 0.0015 of the second. Cycles' render of the
+   * same black ply: 0.925 and 0 (docs/benchmarks.md). */
+  const double t = std::tan(0.5 * neuralyarn::scenes::kCloseupCameraFov);
+  const double D = neuralyarn::scenes::kCloseupCameraDistance;
+  const double y_edge = 40.0 * (1.0 - 1.0 / std::sqrt(D * D - 1.0) / t); /* 80 rows: v = (1 - y / 40) t */
+  const int row = int(std::floor(y_edge));
+  const auto &env = find_light_rig("environment");
+  const Rgb3 edge = predict_closeup(constant_far_field(0.0), env, {160, 80, 40, row, 80, 1});
+  /* 256 sub-rows: the midpoint rule places the edge within half a sub-row. */
+  EXPECT_NEAR(1.0 - edge.g, row + 1 - y_edge, 0.5 / 256) << "row " << row << ", edge at " << y_edge;
+  const Rgb3 above = predict_closeup(constant_far_field(0.0), env, {160, 80, 40, row - 1, 80, 1});
+  EXPECT_NEAR(above.g, 1.0, 1e-9);
+}
+
 TEST(CloseupPrediction, DistantLightArrivesInTheHitsFrame)
 {
   /* eval = 1 when the light direction in the hit's yarn frame is within 30 degrees of w_i (the front rig,

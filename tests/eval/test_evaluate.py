@@ -187,8 +187,8 @@ def test_baselines_fitted_under_the_environment_and_speed_against_error(tmp_path
 
 def test_region_share_tells_a_rim_lit_ply():
     """A ply lit only at its silhouette rows (a dark yarn under the back light) puts almost none of its light
-    in the central region, so the region's relative error there is one of the pixel filter's tails: the
-    summary prints the share next to the frame's error. Uniform light puts the region's pixel fraction there."""
+    in the central region, so the region's relative error there is one of a faint remainder: the summary
+    prints the share next to the frame's error. Uniform light puts the region's pixel fraction there."""
     import sys
     import numpy as np
     sys.path.insert(0, os.path.join(ROOT, "scripts"))
@@ -199,12 +199,51 @@ def test_region_share_tells_a_rim_lit_ply():
     img = np.zeros((80, 160, 3))
     img[rows.start - 1, :] = 1.0  # the silhouettes, just outside the region
     img[rows.stop, :] = 0.1
-    img[rows.start, :] = 0.01  # the filter's tail
+    img[rows.start, :] = 0.01  # the faint first row inside
     share = region_share(img, region)
     assert share == pytest.approx(0.01 * 80 / (160 * 1.11), rel=1e-9)
     flat = np.ones((80, 160, 3))
     assert region_share(flat, region) == pytest.approx((rows.stop - rows.start) * (cols.stop - cols.start) / (80 * 160))
     assert region_share(np.zeros((80, 160, 3)), region) is None  # nothing lit: no share, not a division by zero
+
+
+def test_blender_renders_the_scenes_pixel_filter(tmp_path):
+    """The scenes state their pixel filter (<film>: Cycles' box, one pixel wide) and scripts/fallback_render.py
+    applies it, so a silhouette falls on the same pixels in Blender as in the standalone Cycles. A grey
+    diffuse curve (albedo 0.5) under the uniform environment: a row reads 1 - 0.5 x the ply's coverage of it,
+    0.538 where the silhouette crosses (the box covers 0.924 of it). With Blender's default filter
+    (Blackman-Harris, 1.5 pixels) the row outside the silhouette read 0.958 in Blender and 1.0 in the
+    standalone. 64 spp over 80 columns put the rows' noise near 0.002."""
+    import sys
+    import numpy as np
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    from evaluate import CLOSEUP_DISTANCE, CLOSEUP_FOV, central_region
+    from images import read_exr
+
+    build = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
+    cli, cycles = os.path.join(build, "cpp_core", "neuralyarn"), os.path.join(build, "cycles", "bin", "cycles")
+    scene = tmp_path / "grey.xml"
+    r = subprocess.run([cli, "cycles-scene", "--preset", "fleece", "--model", os.path.join(ROOT, "models", "fleece.json"),
+                        "--lights", "environment", "--width", "160", "--height", "80", "--out", str(scene)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    text = scene.read_text()
+    assert '<film filter_type="box" filter_width="1" />' in text
+    text = text.replace('<neural_yarn_bsdf name="y" model="', '<diffuse_bsdf name="y" color="0.5 0.5 0.5" unused="')
+    scene.write_text(text)
+    standalone, blender = str(tmp_path / "standalone.exr"), str(tmp_path / "blender.exr")
+    r = subprocess.run([cycles, "--background", "--quiet", "--samples", "64", "--width", "160", "--height", "80",
+                        "--output", standalone, str(scene)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "fallback_render.py"), str(scene), blender,
+                        "--preset", "fleece", "--body", "diffuse", "--samples", "64", "--seed", "1"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    rows, cols = central_region(CLOSEUP_DISTANCE, CLOSEUP_FOV, 160, 80)
+    a, b = (read_exr(x)[:, cols, :3].mean(axis=(1, 2)) for x in (standalone, blender))
+    for y in (rows.start - 2, rows.start - 1, rows.stop, rows.stop + 1):  # outside, silhouette, both sides
+        assert abs(a[y] - b[y]) < 0.01, (y, a[y], b[y])
+    assert abs(a[rows.start - 1] - 0.538) < 0.01  # the box's coverage 0.924 of the silhouette row
 
 
 @pytest.mark.parametrize("light", ["grazing", "back"])

@@ -19,22 +19,15 @@ namespace {
 
 Rgb3 to_rgb3(const ny::Rgb &c) { return {c.r, c.g, c.b}; }
 
-/* Sample offsets in [-0.75, 0.75] and weights of Cycles' pixel filter (Blackman-Harris, 1.5 pixels wide),
- * which Cycles samples separably: a midpoint rule of n points. */
-void pixel_filter(int n, std::vector<double> *offset, std::vector<double> *weight)
+/* Sub-pixel offsets of the scenes' pixel filter, a box kPixelFilterWidth wide (cycles_xml.h): a midpoint rule
+ * of n points, each of weight 1 / n. */
+std::vector<double> box_offsets(int n)
 {
-  constexpr double width = 1.5;
-  double sum = 0.0;
+  std::vector<double> offset;
   for (int k = 0; k < n; k++) {
-    const double v = width * ((k + 0.5) / n - 0.5), x = 2.0 * kPi * (v / width + 0.5);
-    const double w = 0.35875 - 0.48829 * std::cos(x) + 0.14128 * std::cos(2 * x) - 0.01168 * std::cos(3 * x);
-    offset->push_back(v);
-    weight->push_back(w);
-    sum += w;
+    offset.push_back(kPixelFilterWidth * ((k + 0.5) / n - 0.5));
   }
-  for (double &w : *weight) {
-    w /= sum;
-  }
+  return offset;
 }
 
 /* Directions uniform in solid angle over a disc of angular diameter `deg` about the unit vector `z`
@@ -125,22 +118,31 @@ Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &
       lights.emplace_back(d, l.strength / double(dirs.size()));
     }
   }
-  std::vector<double> offset, weight;
-  pixel_filter(6, &offset, &weight);
+  /* The ply runs along x, so the image varies across rows, and most steeply in the rows its silhouette
+   * crosses (a rim lit from behind glows within a fraction of a pixel of it): those rows get 256 sub-rows. */
+  const std::vector<double> offset_x = box_offsets(4), offset_y = box_offsets(8), offset_rim = box_offsets(256);
   /* Cycles' standalone camera applies the field of view to the shorter side of the image; raster row 0
    * is the top (+y). */
   const double aspect = double(r.width) / double(r.height);
   const double t = std::tan(0.5 * kCloseupCameraFov) * (r.width >= r.height ? 1.0 : 1.0 / aspect);
+  const Eigen::Vector3d o(0.0, 0.0, -kCloseupCameraDistance);
+  auto raster_v = [&](double y) { return (1.0 - 2.0 * y / r.height) * t; };
+  /* A camera ray (u, v, 1) passes the axis at distance D |v| / sqrt(1 + v^2), whatever u. */
+  auto hits = [&](double y) {
+    const double v = raster_v(y);
+    return -o.z() * std::abs(v) / std::sqrt(1.0 + v * v) <= 1.0;
+  };
   Rgb3 sum;
   for (int py = r.y; py < r.y + r.h; py++) {
+    const double y0 = py + 0.5 - 0.5 * kPixelFilterWidth, y1 = py + 0.5 + 0.5 * kPixelFilterWidth;
+    const std::vector<double> &offset_y_row = hits(y0) != hits(y1) || hits(y0) != hits(py + 0.5) ? offset_rim : offset_y;
     for (int px = r.x; px < r.x + r.w; px++) {
-      for (size_t sy = 0; sy < offset.size(); sy++) {
-        for (size_t sx = 0; sx < offset.size(); sx++) {
-          const double wgt = weight[sx] * weight[sy] / (double(r.w) * r.h);
-          const double u = (2.0 * (px + 0.5 + offset[sx]) / r.width - 1.0) * t * aspect;
-          const double v = (1.0 - 2.0 * (py + 0.5 + offset[sy]) / r.height) * t;
+      for (const double oy : offset_y_row) {
+        for (const double ox : offset_x) {
+          const double wgt = 1.0 / (double(offset_x.size()) * offset_y_row.size() * r.w * r.h);
+          const double u = (2.0 * (px + 0.5 + ox) / r.width - 1.0) * t * aspect;
+          const double v = raster_v(py + 0.5 + oy);
           const Eigen::Vector3d d = Eigen::Vector3d(u, v, 1.0).normalized();
-          const Eigen::Vector3d o(0.0, 0.0, -kCloseupCameraDistance);
           /* The cylinder y^2 + z^2 = 1 (axis x): nearest hit. */
           const double a = d.y() * d.y() + d.z() * d.z(), b = 2.0 * o.z() * d.z(), c = o.z() * o.z() - 1.0;
           const double disc = b * b - 4.0 * a * c;

@@ -373,6 +373,7 @@ void write_setting(std::ostringstream &x, const PlySceneOptions &o, const LightR
 {
   const double s = o.unit_scale;
   x << "<camera width=\"" << o.width << "\" height=\"" << o.height << "\" />\n";
+  x << "<film filter_type=\"box\" filter_width=\"" << kPixelFilterWidth << "\" />\n";
   /* The camera camera_distance radii in front of the ply (-z), looking at the origin along +z. */
   x << "<transform translate=\"0 0 " << -o.camera_distance * s << "\">\n  <camera type=\"perspective\" fov=\""
     << kCloseupCameraFov << "\" />\n</transform>\n";

@@ -24,6 +24,11 @@ namespace neuralyarn::scenes {
  * side of the image. */
 constexpr double kCloseupCameraDistance = 12.0, kCloseupCameraFov = 0.9;
 
+/* The pixel filter of every scene: a box one pixel wide, the standalone Cycles' default, written into the
+ * scene (<film>) so that Blender (scripts/fallback_render.py, whose own default is Blackman-Harris 1.5 px)
+ * renders the same pixels and the prediction (closeup_prediction.h) integrates the same footprint. */
+constexpr double kPixelFilterWidth = 1.0;
+
 /* One light of a rig. */
 struct RigLight {
   enum class Kind { point, distant };
