@@ -66,6 +66,8 @@ def rel(a, b) -> float:
 
 def worst(a, b) -> float:
     r = a / np.where(b > 0, b, np.nan) - 1.0
+    if not np.isfinite(r).any():  # the maps hold nothing in any channel here (a dark ply's inner rows)
+        return float("nan")
     return float(r[np.nanargmax(np.abs(r))])
 
 
