@@ -11,7 +11,7 @@ camera's translation and fov (vertical, as the standalone's auto viewplane for w
 lights (tfm translation,
 strength = Blender's energy, size = radius: what Blender's own light sync passes to Cycles), distant lights
 (a sun: the transform's -Z, strength = its energy, angle), the
-background's strength and colour, the integrator's bounce limits, and the <hair> curves with their radii.
+background's strength and colour, the integrator's settings, and the <hair> curves with their radii.
 --body diffuse gives the curves a grey Diffuse BSDF instead (the scene-equivalence check; the XML is then
 expected to hold the same diffuse shader). The standalone camera is left-handed (x right, y up, looking
 along +z) and Blender's right-handed, so Blender's image is the standalone's mirrored: it is flipped back
@@ -33,8 +33,32 @@ import mathutils
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
 
 
+#: <integrator> attributes of the standalone, the Blender property each sets, and the standalone's default
+#: (intern/cycles/scene/integrator.cpp, Cycles 4.3).
+INTEGRATOR = (
+    ("max_bounce", "max_bounces", 7),
+    ("max_diffuse_bounce", "diffuse_bounces", 7),
+    ("max_glossy_bounce", "glossy_bounces", 7),
+    ("max_transmission_bounce", "transmission_bounces", 7),
+    ("transparent_max_bounce", "transparent_max_bounces", 7),
+    ("min_bounce", "min_light_bounces", 0),
+    ("sample_clamp_direct", "sample_clamp_direct", 0.0),
+    ("sample_clamp_indirect", "sample_clamp_indirect", 10.0),
+    ("use_adaptive_sampling", "use_adaptive_sampling", True),
+    ("filter_glossy", "blur_glossy", 0.0),
+    ("light_sampling_threshold", "light_sampling_threshold", 0.0),
+)
+
 #: The standalone's <film filter_type> names and Blender's.
 PIXEL_FILTERS = {"box": "BOX", "gaussian": "GAUSSIAN", "blackman_harris": "BLACKMAN_HARRIS"}
+
+
+def xml_value(text: str, like):
+    """An attribute as the standalone's XML reader takes it, of the type of `like` (a bool is "true" or a
+    non-zero integer)."""
+    if isinstance(like, bool):
+        return text.strip().lower() == "true" or (text.strip().lstrip("-").isdigit() and int(text) != 0)
+    return float(text) if isinstance(like, float) else int(text)
 
 
 def floats(text: str) -> np.ndarray:
@@ -57,10 +81,8 @@ def build(xml_path: str, preset: str, body: str, samples: int, seed: int):
     scene.cycles.device = "CPU"
     scene.cycles.shading_system = body == "osl"
     scene.cycles.samples = samples
-    scene.cycles.use_adaptive_sampling = False
     scene.cycles.use_denoising = False
     scene.cycles.seed = seed
-    scene.cycles.sample_clamp_direct = scene.cycles.sample_clamp_indirect = 0.0
     scene.render.film_transparent = False
     scene.view_settings.view_transform = "Standard"
     # The scene's pixel filter (<film>; without one, the standalone's default: a box one pixel wide), not
@@ -90,14 +112,12 @@ def build(xml_path: str, preset: str, body: str, samples: int, seed: int):
     scene.collection.objects.link(cam)
     scene.camera = cam
 
+    # Every integrator setting the standalone reads, with its default where the scene omits it (not
+    # Blender's: they differ in bounces, clamping, adaptive sampling, glossy blur and the light threshold).
     integ = root.find("integrator")
-    if integ is not None:
-        scene.cycles.max_bounces = int(integ.get("max_bounce", 64))
-        scene.cycles.glossy_bounces = int(integ.get("max_glossy_bounce", 64))
-        scene.cycles.transmission_bounces = int(integ.get("max_transmission_bounce", 64))
-        scene.cycles.diffuse_bounces = int(integ.get("max_diffuse_bounce", integ.get("max_bounce", 64)))
-        scene.cycles.transparent_max_bounces = int(integ.get("transparent_max_bounce", 64))
-        scene.cycles.min_light_bounces = int(integ.get("min_bounce", 0))
+    for attr, prop, default in INTEGRATOR:
+        text = integ.get(attr) if integ is not None else None
+        setattr(scene.cycles, prop, default if text is None else xml_value(text, default))
 
     world = bpy.data.worlds.new("world")
     scene.world = world

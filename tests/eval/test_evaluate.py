@@ -246,6 +246,43 @@ def test_blender_renders_the_scenes_pixel_filter(tmp_path):
     assert abs(a[rows.start - 1] - 0.538) < 0.01  # the box's coverage 0.924 of the silhouette row
 
 
+def test_blender_takes_the_integrator_from_the_scene(tmp_path):
+    """scripts/fallback_render.py sets every integrator setting the standalone reads from the scene, and
+    where the scene is silent the standalone's default, not Blender's (which blurs glossy bounces by 1,
+    skips lights under 0.01 of a path's light, clamps indirect light at 10 and samples adaptively)."""
+    import sys
+
+    cli = os.path.join(os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build")), "cpp_core", "neuralyarn")
+    scene = tmp_path / "s.xml"
+    r = subprocess.run([cli, "cycles-scene", "--preset", "fleece", "--model", os.path.join(ROOT, "models", "fleece.json"),
+                        "--lights", "front", "--width", "32", "--height", "16", "--out", str(scene)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    text = scene.read_text()
+    silent = tmp_path / "silent.xml"
+    silent.write_text("\n".join(ln for ln in text.splitlines() if not ln.startswith("<integrator ")))
+    keys = ["max_bounces", "transparent_max_bounces", "sample_clamp_direct", "sample_clamp_indirect",
+            "use_adaptive_sampling", "blur_glossy", "light_sampling_threshold"]
+    inspect = ("import bpy, json, os, sys; bpy.ops.wm.open_mainfile(filepath=sys.argv[1]); c = bpy.context.scene.cycles; "
+               f"print(json.dumps({{k: getattr(c, k) for k in {keys!r}}})); sys.stdout.flush(); os._exit(0)")
+    got = {}
+    for name, path in (("stated", scene), ("silent", silent)):
+        blend = str(tmp_path / f"{name}.blend")
+        r = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "fallback_render.py"), str(path),
+                            str(tmp_path / f"{name}.exr"), "--preset", "fleece", "--body", "diffuse", "--samples", "1",
+                            "--save-blend", blend], capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        r = subprocess.run([sys.executable, "-c", inspect, blend], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+        got[name] = json.loads(r.stdout.strip().splitlines()[-1])
+    assert got["stated"] == {"max_bounces": 1024, "transparent_max_bounces": 1024, "sample_clamp_direct": 0.0,
+                             "sample_clamp_indirect": 0.0, "use_adaptive_sampling": False, "blur_glossy": 0.0,
+                             "light_sampling_threshold": 0.0}, got["stated"]
+    assert got["silent"] == {"max_bounces": 7, "transparent_max_bounces": 7, "sample_clamp_direct": 0.0,
+                             "sample_clamp_indirect": 10.0, "use_adaptive_sampling": True, "blur_glossy": 0.0,
+                             "light_sampling_threshold": 0.0}, got["silent"]
+
+
 @pytest.mark.parametrize("light", ["grazing", "back"])
 def test_the_predicted_fallback_is_what_blender_renders(tmp_path, light):
     """`cycles-scene --predict-fallback` (the host's emulation of the stock fallback: its tables looked up as

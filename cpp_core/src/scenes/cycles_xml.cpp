@@ -391,6 +391,10 @@ void write_setting(std::ostringstream &x, const PlySceneOptions &o, const LightR
      * references low, the more the more lights there are (the clamp acts on each light sample divided by
      * its selection probability), and makes the image depend on the number of lights. */
     << "\" sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\""
+    /* Stated although they are the standalone's defaults, because Blender's differ (it blurs glossy
+     * bounces by 1 and skips lights below 0.01 of a path's light): a scene rebuilt in Blender
+     * (scripts/fallback_render.py) takes them from here. */
+    << " filter_glossy=\"0\" light_sampling_threshold=\"0\""
     /* No adaptive sampling (Cycles' default stops converged pixels after 64 samples): N samples are N
      * samples in every pixel, so renders at equal samples compare and references converge everywhere. */
     << " use_adaptive_sampling=\"false\" seed=\"" << o.seed << "\" />\n";
