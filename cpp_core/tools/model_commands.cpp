@@ -14,6 +14,7 @@
 #include "neuralyarn/model/fidelity.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/model/r_shape.h"
+#include "neuralyarn/plots.h"
 #include "neuralyarn/rdm/map_file.h"
 #include "neuralyarn/units.h"
 

@@ -20,6 +20,7 @@
 #include "model_commands.h"
 #include "neuralyarn/fiber_report.h"
 #include "neuralyarn/geometry/yarn.h"
+#include "neuralyarn/plots.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/rdm/map_file.h"

@@ -2,7 +2,7 @@
 //
 // What `neuralyarn fiber` reports about a fiber preset: its albedo as a function of the incident
 // longitudinal angle (analytic, and by Monte Carlo through the sampler as a cross-check), the TT
-// azimuth model compared with the authors' Gaussian, and a picture of the scattering lobe.
+// azimuth model compared with the authors' Gaussian (the picture of its lobe: plots.h).
 #pragma once
 
 #include <cstdint>
@@ -36,10 +36,5 @@ struct AzimuthComparison {
   double l1_distance = 0.0;    /* integral |vM - Gaussian| d(phi), in [0, 2] */
 };
 AzimuthComparison compare_tt_azimuth(double gamma_rad);
-
-/* Writes a PNG (any format OpenImageIO writes, by extension): a polar plot of the lobe in the
- * longitudinal plane of w_i and a (phi_o, theta_o) map of eval, for the incident direction
- * (theta_i, phi_i) in degrees. Throws std::runtime_error when the file cannot be written. */
-void write_fiber_lobe_plot(const FiberPreset &preset, double theta_i_deg, double phi_i_deg, const std::string &path);
 
 }  // namespace neuralyarn

@@ -52,9 +52,4 @@ struct FidelityReport {
 FidelityReport check_model(const YarnModel &model, const rdm::RdmMaps &maps, const FidelityOptions &options = {},
                            const rdm::RdmMaps *maps_b = nullptr);
 
-/* Side-by-side PNG for one incident direction: the M map and the M network, the R map and the analytic R
- * lobe, over (phi_o horizontal, theta_o vertical), each pair on the same log scale. */
-void write_comparison_image(const YarnModel &model, const rdm::RdmMaps &maps, double theta_i_deg, double phi_i_deg,
-                            const std::string &path);
-
 }  // namespace neuralyarn::model
