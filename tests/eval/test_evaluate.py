@@ -207,6 +207,18 @@ def test_region_share_tells_a_rim_lit_ply():
     assert region_share(np.zeros((80, 160, 3)), region) is None  # nothing lit: no share, not a division by zero
 
 
+BUILD = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
+
+
+def native_fleece_scene(path, lights: str, width: int, height: int):
+    """The close-up with fleece's model under a light rig, written by `neuralyarn cycles-scene` to `path`."""
+    r = subprocess.run([os.path.join(BUILD, "cpp_core", "neuralyarn"), "cycles-scene", "--preset", "fleece", "--model",
+                        os.path.join(ROOT, "models", "fleece.json"), "--lights", lights, "--width", str(width),
+                        "--height", str(height), "--out", str(path)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    return path
+
+
 def test_blender_renders_the_scenes_pixel_filter(tmp_path):
     """The scenes state their pixel filter (<film>: Cycles' box, one pixel wide) and scripts/fallback_render.py
     applies it, so a silhouette falls on the same pixels in Blender as in the standalone Cycles. A grey
@@ -220,13 +232,8 @@ def test_blender_renders_the_scenes_pixel_filter(tmp_path):
     from evaluate import CLOSEUP_DISTANCE, CLOSEUP_FOV, central_region
     from images import read_exr
 
-    build = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
-    cli, cycles = os.path.join(build, "cpp_core", "neuralyarn"), os.path.join(build, "cycles", "bin", "cycles")
-    scene = tmp_path / "grey.xml"
-    r = subprocess.run([cli, "cycles-scene", "--preset", "fleece", "--model", os.path.join(ROOT, "models", "fleece.json"),
-                        "--lights", "environment", "--width", "160", "--height", "80", "--out", str(scene)],
-                       capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr
+    cycles = os.path.join(BUILD, "cycles", "bin", "cycles")
+    scene = native_fleece_scene(tmp_path / "grey.xml", "environment", 160, 80)
     text = scene.read_text()
     assert '<film filter_type="box" filter_width="1" />' in text
     text = text.replace('<neural_yarn_bsdf name="y" model="', '<diffuse_bsdf name="y" color="0.5 0.5 0.5" unused="')
@@ -252,12 +259,7 @@ def test_blender_takes_the_integrator_from_the_scene(tmp_path):
     skips lights under 0.01 of a path's light, clamps indirect light at 10 and samples adaptively)."""
     import sys
 
-    cli = os.path.join(os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build")), "cpp_core", "neuralyarn")
-    scene = tmp_path / "s.xml"
-    r = subprocess.run([cli, "cycles-scene", "--preset", "fleece", "--model", os.path.join(ROOT, "models", "fleece.json"),
-                        "--lights", "front", "--width", "32", "--height", "16", "--out", str(scene)],
-                       capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr
+    scene = native_fleece_scene(tmp_path / "s.xml", "front", 32, 16)
     text = scene.read_text()
     silent = tmp_path / "silent.xml"
     silent.write_text("\n".join(ln for ln in text.splitlines() if not ln.startswith("<integrator ")))
