@@ -472,13 +472,14 @@ def central_region(distance: float, fov: float, width: int, height: int,
 
 # --- metrics -------------------------------------------------------------------------------------------
 
-def region_share(ref: np.ndarray, region: tuple[slice, slice]) -> float | None:
-    """The share of the reference's light (Rec. 709 luminance summed over the frame) that falls in the
-    region. Where it is small (a dark ply lit from behind glows only at its silhouette rows, which the
-    region leaves out) the region's mean is a faint remainder and its relative error says little about
-    the look: read the frame's error there."""
+def region_share(ref: np.ndarray, region: tuple[slice, slice], around: tuple[slice, slice] | None = None) -> float | None:
+    """The share of the reference's light (Rec. 709 luminance) in `around` (default: the frame) that falls in
+    the region. For the ply scenes `around` is the ply's rows over the region's columns: the region plus a
+    silhouette row on each side, so that a lit background (the environment) does not count. Where the share
+    is small (a dark ply lit from behind glows only at its silhouette rows) the region's mean is a faint
+    remainder and its relative error says little about the look: read the frame's error there."""
     lum = ref[..., :3] @ LUMINANCE
-    total = float(lum.sum())
+    total = float(lum[around if around is not None else (slice(None), slice(None))].sum())
     return float(lum[region].sum()) / total if total > 0.0 else None
 
 
@@ -734,7 +735,9 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
             except RenderFailed:  # the ply is too thin for a central region: the whole frame
                 region, region_name = (slice(None), slice(None)), "frame"
         floor = {**group, "region": region_name, "failed": "; ".join(failed.values()) or False,
-                 "region_share": None if ref_failed else region_share(ref_img, region)}
+                 "region_share": None if ref_failed else region_share(
+                     ref_img, region, (slice(region[0].start - 1, region[0].stop + 1), region[1])
+                     if scene != "garment" and region_name == "central" else None)}
         if not failed:
             floor.update(metrics(read_exr(os.path.join(a.out, refs["B"]["image"])), ref_img, region))
         else:
@@ -881,8 +884,8 @@ def summary(results: dict) -> str:
              "Errors over the central region of the ply (the whole frame where the ply is under 3 rows), against "
              "reference A; noise floor: reference B against A. Mean over seeds. `closeup d48`: the close-up's camera "
              "at 48 ply radii. frame lum %: the luminance error of the whole frame; region light %: the share of "
-             "reference A's light in the region (where it is small, the light is at the ply's silhouettes, outside "
-             "the region: read the frame's error).",
+             "reference A's light on the ply's rows (over the region's columns) that is in the region (where it is "
+             "small, the light is at the ply's silhouettes, outside the region: read the frame's error).",
              "",
              "| scene | preset | light | method | spp | R % | G % | B % | lum % | lum floor % | frame lum % "
              "| region light % | FLIP | FLIP floor | render s | load s | peak MB | failed |",

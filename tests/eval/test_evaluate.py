@@ -188,7 +188,8 @@ def test_baselines_fitted_under_the_environment_and_speed_against_error(tmp_path
 def test_region_share_tells_a_rim_lit_ply():
     """A ply lit only at its silhouette rows (a dark yarn under the back light) puts almost none of its light
     in the central region, so the region's relative error there is one of a faint remainder: the summary
-    prints the share next to the frame's error. Uniform light puts the region's pixel fraction there."""
+    prints the share next to the frame's error. The share is of the light on the ply's rows, so a white
+    background (the environment) does not count."""
     import sys
     import numpy as np
     sys.path.insert(0, os.path.join(ROOT, "scripts"))
@@ -196,15 +197,16 @@ def test_region_share_tells_a_rim_lit_ply():
 
     region = central_region(CLOSEUP_DISTANCE, CLOSEUP_FOV, 160, 80)
     rows, cols = region
+    ply = (slice(rows.start - 1, rows.stop + 1), cols)
     img = np.zeros((80, 160, 3))
     img[rows.start - 1, :] = 1.0  # the silhouettes, just outside the region
     img[rows.stop, :] = 0.1
     img[rows.start, :] = 0.01  # the faint first row inside
-    share = region_share(img, region)
-    assert share == pytest.approx(0.01 * 80 / (160 * 1.11), rel=1e-9)
-    flat = np.ones((80, 160, 3))
-    assert region_share(flat, region) == pytest.approx((rows.stop - rows.start) * (cols.stop - cols.start) / (80 * 160))
-    assert region_share(np.zeros((80, 160, 3)), region) is None  # nothing lit: no share, not a division by zero
+    assert region_share(img, region, ply) == pytest.approx(0.01 / 1.11, rel=1e-9)
+    assert region_share(img, region) == pytest.approx(0.01 * 80 / (160 * 1.11), rel=1e-9)  # of the frame
+    lit = np.ones((80, 160, 3))  # a uniformly lit ply before a white background
+    assert region_share(lit, region, ply) == pytest.approx((rows.stop - rows.start) / (rows.stop - rows.start + 2))
+    assert region_share(np.zeros((80, 160, 3)), region, ply) is None  # nothing lit: no share, no division by zero
 
 
 BUILD = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
