@@ -18,8 +18,6 @@ namespace neuralyarn::model {
 
 namespace {
 
-ny::Vec3 vec(const Eigen::Vector3f &v) { return ny::make_vec3(v.x(), v.y(), v.z()); }
-
 /* At most `threads` workers while it lives (0: all cores). */
 std::unique_ptr<tbb::global_control> thread_limit(int threads)
 {
@@ -97,7 +95,7 @@ ExitGrid::ExitGrid(int nt, int np) : theta_bins(nt), phi_bins(np), solid_angle(s
     const double t0 = kPi * to / nt, t1 = kPi * (to + 1) / nt;
     solid_angle[size_t(to)] = (std::cos(t0) - std::cos(t1)) * 2.0 * kPi / np;
     for (int po = 0; po < np; po++) {
-      const ny::Vec3 wo = vec(train::entry_direction(0.5 * (t0 + t1), -kPi + 2.0 * kPi * (po + 0.5) / np));
+      const ny::Vec3 wo = train::entry_vec3(0.5 * (t0 + t1), -kPi + 2.0 * kPi * (po + 0.5) / np);
       x.push_back(wo.x);
       y.push_back(wo.y);
       z.push_back(wo.z);
@@ -162,8 +160,8 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                             threads > 0 ? size_t(threads) : tbb::this_task_arena::max_concurrency());
   auto incident = [&](int k) {
-    return vec(train::entry_direction(rdm::bin_center(k / b.phi_i, 0.0, 0.5 * kPi, b.theta_i),
-                                      rdm::bin_center(k % b.phi_i, -kPi, kPi, b.phi_i)));
+    return train::entry_vec3(rdm::bin_center(k / b.phi_i, 0.0, 0.5 * kPi, b.theta_i),
+                             rdm::bin_center(k % b.phi_i, -kPi, kPi, b.phi_i));
   };
   /* Sums over a window of about 20 degrees in phi_i (same theta_i): at the paper's 90 phi_i bins, 5 bins,
    * which divides the maps' per-bin noise (docs/benchmarks.md) by sqrt(5) and keeps the structure
@@ -261,7 +259,7 @@ std::vector<ny::Vec3> centre_cell_directions(int theta_bins, int phi_bins, int s
       const double p0 = rdm::bin_center(q, -kPi, kPi, phi_bins), p1 = p0 + 2.0 * kPi / phi_bins;
       for (int i = 0; i < sub; i++) {
         for (int j = 0; j < sub; j++) {
-          dirs.push_back(vec(train::entry_direction(t0 + (t1 - t0) * (i + 0.5) / sub, p0 + (p1 - p0) * (j + 0.5) / sub)));
+          dirs.push_back(train::entry_vec3(t0 + (t1 - t0) * (i + 0.5) / sub, p0 + (p1 - p0) * (j + 0.5) / sub));
         }
       }
     }

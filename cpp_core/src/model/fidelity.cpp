@@ -17,14 +17,6 @@ namespace neuralyarn::model {
 
 using nlohmann::json;
 
-namespace {
-
-ny::Vec3 vec(const Eigen::Vector3f &v) { return ny::make_vec3(v.x(), v.y(), v.z()); }
-
-double channel(const ny::Rgb &c, int k) { return k == 0 ? c.r : (k == 1 ? c.g : c.b); }
-
-}  // namespace
-
 json FidelityReport::to_json() const
 {
   return {{"albedo_mae", albedo_mae},
@@ -61,8 +53,8 @@ void check_energies(const ny::YarnBsdfParams &p, const rdm::RdmMaps &maps, Fidel
       return;
     }
     row.w = maps.incident_solid_angle(ti);
-    const ny::Vec3 wi = vec(train::entry_direction(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i),
-                                                   rdm::bin_center(pi, -kPi, kPi, b.phi_i)));
+    const ny::Vec3 wi = train::entry_vec3(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i),
+                                          rdm::bin_center(pi, -kPi, kPi, b.phi_i));
     const ny::YarnLobes l = ny::yarn_lobes(p, wi);
     const ny::Rgb e_m = m_lobe_energy(p, l);
     const ny::Rgb e_r = ny::yarn_energy_R(l);
@@ -118,7 +110,7 @@ void check_sampling(const ny::YarnBsdfParams &p, const FidelityOptions &o, Fidel
     std::mt19937_64 rng(o.seed * 7919u + uint64_t(d));
     std::uniform_real_distribution<float> U(0.0f, 1.0f);
     const double theta = std::acos(1.0 - U(rng)), phi = -kPi + 2 * kPi * U(rng);
-    const ny::Vec3 wi = vec(train::entry_direction(theta, phi));
+    const ny::Vec3 wi = train::entry_vec3(theta, phi);
     const ny::YarnLobes l = ny::yarn_lobes(p, wi);
     ny::YarnBsdfParams q = p;
     const double er = ny::average(l.weight_R) * 0.5, em = ny::average(m_lobe_energy(p, l));

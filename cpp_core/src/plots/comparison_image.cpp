@@ -14,18 +14,11 @@
 #include <OpenImageIO/imagebufalgo.h>
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/model/fidelity.h"
 #include "neuralyarn/train/dataset.h"
 #include "neuralyarn/units.h"
 
 namespace neuralyarn::model {
-
-namespace {
-
-ny::Vec3 vec(const Eigen::Vector3f &v) { return ny::make_vec3(v.x(), v.y(), v.z()); }
-
-double channel(const ny::Rgb &c, int k) { return k == 0 ? c.r : (k == 1 ? c.g : c.b); }
-
-}  // namespace
 
 void write_comparison_image(const YarnModel &model, const rdm::RdmMaps &maps, double theta_i_deg, double phi_i_deg,
                             const std::string &path)
@@ -35,8 +28,8 @@ void write_comparison_image(const YarnModel &model, const rdm::RdmMaps &maps, do
   const rdm::MapResolution &b = maps.bins;
   const int ti = rdm::bin_of(theta_i_deg * kDeg, 0.0, 0.5 * kPi, b.theta_i);
   const int pi = rdm::bin_of(phi_i_deg * kDeg, -kPi, kPi, b.phi_i);
-  const ny::Vec3 wi = vec(train::entry_direction(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i),
-                                                 rdm::bin_center(pi, -kPi, kPi, b.phi_i)));
+  const ny::Vec3 wi = train::entry_vec3(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i),
+                                        rdm::bin_center(pi, -kPi, kPi, b.phi_i));
   const ny::YarnLobes l = ny::yarn_lobes(p, wi);
   const int scale = std::max(1, 360 / b.phi_o), pw = b.phi_o * scale, ph = b.theta_o * scale;
   const int gap = 8, header = 24, W = 4 * pw + 3 * gap, H = ph + header;
@@ -46,7 +39,7 @@ void write_comparison_image(const YarnModel &model, const rdm::RdmMaps &maps, do
   /* Panels: 0 M map, 1 M network, 2 R map, 3 R analytic. Each pair shares its map's maximum. */
   auto value = [&](int panel, int to, int po) {
     const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), ph_o = rdm::bin_center(po, -kPi, kPi, b.phi_o);
-    const ny::Vec3 wo = vec(train::entry_direction(th, ph_o));
+    const ny::Vec3 wo = train::entry_vec3(th, ph_o);
     const float *mm = &maps.m[maps.map_index(ti, pi, to, po)];
     const float *rr = &maps.r[maps.map_index(ti, pi, to, po)];
     switch (panel) {

@@ -136,10 +136,10 @@ Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &
   for (int py = r.y; py < r.y + r.h; py++) {
     const double y0 = py + 0.5 - 0.5 * kPixelFilterWidth, y1 = py + 0.5 + 0.5 * kPixelFilterWidth;
     const std::vector<double> &offset_y_row = hits(y0) != hits(y1) || hits(y0) != hits(py + 0.5) ? offset_rim : offset_y;
+    const double wgt = 1.0 / (double(offset_x.size()) * offset_y_row.size() * r.w * r.h);
     for (int px = r.x; px < r.x + r.w; px++) {
       for (const double oy : offset_y_row) {
         for (const double ox : offset_x) {
-          const double wgt = 1.0 / (double(offset_x.size()) * offset_y_row.size() * r.w * r.h);
           const double u = (2.0 * (px + 0.5 + ox) / r.width - 1.0) * t * aspect;
           const double v = raster_v(py + 0.5 + oy);
           const Eigen::Vector3d d = Eigen::Vector3d(u, v, 1.0).normalized();

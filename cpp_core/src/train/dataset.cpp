@@ -78,6 +78,12 @@ Eigen::Vector3f entry_direction(double theta, double phi)
                          float(std::cos(theta)));
 }
 
+ny::Vec3 entry_vec3(double theta, double phi)
+{
+  const Eigen::Vector3f v = entry_direction(theta, phi);
+  return ny::make_vec3(v.x(), v.y(), v.z());
+}
+
 Dataset sample_incident_table(const rdm::RdmMaps &maps, const std::vector<float> &table, int channels, int n,
                               uint64_t seed, bool validation, bool interpolate)
 {

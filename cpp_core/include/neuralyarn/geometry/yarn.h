@@ -76,7 +76,7 @@ double neighbour_ply_distance(int K, double d, double R_ply, double alpha_yarn);
 /* d: the smallest ply centre distance at which neighbouring ply tubes of radius R_ply do not intersect in
  * 3D (0 for K = 1). The neighbour distance grows with d, so it is bisected from the bound of plies touching
  * in the axis-normal plane, R_ply / sin(pi / K), upwards. The add-on's geometry/ply.py repeats it in Python
- * (its tests compare the two through `neuralyarn yarn`). Throws ParameterError for bad input. */
+ * (its tests compare the two through `neuralyarn yarn-geometry`). Throws ParameterError for bad input. */
 double ply_center_distance(int K, double R_ply, double alpha_yarn);
 
 /* All fibers of all plies as polylines from x0 to x1. */

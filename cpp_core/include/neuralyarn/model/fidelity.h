@@ -27,6 +27,9 @@
 
 namespace neuralyarn::model {
 
+/* Channel k (0 red, 1 green, 2 blue) of a kernel colour. */
+inline double channel(const ny::Rgb &c, int k) { return k == 0 ? c.r : (k == 1 ? c.g : c.b); }
+
 struct FidelityOptions {
   int variance_directions = 64;
   int variance_samples = 4096;

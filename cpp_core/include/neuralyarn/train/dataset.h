@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "neuralyarn/kernel/platform.h"
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/train/mlp.h"
 
@@ -46,5 +47,7 @@ Dataset sample_multiple_scattering(const rdm::RdmMaps &maps, int n, uint64_t see
 
 /* The unit vector of polar angle theta (from the normal) and azimuth phi = atan2(y, x) in the entry frame. */
 Eigen::Vector3f entry_direction(double theta, double phi);
+/* The same as the kernel's vector, for evaluating the model's lobes there. */
+ny::Vec3 entry_vec3(double theta, double phi);
 
 }  // namespace neuralyarn::train
