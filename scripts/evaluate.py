@@ -470,6 +470,13 @@ def central_region(distance: float, fov: float, width: int, height: int,
     return slice(rows[0] + 1, rows[-1]), slice(width // 4, width - width // 4)
 
 
+def ply_band(region: tuple[slice, slice]) -> tuple[slice, slice]:
+    """The ply's rows over a central region's columns: the region and the silhouette row it leaves out on
+    each side."""
+    rows, cols = region
+    return slice(rows.start - 1, rows.stop + 1), cols
+
+
 # --- metrics -------------------------------------------------------------------------------------------
 
 def region_share(ref: np.ndarray, region: tuple[slice, slice], around: tuple[slice, slice] | None = None) -> float | None:
@@ -478,7 +485,7 @@ def region_share(ref: np.ndarray, region: tuple[slice, slice], around: tuple[sli
     silhouette row on each side, so that a lit background (the environment) does not count. Where the share
     is small (a dark ply lit from behind glows only at its silhouette rows) the region's mean is a faint
     remainder and its relative error says little about the look: read the frame's error there."""
-    lum = ref[..., :3] @ LUMINANCE
+    lum = ref @ LUMINANCE  # read_exr gives (H, W, 3)
     total = float(lum[around if around is not None else (slice(None), slice(None))].sum())
     return float(lum[region].sum()) / total if total > 0.0 else None
 
@@ -490,12 +497,12 @@ def metrics(img: np.ndarray, ref: np.ndarray, region: tuple[slice, slice]) -> di
         return [float(x) for x in (a / b - 1.0)]
 
     m_img, m_ref = img[region].mean(axis=(0, 1)), ref[region].mean(axis=(0, 1))
+    f_img, f_ref = img.mean(axis=(0, 1)), ref.mean(axis=(0, 1))
     out = {
         "mean_colour_error": rel(m_img, m_ref),
-        "mean_colour_error_frame": rel(img.mean(axis=(0, 1)), ref.mean(axis=(0, 1))),
+        "mean_colour_error_frame": rel(f_img, f_ref),
         "mean_luminance_error": float(m_img @ LUMINANCE / (m_ref @ LUMINANCE) - 1.0),
-        "mean_luminance_error_frame": float(img[..., :3].mean(axis=(0, 1)) @ LUMINANCE /
-                                            (ref[..., :3].mean(axis=(0, 1)) @ LUMINANCE) - 1.0),
+        "mean_luminance_error_frame": float(f_img @ LUMINANCE / (f_ref @ LUMINANCE) - 1.0),
     }
     _, mean_flip, _ = flip_evaluator.evaluate(np.ascontiguousarray(ref, dtype=np.float32),
                                               np.ascontiguousarray(img, dtype=np.float32), "HDR",
@@ -736,8 +743,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                 region, region_name = (slice(None), slice(None)), "frame"
         floor = {**group, "region": region_name, "failed": "; ".join(failed.values()) or False,
                  "region_share": None if ref_failed else region_share(
-                     ref_img, region, (slice(region[0].start - 1, region[0].stop + 1), region[1])
-                     if scene != "garment" and region_name == "central" else None)}
+                     ref_img, region, ply_band(region) if scene != "garment" and region_name == "central" else None)}
         if not failed:
             floor.update(metrics(read_exr(os.path.join(a.out, refs["B"]["image"])), ref_img, region))
         else:

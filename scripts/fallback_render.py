@@ -88,11 +88,12 @@ def build(xml_path: str, preset: str, body: str, samples: int, seed: int):
     # The scene's pixel filter (<film>; without one, the standalone's default: a box one pixel wide), not
     # Blender's default (Blackman-Harris, 1.5 pixels), which spreads a silhouette over more rows.
     film = root.find("film")
-    filter_type = film.get("filter_type", "box") if film is not None else "box"
+    film = film.attrib if film is not None else {}
+    filter_type = film.get("filter_type", "box")
     if filter_type not in PIXEL_FILTERS:
         raise SystemExit(f"{xml_path}: unknown <film filter_type=\"{filter_type}\"> (known: {', '.join(PIXEL_FILTERS)})")
     scene.cycles.pixel_filter_type = PIXEL_FILTERS[filter_type]
-    scene.cycles.filter_width = float(film.get("filter_width", "1")) if film is not None else 1.0
+    scene.cycles.filter_width = float(film.get("filter_width", 1.0))
     scene.cycles_curves.shape = "THICK"
 
     cam_el = root.find("camera")

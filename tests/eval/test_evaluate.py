@@ -193,11 +193,12 @@ def test_region_share_tells_a_rim_lit_ply():
     import sys
     import numpy as np
     sys.path.insert(0, os.path.join(ROOT, "scripts"))
-    from evaluate import CLOSEUP_DISTANCE, CLOSEUP_FOV, central_region, region_share
+    from evaluate import CLOSEUP_DISTANCE, CLOSEUP_FOV, central_region, ply_band, region_share
 
     region = central_region(CLOSEUP_DISTANCE, CLOSEUP_FOV, 160, 80)
     rows, cols = region
-    ply = (slice(rows.start - 1, rows.stop + 1), cols)
+    ply = ply_band(region)
+    assert ply == (slice(rows.start - 1, rows.stop + 1), cols)
     img = np.zeros((80, 160, 3))
     img[rows.start - 1, :] = 1.0  # the silhouettes, just outside the region
     img[rows.stop, :] = 0.1
