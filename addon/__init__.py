@@ -5,7 +5,8 @@ A Blender extension (blender_manifest.toml, 4.2+) that also loads as a legacy ad
 Modules: geometry/ (importers and generators, no bpy), model_io (model files, no bpy), fallback/ (the
 fallback's tables, lobes and OSL shader, no bpy), resources (shipped files), curves_bpy (Curves objects),
 fallback_nodes + nodes (the Neural Yarn BSDF node), scene_setup (camera, lights, render settings), operators,
-ui, batch (command-line renders).
+ui, batch (command-line renders), scene_description (scene description files, no bpy) + scene_bpy (their
+Blender builder: the evaluation's scenes in Blender).
 """
 
 bl_info = {
@@ -22,12 +23,13 @@ if "bpy" in locals():  # script reload (F8 / Reload Scripts)
     import importlib
 
     for _m in (fallback.lobes, fallback.schema, fallback.osl, model_io, resources, curves_bpy,  # noqa: F821
-               fallback_nodes, nodes, scene_setup, operators, ui):  # noqa: F821
+               fallback_nodes, nodes, scene_setup, scene_description, scene_bpy, operators, ui):  # noqa: F821
         importlib.reload(_m)
 
 import bpy  # noqa: E402
 
-from . import curves_bpy, fallback_nodes, level_of_detail, model_io, nodes, operators, resources, scene_setup, ui  # noqa: E402,F401
+from . import (curves_bpy, fallback_nodes, level_of_detail, model_io, nodes, operators, resources,  # noqa: E402,F401
+               scene_bpy, scene_description, scene_setup, ui)
 
 _MODULES = (nodes, operators, ui)
 

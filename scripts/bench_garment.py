@@ -35,12 +35,12 @@ def scene(a, method: str, stitches: int) -> tuple[str, float]:
     """(path, seconds to write) of the garment scene for one method."""
     e = types.SimpleNamespace(out=a.out, garment_stitches=stitches, yarns={})
     path = os.path.join(a.out, "scenes", f"garment_{stitches}x{stitches}_{a.preset}_{method}.xml")
-    args = ["cycles-scene", "--preset", a.preset, "--lights", a.light, "--width", str(ev.GARMENT["width"]),
+    args = ["--preset", a.preset, "--lights", a.light, "--width", str(ev.GARMENT["width"]),
             "--height", str(ev.GARMENT["height"]), "--out", path, *ev.garment_scene_args(e)]
     if method == "native":
         args += ["--model", os.path.join(ev.MODELS, f"{a.preset}.json")]
     t0 = time.monotonic()
-    ev.run_cli(args)
+    ev.cycles_scene(args)
     return path, time.monotonic() - t0
 
 

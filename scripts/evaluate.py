@@ -27,7 +27,8 @@ themselves, the reference's method, at the test's samples), `native` (`--model m
 one thick curve with the neural_yarn_bsdf closure), on request `yarns` (the yarn level, D27: on the yarn and
 the garment, each yarn one thick curve with `--model models/<preset>_yarn.json`), `osl` and `nodes`: the add-on's
 stock-Blender fallbacks on the native method's scene, rendered by the bpy wheel's Cycles
-(scripts/fallback_render.py rebuilds the scene in Blender; presets only), and the baselines an artist would
+(the scene's description, `cycles-scene --out X.json`, built by the add-on's builder: scripts/fallback_render.py,
+with the scene's own model), and the baselines an artist would
 use instead, on the native method's geometry (`neuralyarn cycles-scene --list-baselines`: `chiang`, `huang`
 (Principled Hair), `sheen` (Principled BSDF)), each with the colour whose central-region mean under the
 uniform environment matches reference A's there (fitted per preset, DIR/baselines.json; decisions D23).
@@ -232,8 +233,6 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
     if a.ref_spp % a.ref_rotations:
         raise Usage(f"--ref-spp ({a.ref_spp}) must be a multiple of --ref-rotations ({a.ref_rotations})")
     a.presets += [y for y in a.yarns if y not in a.presets]
-    if any(m in FALLBACKS for m in a.methods) and a.yarns:
-        raise Usage("methods osl and nodes render the presets only (the add-on's shipped models)")
     if "native" in a.methods or any(m in FALLBACKS for m in a.methods) or a.baselines:
         for p in a.presets:
             if not os.path.isfile(model_path(a.yarns, p)):
@@ -303,9 +302,11 @@ def ply_length(distance: float, a) -> float:
 
 def scene_path(a, scene: str, method: str, preset: str, light: str, seed: int, rotation: float = 0.0,
                distance: float | None = CLOSEUP_DISTANCE) -> str:
-    """Where write_scene writes the scene of one render."""
+    """Where write_scene writes the scene of one render: Cycles XML, or for the methods Blender renders the
+    scene description (.json) its builder reads."""
     turned = f"_rot{rotation:g}" if rotation else ""
-    return os.path.join(a.out, "scenes", f"{stem((scene, preset, light, distance))}_{method}_seed{seed}{turned}.xml")
+    ext = "json" if method in FALLBACKS else "xml"
+    return os.path.join(a.out, "scenes", f"{stem((scene, preset, light, distance))}_{method}_seed{seed}{turned}.{ext}")
 
 
 def for_scene(a, scene: str):
@@ -367,33 +368,56 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
         args += ["--level", "yarns", "--model", yarn_model_path(preset)]
     elif method in a.baselines:
         args += ["--baseline", method, "--baseline-colour", *(f"{c:.6f}" for c in colour)]
-    run_cli(args)
+    cycles_scene(args[1:])
     return path
+
+
+#: What `neuralyarn cycles-scene` reported of each scene file it wrote in this run (cycles_scene()): its curves,
+#: curve keys and camera. The harness takes them from the writer, never from the scene's text.
+WRITTEN: dict[str, dict] = {}
+WROTE = re.compile(r"wrote (.+) \((\d+) curves, (\d+) curve keys; camera at (\S+) (\S+) (\S+), fov (\S+)\)")
+
+
+def cycles_scene(args: list[str]) -> list[str]:
+    """Runs `neuralyarn cycles-scene ARGS`, records what it reports of every file it wrote (WRITTEN) and returns
+    their paths. Raises RenderFailed with the tool's message."""
+    paths = []
+    for line in run_cli(["cycles-scene", *args]).splitlines():
+        m = WROTE.fullmatch(line.strip())
+        if m:
+            WRITTEN[m.group(1)] = {"curves": int(m.group(2)), "curve_keys": int(m.group(3)),
+                                   "camera_position": [float(m.group(k)) for k in (4, 5, 6)],
+                                   "fov": float(m.group(7))}
+            paths.append(m.group(1))
+    if not paths:
+        raise RenderFailed(f"neuralyarn cycles-scene {' '.join(args)}: reported no scene written")
+    return paths
+
+
+def written(scene: str) -> dict:
+    if scene not in WRITTEN:
+        raise RenderFailed(f"{scene}: not written by cycles-scene in this run")
+    return WRITTEN[scene]
 
 
 def empty_scene(a) -> str:
     """Camera and a black background only: the renderer's own memory (baseline_rss_mb)."""
     path = os.path.join(a.out, "scenes", "empty.xml")
-    with open(path, "w") as f:
-        f.write('<?xml version="1.0"?>\n<cycles>\n'
-                f'<camera width="{a.width}" height="{a.height}" />\n'
-                f'<transform translate="0 0 -12">\n  <camera type="perspective" fov="{CLOSEUP_FOV}" />\n</transform>\n'
-                '<background>\n  <background name="bg" strength="0" color="1 1 1" />\n'
-                '  <connect from="bg background" to="output surface" />\n</background>\n</cycles>\n')
+    cycles_scene(["--empty", "--width", str(a.width), "--height", str(a.height), "--out", path])
     return path
 
 
-def render(a, scene: str, spp: int, exr: str, what: str, fallback: tuple[str, str, int] | None = None,
+def render(a, scene: str, spp: int, exr: str, what: str, fallback: str | None = None,
            finite: bool = True) -> dict:
-    """Renders with the patched Cycles, or with `fallback` = (body, preset, seed) the add-on's fallback body in
-    Blender; returns seconds (wall) and peak_rss_mb, and logs the time. Raises RenderFailed with the reason
+    """Renders with the patched Cycles, or with `fallback` (osl or nodes) a scene description with that body of
+    the add-on's node in Blender (scripts/fallback_render.py); returns seconds (wall) and peak_rss_mb, and logs
+    the time. Raises RenderFailed with the reason
     (exit code, signal, timeout, no image, and with `finite` non-finite pixels): the caller logs it."""
     t0 = time.monotonic()
     with tempfile.NamedTemporaryFile("r", suffix=".time") as tf:
         if fallback:
-            body, preset, seed = fallback
-            tool = [sys.executable, FALLBACK_RENDER, scene, exr, "--preset", preset, "--body", body, "--samples", str(spp),
-                    "--seed", str(seed), "--threads", str(a.threads)]
+            tool = [sys.executable, FALLBACK_RENDER, scene, exr, "--body", fallback, "--samples", str(spp),
+                    "--threads", str(a.threads)]
         else:
             tool = [CYCLES, "--background", "--quiet", "--samples", str(spp), "--threads", str(a.threads),
                     "--width", str(a.width), "--height", str(a.height), "--output", exr, scene]
@@ -439,20 +463,18 @@ def sha256(path: str) -> str:
 
 
 def curve_keys(scene: str) -> int:
-    """Curve control points in the scene (all <hair P="..."> lists)."""
-    with open(scene) as f:
-        text = f.read()
-    return sum(len(m.group(1).split()) // 3 for m in re.finditer(r'<hair\b[^>]*\sP="([^"]*)"', text))
+    """Curve control points in a scene written in this run (cycles-scene's report)."""
+    return written(scene)["curve_keys"]
 
 
 def camera(scene: str) -> tuple[float, float]:
-    """(distance, fov) of the close-up's camera, read from the scene: at (0, 0, -distance) looking along +z."""
-    with open(scene) as f:
-        text = f.read()
-    t = re.search(r'<transform translate="0 0 (-?[0-9.eE+-]+)">\s*<camera type="perspective" fov="([0-9.eE+-]+)"', text)
-    if not t:
-        raise RenderFailed(f"{scene}: no close-up camera found")
-    return -float(t.group(1)), float(t.group(2))
+    """(distance, fov) of the close-up's camera in a scene written in this run (cycles-scene's report): at
+    (0, 0, -distance) looking along +z."""
+    w = written(scene)
+    x, y, z = w["camera_position"]
+    if x != 0.0 or y != 0.0 or z >= 0.0:
+        raise RenderFailed(f"{scene}: the camera is at {x:g} {y:g} {z:g}, not on the -z axis as the close-up's")
+    return -z, w["fov"]
 
 
 def central_region(distance: float, fov: float, width: int, height: int,
@@ -761,7 +783,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                     raise RenderFailed("no colour (its fit failed)")
                 xml = write_scene(a, scene, method, preset, light, 1, colour=colour, distance=distance)
                 load = load_seconds(a, xml, os.path.join(a.out, "renders", f"{name}_{method}_1spp.exr"),
-                                    what, (method, preset, 1) if method in FALLBACKS else None)
+                                    what, method if method in FALLBACKS else None)
             except RenderFailed as e:
                 load_failed = f"load render failed: {e}"
                 failures += 1
@@ -783,7 +805,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                     try:
                         xml_s = xml if seed == 1 else write_scene(a, scene, method, preset, light, seed, colour=colour,
                                                                   distance=distance)
-                        cost = render(a, xml_s, spp, exr, what, (method, preset, seed) if method in FALLBACKS else None)
+                        cost = render(a, xml_s, spp, exr, what, method if method in FALLBACKS else None)
                     except RenderFailed as e:
                         rec["failed"] = str(e)
                         failures += 1

@@ -1,13 +1,13 @@
 # SPDX-License-Identifier: Apache-2.0
 """The main job's pictures: a knitted piece of 3-ply yarns in every preset, rendered with the native closure
-(patched standalone Cycles, examples/make_examples.py's knit scene) and with the stock-Blender fallback (the
-add-on's stock-node body in the bpy wheel, addon/batch.py's knit demo), and one contact sheet of all ten.
+(patched standalone Cycles) and with the stock-Blender fallback (the add-on's stock-node body in the bpy wheel),
+and one contact sheet of all ten.
 
     .venv/bin/python scripts/showcase.py [--out out/showcase] [--samples 64] [--size 256]
 
-The two rows come from two scene builders (their cameras differ); what they share is the yarn geometry
-generator (addon/geometry) and the model files (models/<preset>.json). Prints each image's time and the
-paths; exits 1 with one line if a render fails.
+Both rows render one scene per preset, examples/make_examples.py's knit: its Cycles XML in the patched Cycles,
+its description (knit_<preset>.json) built in Blender by the add-on (scripts/fallback_render.py), with the same
+camera, lights and curves. Prints each image's time and the paths; exits 1 with one line if a render fails.
 """
 from __future__ import annotations
 
@@ -39,12 +39,11 @@ def native_knits(out: str, presets: list[str], samples: int, size: int) -> list[
             "--scenes", "knit", "--render", "--check", "--samples", str(samples), "--width", str(size)]
 
 
-def fallback_knit(preset: str, fallback: str, samples: int, size: int, path: str) -> list[str]:
-    """The command rendering addon/batch.py's knit of 3-ply yarns with a stock-Blender fallback ("nodes" or
-    "osl") to `path`."""
-    return [PYTHON, os.path.join(ROOT, "addon", "batch.py"), "--", "--preset", preset, "--scene", "knit", "--plies",
-            "3", "--lod", "plies", "--fallback", fallback, *(["--osl"] if fallback == "osl" else []), "--resolution", str(size),
-            str(size), "--samples", str(samples), "--out", path]
+def fallback_knit(out: str, preset: str, fallback: str, samples: int, exr: str) -> list[str]:
+    """The command rendering the knit's description (native_knits wrote it) with a stock-Blender fallback
+    ("nodes" or "osl") to the OpenEXR file `exr`."""
+    return [PYTHON, os.path.join(ROOT, "scripts", "fallback_render.py"), os.path.join(out, f"knit_{preset}.json"), exr,
+            "--body", fallback, "--samples", str(samples)]
 
 
 def contact_sheet(rows: list[tuple[str, list[str]]], out: str) -> None:
@@ -84,9 +83,12 @@ def main() -> int:
     native = [os.path.join(a.out, f"knit_{p}.png") for p in PRESETS]
     nodes, blender = [], bpy_version()
     for p in PRESETS:
-        path = os.path.join(a.out, f"knit_{p}_stock_nodes.png")
-        run(fallback_knit(p, "nodes", a.samples, a.size, path), f"stock-node fallback (Blender {blender}), knit, {p}")
-        nodes.append(path)
+        path = os.path.join(a.out, f"knit_{p}_stock_nodes")
+        run(fallback_knit(a.out, p, "nodes", a.samples, path + ".exr"), f"stock-node fallback (Blender {blender}), knit, {p}")
+        # (as make_examples.py turns the native renders into PNG)
+        run(["oiiotool", path + ".exr", "--colorconvert", "linear", "sRGB", "-d", "uint8", "-o", path + ".png"],
+            f"{p} PNG")
+        nodes.append(path + ".png")
     sheet = os.path.join(a.out, "contact_sheet.png")
     contact_sheet([("native closure\n(patched Cycles)", native), ("stock-node fallback\n(stock Blender)", nodes)],
                   sheet)

@@ -144,13 +144,14 @@ def key_of(s: dict) -> str:
 
 
 def write_scene(a, s: dict, method: str, seed: int, rotation: float = 0.0) -> str:
-    path = os.path.join(a.out, "scenes", f"{key_of(s)}_{method}_seed{seed}_rot{rotation:g}.xml")
-    args = ["cycles-scene", *scene_args(s), "--seed", str(seed), "--out", path]
+    ext = "json" if method in ev.FALLBACKS else "xml"  # Blender builds the scene from its description
+    path = os.path.join(a.out, "scenes", f"{key_of(s)}_{method}_seed{seed}_rot{rotation:g}.{ext}")
+    args = [*scene_args(s), "--seed", str(seed), "--out", path]
     if rotation:
         args += ["--ply-rotation", f"{rotation:g}"]
     if method != "explicit":
         args += ["--model", os.path.join(ev.MODELS, f"{s['preset']}.json")]
-    ev.run_cli(args)
+    ev.cycles_scene(args)
     return path
 
 
@@ -164,7 +165,7 @@ def render_view(a, s: dict, method: str, spp: int, seed: int, what: str) -> tupl
     """One render of the scene spec by a method; (image, seconds). Non-finite pixels are kept (counted)."""
     xml = write_scene(a, s, method, seed)
     exr = os.path.join(a.out, "renders", f"{key_of(s)}_{method}_{spp}spp_seed{seed}.exr")
-    fb = (method, s["preset"], seed) if method in ev.FALLBACKS else None
+    fb = method if method in ev.FALLBACKS else None
     cost = render_spec(a, s, xml, spp, exr, what, fb, finite=False)
     return read_exr(exr), cost["seconds"]
 
@@ -199,8 +200,7 @@ def reference(a, s: dict, progress) -> np.ndarray:
 def closeup_fov(a) -> float:
     """The close-up camera's field of view, from a scene cycles-scene writes (its one definition)."""
     xml = os.path.join(a.out, "scenes", "fov_probe.xml")
-    ev.run_cli(["cycles-scene", "--lights", "environment", "--model", os.path.join(ev.MODELS, "fleece.json"),
-                "--out", xml])
+    ev.cycles_scene(["--lights", "environment", "--model", os.path.join(ev.MODELS, "fleece.json"), "--out", xml])
     return ev.camera(xml)[1]
 
 

@@ -6,7 +6,7 @@
 #   bash scripts/verify_blender_hook.sh [preset]      # default silk; NY_SPP (default 128)
 #
 # Per preset: the close-up XML scene rendered by the patched standalone Cycles (native closure: the
-# reference); the same scene built in the patched Blender by scripts/fallback_render.py and saved as a
+# reference); the same scene (its description) built in the patched Blender by scripts/fallback_render.py and saved as a
 # .blend (models packed), rendered there; the .blend reopened and rendered by the bpy 4.5 wheel. Prints
 # SSIM and mean colour difference of both Blender renders against the standalone one: the patched Blender
 # must match it (same closure code; goal SSIM >= 0.98, mean within 2 %), the stock one shows the fallback.
@@ -21,16 +21,17 @@ for tool in "$BLENDER" "$CLI" "$CYCLES" "$PY"; do
   [ -x "$tool" ] || { echo "verify_blender_hook: $tool missing (build_blender.sh / setup.sh)" >&2; exit 1; }
 done
 "$PY" -c "import skimage, OpenEXR" 2>/dev/null || "$PY" -m pip install -q scikit-image "OpenEXR>=3.3"
-"$CLI" cycles-scene --preset "$P" --model "$ROOT/models/$P.json" --width $W --height $H --out "$OUT/$P.xml" > /dev/null
+"$CLI" cycles-scene --preset "$P" --model "$ROOT/models/$P.json" --width $W --height $H --out "$OUT/$P.xml" \
+  --out "$OUT/$P.json" > /dev/null
 "$CYCLES" --background --quiet --samples "$SPP" --threads 0 --width $W --height $H --output "$OUT/${P}_standalone.exr" \
   "$OUT/$P.xml" > /dev/null
 rm -f "$OUT/$P.blend"
-"$BLENDER" -b --factory-startup --python-exit-code 1 -P "$ROOT/scripts/fallback_render.py" -- "$OUT/$P.xml" \
-  "$OUT/${P}_patched.exr" --preset "$P" --body nodes --samples "$SPP" --save-blend "$OUT/$P.blend" \
+"$BLENDER" -b --factory-startup --python-exit-code 1 -P "$ROOT/scripts/fallback_render.py" -- "$OUT/$P.json" \
+  "$OUT/${P}_patched.exr" --body nodes --samples "$SPP" --save-blend "$OUT/$P.blend" \
   > "$OUT/${P}_patched.log" 2>&1 || { cat "$OUT/${P}_patched.log" >&2; exit 1; }
 grep "fallback_render: Blender" "$OUT/${P}_patched.log"
 if grep -i "neural yarn model.*:" "$OUT/${P}_patched.log"; then echo "verify_blender_hook: the closure reported a model problem" >&2; exit 1; fi
-"$PY" "$ROOT/scripts/fallback_render.py" "$OUT/$P.blend" "$OUT/${P}_stock.exr" --preset "$P" --body nodes --open-blend \
+"$PY" "$ROOT/scripts/fallback_render.py" "$OUT/$P.blend" "$OUT/${P}_stock.exr" --open-blend \
   > "$OUT/${P}_stock.log" 2>&1 || { cat "$OUT/${P}_stock.log" >&2; exit 1; }
 grep "fallback_render: Blender" "$OUT/${P}_stock.log"
 read -r s_p s_s d_s < <("$PY" "$ROOT/scripts/bench_render.py" "$OUT/${P}_standalone.exr" "$OUT/${P}_patched.exr" \

@@ -25,7 +25,7 @@
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/rdm/map_file.h"
 #include "neuralyarn/scenes/closeup_prediction.h"
-#include "neuralyarn/scenes/cycles_xml.h"
+#include "neuralyarn/scenes/ply_scene.h"
 #include "neuralyarn/version.h"
 
 namespace fs = std::filesystem;
@@ -215,7 +215,8 @@ struct GatherCommand {
  * core library predicts of it. */
 struct SceneCommand {
   CLI::App *cmd;
-  std::string preset = "fleece", params, out;
+  std::string preset = "fleece", params;
+  std::vector<std::string> outs;
   scenes::PlySceneOptions opt;
   std::vector<double> baseline_colour;
   std::vector<int> region;
@@ -223,7 +224,8 @@ struct SceneCommand {
   bool predict_fallback = false;
 
   explicit SceneCommand(CLI::App &app)
-      : cmd(app.add_subcommand("cycles-scene", "Write the single-ply close-up (explicit fibers, or aggregated with --model) for the patched Cycles"))
+      : cmd(app.add_subcommand("cycles-scene", "Write the single-ply close-up (explicit fibers, or aggregated with --model) "
+                                               "for the patched Cycles (.xml) and for the add-on's Blender builder (.json)"))
   {
     add_preset_options(cmd, &preset, &params);
     cmd->add_option("--width", opt.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
@@ -307,6 +309,13 @@ struct SceneCommand {
         ->expected(3)
         ->needs(opt_baseline);
     list_flag("--list-baselines", scenes::baselines(), "baselines");
+    cmd->add_flag("--diffuse", opt.diffuse,
+                  "Aggregated geometry in a grey Lambertian instead of a model: the check that two renderers "
+                  "build the same scene")
+        ->excludes(opt_model)
+        ->excludes(opt_baseline);
+    cmd->add_flag("--empty", opt.empty,
+                  "Camera, film, integrator and a black background only (the renderer's own memory)");
     cmd->add_flag("--embed-model", opt.embed_model,
                   "With --model: write the model's JSON into the scene (a self-contained file; cycles_patch 0003)");
     cmd->add_option("--predict-region", region,
@@ -325,7 +334,10 @@ struct SceneCommand {
                     "With --predict-region: also predict with these radiance distribution maps (.nyrdm) as the "
                     "ply's scattering (the tabulated far field)")
         ->check(CLI::ExistingFile);
-    cmd->add_option("--out", out, "Scene file to write (.xml)")->required();
+    cmd->add_option("--out", outs,
+                    "Scene file to write: .xml (Cycles XML) or .json (the scene description that the add-on's "
+                    "Blender builder reads, docs/file_formats.md); give it more than once for one scene in both")
+        ->required();
   }
 
   int run()
@@ -337,9 +349,18 @@ struct SceneCommand {
     for (size_t c = 0; c < baseline_colour.size(); c++) {
       opt.baseline_colour[c] = baseline_colour[c];
     }
-    check_writable(out);
-    scenes::write_ply_scene(resolve_preset(preset, params), opt, out);
-    std::printf("wrote %s\n", out.c_str());
+    for (const std::string &out : outs) {
+      scenes::check_scene_extension(out);
+      check_writable(out);
+    }
+    const scenes::Scene scene = scenes::ply_scene(resolve_preset(preset, params), opt);
+    for (const std::string &out : outs) {
+      scenes::write_scene(scene, out);
+      /* What the harness records of the scene (scripts/evaluate.py reads this line, never the scene). */
+      const Eigen::Vector3d &cam = scene.camera.position;
+      std::printf("wrote %s (%zu curves, %zu curve keys; camera at %.9g %.9g %.9g, fov %.9g)\n", out.c_str(),
+                  scene.num_curves(), scene.num_curve_keys(), cam.x(), cam.y(), cam.z(), scene.camera.fov);
+    }
     if (!region.empty()) {
       predict();
     }

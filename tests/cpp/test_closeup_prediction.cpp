@@ -54,7 +54,7 @@ TEST(CloseupPrediction, WhiteFurnaceIsOneOnThePlyAndTheBackground)
 TEST(CloseupPrediction, SilhouetteRowsAreCoveredAsTheBoxFilterCoversThem)
 {
   /* A black ply under the environment: a row's prediction is 1 - the share of its footprint that the ply
-   * covers. The scenes' pixel filter is Cycles' box, one pixel wide (cycles_xml.h, written into every
+   * covers. The scenes' pixel filter is Cycles' box, one pixel wide (ply_scene.h, written into every
    * scene), so the row the top silhouette crosses is covered over exactly (row + 1 - y_edge) of its height,
    * and the row above it not at all; a Blackman-Harris filter 1.5 pixels wide (Blender's default, which
    * the prediction once assumed) covers 0.98 of the first and 0.0015 of the second. Cycles' render of the

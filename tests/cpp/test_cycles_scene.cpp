@@ -18,7 +18,7 @@
 
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/presets.h"
-#include "neuralyarn/scenes/cycles_xml.h"
+#include "neuralyarn/scenes/ply_scene.h"
 #include "neuralyarn/units.h"
 
 using neuralyarn::kPi;
@@ -364,6 +364,69 @@ TEST(CyclesScene, ArtistBounceLimitsAreBlendersDefaultsWithTheAddonsTransparency
   EXPECT_EQ(a.at("transparent_max_bounce"), "64");
   o.white_furnace = true;
   EXPECT_THROW(scene_text(o), std::runtime_error);
+}
+
+TEST(CyclesScene, PointLightsAreSampledOnlyAndNeverSeen)
+{
+  /* The standalone's light default (no MIS: no ray hits the sphere), stated, so that Blender (whose lights
+   * default to MIS and a visible sphere) renders the same light (tests/eval/test_scene_builder.py). */
+  for (const Attributes &l : elements(scene_text("key-rim"), "light")) {
+    EXPECT_EQ(l.at("use_mis"), "false");
+    EXPECT_EQ(l.at("use_camera"), "false");
+  }
+}
+
+TEST(SceneDescription, OneSceneTwoFormatsByExtension)
+{
+  using namespace neuralyarn::scenes;
+  PlySceneOptions o;
+  o.ply_length = 1.0;
+  o.diffuse = true;
+  const Scene scene = ply_scene(neuralyarn::find_preset("fleece"), o);
+  ASSERT_EQ(scene.objects.size(), 1u);
+  EXPECT_EQ(scene.objects[0].material.kind, Material::Kind::diffuse);
+  EXPECT_EQ(scene.num_curves(), 1u);
+  EXPECT_EQ(scene.num_curve_keys(), 17u);
+  const fs::path dir = fs::temp_directory_path() / ("ny_scene_formats_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  write_scene(scene, (dir / "s.xml").string());
+  write_scene(scene, (dir / "s.json").string());
+  std::ifstream xml(dir / "s.xml"), json(dir / "s.json");
+  std::stringstream x, j;
+  x << xml.rdbuf();
+  j << json.rdbuf();
+  EXPECT_NE(x.str().find("<diffuse_bsdf name=\"y\" color=\"0.5 0.5 0.5\" />"), std::string::npos);
+  EXPECT_NE(j.str().find("\"format\":\"neuralyarn-scene 1\""), std::string::npos);
+  EXPECT_NE(j.str().find("\"type\":\"diffuse\""), std::string::npos);
+  /* Another extension is refused, naming both formats, and nothing is written. */
+  try {
+    write_scene(scene, (dir / "s.txt").string());
+    FAIL() << "no exception";
+  }
+  catch (const std::runtime_error &e) {
+    EXPECT_NE(std::string(e.what()).find("must be .xml (Cycles XML) or .json"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir / "s.txt"));
+  fs::remove_all(dir);
+}
+
+TEST(SceneDescription, EmptySceneHasTheCameraAndNothingElse)
+{
+  using namespace neuralyarn::scenes;
+  PlySceneOptions o;
+  o.empty = true;
+  o.width = 64, o.height = 32;
+  const Scene scene = ply_scene(neuralyarn::find_preset("fleece"), o);
+  EXPECT_TRUE(scene.objects.empty());
+  EXPECT_TRUE(scene.lights.empty());
+  EXPECT_EQ(scene.background.strength, 0.0);
+  EXPECT_EQ(scene.camera.width, 64);
+  EXPECT_EQ(scene.camera.position.z(), -kCloseupCameraDistance);
+  /* The diffuse check replaces the model: both is refused. */
+  o.empty = false;
+  o.diffuse = true;
+  o.baseline = "sheen";
+  EXPECT_THROW(ply_scene(neuralyarn::find_preset("fleece"), o), std::runtime_error);
 }
 
 }  // namespace

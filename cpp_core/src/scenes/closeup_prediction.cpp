@@ -19,7 +19,7 @@ namespace {
 
 Rgb3 to_rgb3(const ny::Rgb &c) { return {c.r, c.g, c.b}; }
 
-/* Sub-pixel offsets of the scenes' pixel filter, a box kPixelFilterWidth wide (cycles_xml.h): a midpoint rule
+/* Sub-pixel offsets of the scenes' pixel filter, a box kPixelFilterWidth wide (ply_scene.h): a midpoint rule
  * of n points, each of weight 1 / n. */
 std::vector<double> box_offsets(int n)
 {

@@ -1,53 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "neuralyarn/scenes/cycles_xml.h"
 
-#include <cmath>
-#include <cstdio>
-#include <fstream>
 #include <sstream>
 #include <stdexcept>
 
-#include <filesystem>
-
 #include <Eigen/Geometry>
-
-#include "neuralyarn/geometry/ply.h"
-#include "neuralyarn/geometry/sweep.h"
-#include "neuralyarn/scenes/ply_curves.h"
-#include "neuralyarn/model/model.h"
-#include "neuralyarn/units.h"
 
 namespace neuralyarn::scenes {
 
 namespace {
-/* Distant lights: the sun's angular diameter (small, yet not a delta: BSDF samples can hit it and MIS
- * works, which matters for the 1-degree R lobes of silk and cotton), and its strength: irradiance pi on a
- * plane facing it, so a white Lambertian surface facing the light renders 1 (the key-rim key light gives
- * 2000 W / (4 pi 9.4^2) = 1.8). */
-constexpr double kSunAngleDeg = 2.0, kSunStrength = kPi;
-
-/* The distant light `deg` degrees from the view direction (from the ply toward the camera, -z), tilted
- * toward the unit axis (ax, ay, 0) perpendicular to it. */
-RigLight sun(double deg, double ax, double ay)
-{
-  const double t = deg * kDeg;
-  RigLight l;
-  l.kind = RigLight::Kind::distant;
-  l.x = std::sin(t) * ax, l.y = std::sin(t) * ay, l.z = -std::cos(t);
-  l.strength = kSunStrength;
-  l.size = kSunAngleDeg;
-  return l;
-}
-
-RigLight sphere(double x, double y, double z)
-{
-  RigLight l;
-  l.kind = RigLight::Kind::point;
-  l.x = x, l.y = y, l.z = z;
-  l.strength = 2000.0;
-  l.size = 1.0;
-  return l;
-}
 
 /* Text for an XML attribute value in double quotes. */
 std::string xml_escape(const std::string &in)
@@ -67,489 +28,152 @@ std::string xml_escape(const std::string &in)
   return out;
 }
 
-std::string read_text_file(const std::string &path)
+const char *boolean(bool b)
 {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) {
-    throw std::runtime_error("model '" + path + "': cannot open the file");
+  return b ? "true" : "false";
+}
+
+/* Camera, film, integrator, background and lights. */
+void write_setting(std::ostringstream &x, const Scene &scene)
+{
+  const Camera &c = scene.camera;
+  x << "<camera width=\"" << c.width << "\" height=\"" << c.height << "\" />\n";
+  x << "<film filter_type=\"" << scene.film.filter_type << "\" filter_width=\"" << scene.film.filter_width << "\" />\n";
+  /* The standalone camera looks along +z of its transform. */
+  x << "<transform translate=\"" << c.position.x() << " " << c.position.y() << " " << c.position.z()
+    << "\">\n  <camera type=\"perspective\" fov=\"" << c.fov << "\" />\n</transform>\n";
+  const Integrator &in = scene.integrator;
+  x << "<integrator max_bounce=\"" << in.bounces.total << "\" max_diffuse_bounce=\"" << in.bounces.diffuse
+    << "\" max_glossy_bounce=\"" << in.bounces.glossy << "\" max_transmission_bounce=\"" << in.bounces.transmission
+    << "\" transparent_max_bounce=\"" << in.bounces.transparent << "\" min_bounce=\"" << in.min_bounce
+    << "\" sample_clamp_direct=\"" << in.sample_clamp_direct << "\" sample_clamp_indirect=\""
+    << in.sample_clamp_indirect << "\" filter_glossy=\"" << in.filter_glossy << "\" light_sampling_threshold=\""
+    << in.light_sampling_threshold << "\" use_adaptive_sampling=\"" << boolean(in.use_adaptive_sampling)
+    << "\" seed=\"" << in.seed << "\" />\n";
+  if (!scene.lighting.empty()) {
+    x << "<!-- lights: " << scene.lighting << " (" << xml_escape(scene.lighting_description) << ") -->\n";
   }
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-}
-
-const std::vector<LightRig> &light_rigs()
-{
-  static const std::vector<LightRig> rigs = {
-      {"key-rim", "two sphere lights (2000 W, radius 1): in front above left (reflection) and behind (transmission)",
-       false, {sphere(-3.0, 4.0, -8.0), sphere(2.0, -1.0, 9.0)}},
-      {"environment", "no lights, a uniform white background of strength 1", true, {}},
-      {"front", "distant light 10 deg from the view direction, toward +y", false, {sun(10.0, 0.0, 1.0)}},
-      {"grazing", "distant light 80 deg from the view, in the plane normal to the ply (toward +y)", false,
-       {sun(80.0, 0.0, 1.0)}},
-      {"back", "distant light 170 deg from the view, in the plane normal to the ply (behind it, toward +y)", false,
-       {sun(170.0, 0.0, 1.0)}},
-      {"axis", "distant light 80 deg from the view, along the ply axis (toward +x)", false, {sun(80.0, 1.0, 0.0)}},
-  };
-  return rigs;
-}
-
-std::string light_rig_names()
-{
-  std::string names;
-  for (const LightRig &r : light_rigs()) {
-    names += (names.empty() ? "" : ", ") + r.name;
+  const Background &bg = scene.background;
+  x << "<background>\n  <background name=\"bg\" strength=\"" << bg.strength << "\" color=\"" << bg.colour.r << " "
+    << bg.colour.g << " " << bg.colour.b << "\" />\n  <connect from=\"bg background\" to=\"output surface\" />\n"
+    << "</background>\n";
+  if (scene.lights.empty()) {
+    return;
   }
-  return names;
-}
-
-LightRig find_light_rig(const std::string &name)
-{
-  for (const LightRig &r : light_rigs()) {
-    if (r.name == name) {
-      return r;
+  x << "<shader name=\"lamp\">\n  <emission name=\"e\" color=\"1 1 1\" strength=\"1\" />\n"
+    << "  <connect from=\"e emission\" to=\"output surface\" />\n</shader>\n";
+  x << "<state shader=\"lamp\">\n";
+  for (const Light &l : scene.lights) {
+    const double w = l.strength;
+    if (l.kind == Light::Kind::point) {
+      /* Cycles 4.3 lights are placed by their own 3x4 transform (rows; translation in the last column); the
+       * enclosing <transform> does not apply to them. */
+      const Eigen::Vector3d &p = l.position;
+      x << "  <light light_type=\"point\" tfm=\"1 0 0 " << p.x() << " 0 1 0 " << p.y() << " 0 0 1 " << p.z()
+        << "\" strength=\"" << w << " " << w << " " << w << "\" size=\"" << l.radius << "\"";
     }
-  }
-  /* sun-DEG-normal, sun-DEG-axis */
-  const size_t a = name.find('-'), b = name.rfind('-');
-  if (name.compare(0, 4, "sun-") == 0 && b > a + 1) {
-    const std::string deg_text = name.substr(a + 1, b - a - 1), plane = name.substr(b + 1);
-    size_t used = 0;
-    double deg = -1.0;
-    try {
-      deg = std::stod(deg_text, &used);
-    }
-    catch (const std::exception &) {
-      used = 0;
-    }
-    if (used == deg_text.size() && deg >= 0.0 && deg <= 180.0 && (plane == "normal" || plane == "axis")) {
-      const bool normal = plane == "normal";
-      return {name,
-              "distant light " + deg_text + " deg from the view, " +
-                  (normal ? "in the plane normal to the ply (toward +y)" : "along the ply axis (toward +x)"),
-              false,
-              {sun(deg, normal ? 0.0 : 1.0, normal ? 1.0 : 0.0)}};
-    }
-  }
-  throw std::runtime_error("unknown light rig '" + name + "' (known: " + light_rig_names() +
-                           ", sun-DEG-normal, sun-DEG-axis with DEG in [0, 180])");
-}
-
-const std::vector<Baseline> &baselines()
-{
-  static const std::vector<Baseline> all = {
-      {"chiang", "Principled Hair, Chiang (2016), direct colouring"},
-      {"huang", "Principled Hair, Huang (2022), direct colouring, round cross-section"},
-      {"sheen", "Principled BSDF, sheen weight 1"},
-  };
-  return all;
-}
-
-namespace {
-/* The <shader name="yarn"> body of a baseline: Blender's node defaults where the XML reader's differ (its
- * Principled BSDF has specular 0, Blender's node 0.5), the colour as given. */
-std::string baseline_shader(const std::string &name, const double *c)
-{
-  std::ostringstream x;
-  x.precision(7);
-  const std::string colour = std::to_string(c[0]) + " " + std::to_string(c[1]) + " " + std::to_string(c[2]);
-  if (name == "chiang" || name == "huang") {
-    /* Huang's default aspect ratio 0.85 flattens the fiber; a ply's cross-section is round. */
-    x << "  <principled_hair_bsdf name=\"b\" model=\"" << (name == "chiang" ? "Chiang" : "Huang")
-      << "\" parametrization=\"Direct coloring\" color=\"" << colour << "\""
-      << (name == "huang" ? " aspect_ratio=\"1\"" : "") << " />\n";
-  }
-  else {
-    x << "  <principled_bsdf name=\"b\" base_color=\"" << colour
-      << "\" specular_ior_level=\"0.5\" sheen_weight=\"1\" sheen_tint=\"1 1 1\" />\n";
-  }
-  x << "  <connect from=\"b bsdf\" to=\"output surface\" />\n";
-  return x.str();
-}
-}  // namespace
-
-BounceLimits BounceLimits::blender_addon()
-{
-  BounceLimits b;
-  b.total = 12, b.diffuse = 4, b.glossy = 4, b.transmission = 12, b.transparent = 64;
-  return b;
-}
-
-namespace {
-
-/* What the scene's options allow alone (before any file is read): the light rig they name. */
-LightRig check_options(const FiberPreset &preset, const PlySceneOptions &o)
-{
-  validate(preset);
-  if (o.white_furnace && o.lights != "key-rim" && o.lights != "environment") {
-    throw std::runtime_error("the white furnace is the 'environment' light rig; it cannot use lights '" + o.lights +
-                             "'");
-  }
-  LightRig rig = find_light_rig(o.white_furnace ? std::string("environment") : o.lights);
-  if (o.max_bounce < 1 || o.max_bounce > 65535) {
-    /* Cycles keeps bounce counters in 16 bits. */
-    throw std::runtime_error("max_bounce must be in [1, 65535], got " + std::to_string(o.max_bounce));
-  }
-  if (!(o.camera_distance > 1.0 && o.camera_distance <= 1e4)) {
-    throw std::runtime_error("camera_distance must be in (1, 1e4] ply radii (outside the ply), got " +
-                             std::to_string(o.camera_distance));
-  }
-  if (!(o.unit_scale >= 1e-6 && o.unit_scale <= 1e6)) {
-    throw std::runtime_error("unit_scale must be in [1e-6, 1e6], got " + std::to_string(o.unit_scale));
-  }
-  if (o.layers < 1 || o.layers > 256) {
-    throw std::runtime_error("layers must be in [1, 256], got " + std::to_string(o.layers));
-  }
-  if (!(o.light_scale > 0.0 && o.light_scale <= 1e6)) {
-    throw std::runtime_error("light_scale must be in (0, 1e6], got " + std::to_string(o.light_scale));
-  }
-  if (!o.plies.empty() && o.layers != 1) {
-    throw std::runtime_error("a scene of ply curves has its own geometry: no layers");
-  }
-  return rig;
-}
-
-/* What the level and the baseline allow, given the plies file (if any). */
-void check_level_and_baseline(const PlySceneOptions &o, const PlyCurves &curves_in, bool yarn_level)
-{
-  if (!yarn_level && o.level != "plies") {
-    throw std::runtime_error("level must be plies or yarns, got '" + o.level + "'");
-  }
-  if (yarn_level && (curves_in.yarns.empty() || (o.model.empty() && o.baseline.empty()))) {
-    throw std::runtime_error("the yarn level draws the yarns of a plies file (--plies with \"yarns\") with a model "
-                             "or a baseline");
-  }
-  if (o.white_furnace && o.artist_bounces) {
-    throw std::runtime_error("the white furnace runs every path to its end; it cannot use the artist's bounce limits");
-  }
-  if (!o.baseline.empty()) {
-    bool known = false;
-    std::string names;
-    for (const Baseline &b : baselines()) {
-      known |= b.name == o.baseline;
-      names += (names.empty() ? "" : ", ") + b.name;
-    }
-    if (!known) {
-      throw std::runtime_error("unknown baseline '" + o.baseline + "' (known: " + names + ")");
-    }
-    if (!o.model.empty()) {
-      throw std::runtime_error("a baseline replaces the model: give --model or --baseline, not both");
-    }
-    for (double c : o.baseline_colour) {
-      if (!(c >= 0.0 && c <= 1.0)) {
-        throw std::runtime_error("baseline colour components must be in [0, 1], got " + std::to_string(c));
+    else {
+      /* A distant light shines along -Z of its transform (Light::get_dir() is minus the third column; the
+       * kernel's direction toward the light is that column), so the third column is the unit vector toward
+       * the light; the first two only orient its disc. Its angle is the full angular diameter in radians. */
+      const Eigen::Vector3d z = l.direction, u = z.unitOrthogonal(), v = z.cross(u);
+      x << "  <light light_type=\"distant\" tfm=\"";
+      for (int r = 0; r < 3; r++) {
+        /* (+ 0.0 writes -0 as 0) */
+        x << (r ? " " : "") << u[r] + 0.0 << " " << v[r] + 0.0 << " " << z[r] + 0.0 << " 0";
       }
+      x << "\" strength=\"" << w << " " << w << " " << w << "\" angle=\"" << l.angle << "\"";
     }
+    x << " use_mis=\"" << boolean(l.use_mis) << "\" use_camera=\"" << boolean(l.visible_to_camera) << "\" />\n";
   }
+  x << "</state>\n";
 }
 
-/* The model, refused here with the loader's message if it is broken or describes another fiber or level; its
- * path relative to the scene's directory (the XML reader resolves it so: scene and models move together). */
-std::string scene_model_path(const FiberPreset &preset, const PlySceneOptions &o, const PlyCurves &curves_in,
-                             bool yarn_level, const std::string &path)
+std::string colour_text(const Rgb3 &c)
 {
-  const model::YarnModel m = model::load_model(o.model);
-  if (preset_to_json(m.preset) != preset_to_json(preset)) {
-    throw std::runtime_error("model '" + o.model + "' was trained for preset '" + m.preset.name +
-                             "' with other parameters than '" + preset.name + "'");
-  }
-  if (m.calibration.empty()) {
-    throw std::runtime_error("model '" + o.model + "' is a version 1 file without a kernel array; re-bake it");
-  }
-  /* A model describes one level: a ply's on yarn curves (or the reverse) would render silently wrong. */
-  if (m.structure.is_yarn() != yarn_level) {
-    throw std::runtime_error("model '" + o.model + "' is a " + (m.structure.is_yarn() ? "yarn" : "ply") +
-                             "-level model; the scene draws " + (yarn_level ? "yarns" : "plies"));
-  }
-  if (yarn_level && (m.structure.plies != curves_in.plies_per_yarn ||
-                     std::abs(m.structure.ply_twist - curves_in.ply_twist) > 1e-6)) {
-    throw std::runtime_error("model '" + o.model + "' was baked for " + std::to_string(m.structure.plies) +
-                             " plies at ply twist " + std::to_string(m.structure.ply_twist) + "; the yarns have " +
-                             std::to_string(curves_in.plies_per_yarn) + " at " + std::to_string(curves_in.ply_twist));
-  }
-  const std::filesystem::path scene_dir = std::filesystem::absolute(path).parent_path();
-  std::string model_path = std::filesystem::absolute(o.model).lexically_normal().lexically_relative(scene_dir).string();
-  if (model_path.empty()) {
-    model_path = std::filesystem::absolute(o.model).string();
-  }
-  return model_path;
+  return std::to_string(c.r) + " " + std::to_string(c.g) + " " + std::to_string(c.b);
 }
 
-/* Where a straight ply lies in the close-up or in the sheets of a layered scene. */
-struct Placement {
-  double y, z, turn_deg;
-};
-
-/* The plies: one on the x axis, or `layers` sheets of plies side by side (along y, enough to fill the
- * frame's height at the camera's distance) stacked away from the camera (along +z), touching but for a
- * small gap. */
-std::vector<Placement> ply_placements(const PlySceneOptions &o)
+/* The <shader> of a material: Blender's node defaults where the XML reader's differ (its Principled BSDF has
+ * specular 0, Blender's node 0.5). */
+void write_shader(std::ostringstream &x, const CurveObject &obj, const std::string &scene_path)
 {
-  std::vector<Placement> plies;
-  if (o.layers == 1) {
-    plies.push_back({0.0, 0.0, o.ply_rotation_deg});
-  }
-  else {
-    constexpr double kPitch = 2.05;
-    const int half = int(std::ceil(o.camera_distance * std::tan(0.5 * kCloseupCameraFov) / kPitch)) + 1;
-    for (int k = 0; k < o.layers; k++) {
-      for (int j = -half; j <= half; j++) {
-        /* Each explicit ply another orientation of the cross-section (the golden angle apart). */
-        plies.push_back({kPitch * j, kPitch * k, o.ply_rotation_deg + 137.5 * double(plies.size())});
-      }
+  const Material &m = obj.material;
+  x << "<shader name=\"" << obj.shader << "\">\n";
+  switch (m.kind) {
+    case Material::Kind::neural_yarn:
+      x << "  <neural_yarn_bsdf name=\"y\" model=\"" << xml_escape(model_path_for(m.model_path, scene_path)) << "\""
+        << (m.model_json.empty() ? std::string() : " model_json=\"" + xml_escape(m.model_json) + "\"") << " />\n"
+        << "  <connect from=\"y bsdf\" to=\"output surface\" />\n";
+      break;
+    case Material::Kind::khungurn_fiber:
+      x << "  <khungurn_fiber_bsdf name=\"f\" C_R=\"" << m.C_R[0] << " " << m.C_R[1] << " " << m.C_R[2]
+        << "\" C_TT=\"" << m.C_TT[0] << " " << m.C_TT[1] << " " << m.C_TT[2] << "\" beta_R=\"" << m.beta_R
+        << "\" beta_TT=\"" << m.beta_TT << "\" gamma_TT=\"" << m.gamma_TT << "\" />\n"
+        << "  <connect from=\"f bsdf\" to=\"output surface\" />\n";
+      break;
+    case Material::Kind::principled_hair_chiang:
+    case Material::Kind::principled_hair_huang: {
+      /* Huang's default aspect ratio 0.85 flattens the fiber; a ply's cross-section is round. */
+      const bool huang = m.kind == Material::Kind::principled_hair_huang;
+      x << "  <principled_hair_bsdf name=\"b\" model=\"" << (huang ? "Huang" : "Chiang")
+        << "\" parametrization=\"Direct coloring\" color=\"" << colour_text(m.colour) << "\""
+        << (huang ? " aspect_ratio=\"1\"" : "") << " />\n"
+        << "  <connect from=\"b bsdf\" to=\"output surface\" />\n";
+      break;
     }
-  }
-  return plies;
-}
-
-/* The explicit version's fibers: swept along the plies file's centrelines, or the straight plies'. */
-geometry::CurveSet explicit_fibers(const FiberPreset &preset, const PlySceneOptions &o, const PlyCurves &curves_in,
-                                   const std::vector<Placement> &plies)
-{
-  const double s = o.unit_scale;
-  geometry::CurveSet curves;
-  if (!curves_in.plies.empty()) {
-    /* Each ply's fibers swept along its centreline, each ply another orientation of the cross-section. */
-    const geometry::PlyParams pp{preset.N, preset.rho, preset.alpha, 1.0};
-    /* Refuse before any work a scene that cannot be rendered here. */
-    int64_t keys = 0;
-    for (const auto &ply : curves_in.plies) {
-      double length = 0.0;
-      for (size_t i = 1; i < ply.size(); i++) {
-        length += (ply[i] - ply[i - 1]).norm();
-      }
-      keys += int64_t(preset.N) * (geometry::sweep_segments(pp, length, ply.size(), o.segments_per_turn) + 1);
-    }
-    if (keys > kMaxExplicitKeys) {
-      throw std::runtime_error("explicit fibers of these plies would be " + std::to_string(keys) +
-                               " curve keys, more than " + std::to_string(kMaxExplicitKeys) +
-                               " (tens of GB in Cycles): fewer plies, or fewer --segments-per-turn");
-    }
-    const geometry::PlyCrossSection cs = geometry::pack_cross_section(pp, o.packing_seed);
-    curves.offsets = {0};
-    for (size_t k = 0; k < curves_in.plies.size(); k++) {
-      geometry::PlyCrossSection turned = cs;
-      const Eigen::Rotation2Dd turn((o.ply_rotation_deg + 137.5 * double(k)) * kDeg);
-      for (Eigen::Vector2d &c : turned.centers) {
-        c = turn * c;
-      }
-      const geometry::CurveSet one =
-          geometry::sweep_fibers(geometry::Ply(pp, turned), curves_in.plies[k], o.segments_per_turn);
-      for (int c = 0; c < one.num_curves(); c++) {
-        curves.radii.push_back(one.radii[size_t(c)] * float(s));
-        curves.offsets.push_back(curves.offsets.back() + (one.offsets[size_t(c) + 1] - one.offsets[size_t(c)]));
-      }
-      for (const Eigen::Vector3f &p : one.points) {
-        curves.points.push_back(float(s) * p);
-      }
-    }
-  }
-  else {
-    const geometry::PlyParams pp{preset.N, preset.rho, preset.alpha, 1.0};
-    const geometry::Ply ply(pp, geometry::pack_cross_section(pp, o.packing_seed));
-    const geometry::CurveSet one =
-        geometry::export_fibers(ply, -0.5 * o.ply_length, 0.5 * o.ply_length, o.segments_per_turn);
-    curves.offsets = {0};
-    for (const Placement &pl : plies) {
-      /* The fibers turned about the ply axis: another orientation of the same random cross-section. */
-      const Eigen::Matrix3f turn =
-          Eigen::AngleAxisf(float(pl.turn_deg * kDeg), Eigen::Vector3f::UnitX()).toRotationMatrix();
-      const Eigen::Vector3f at(0.0f, float(pl.y), float(pl.z));
-      for (const Eigen::Vector3f &p : one.points) {
-        curves.points.push_back(float(s) * (turn * p + at));
-      }
-      for (int c = 0; c < one.num_curves(); c++) {
-        curves.radii.push_back(one.radii[size_t(c)] * float(s));
-        curves.offsets.push_back(curves.offsets.back() + (one.offsets[size_t(c) + 1] - one.offsets[size_t(c)]));
-      }
-    }
-  }
-  return curves;
-}
-
-/* Camera, integrator, background and lights. */
-void write_setting(std::ostringstream &x, const PlySceneOptions &o, const LightRig &rig, const BounceLimits &limits)
-{
-  const double s = o.unit_scale;
-  x << "<camera width=\"" << o.width << "\" height=\"" << o.height << "\" />\n";
-  x << "<film filter_type=\"box\" filter_width=\"" << kPixelFilterWidth << "\" />\n";
-  /* The camera camera_distance radii in front of the ply (-z), looking at the origin along +z. */
-  x << "<transform translate=\"0 0 " << -o.camera_distance * s << "\">\n  <camera type=\"perspective\" fov=\""
-    << kCloseupCameraFov << "\" />\n</transform>\n";
-  /* Bounce limits: a limit cuts the long random walks inside bright plies and biases the explicit-fiber
-   * references dark (cotton most; docs/benchmarks.md), so the limit is high and Cycles' Russian roulette
-   * (from the first bounce) ends paths without bias. The white
-   * furnace must not lose energy at all: no roulette there (min_bounce = max_bounce), every path runs
-   * until it leaves (an albedo-1 ply lets light out after tens of events). Transparent bounces (the
-   * aggregated model's T lobe) and diffuse ones get the same limit. */
-  x << "<integrator max_bounce=\"" << limits.total << "\" max_diffuse_bounce=\"" << limits.diffuse
-    << "\" max_glossy_bounce=\"" << limits.glossy << "\" max_transmission_bounce=\"" << limits.transmission
-    << "\" transparent_max_bounce=\"" << limits.transparent << "\" min_bounce=\""
-    << (o.white_furnace ? limits.total : 0)
-    /* No sample clamping: Cycles clamps indirect light at 10 by default, which biases the explicit-fiber
-     * references low, the more the more lights there are (the clamp acts on each light sample divided by
-     * its selection probability), and makes the image depend on the number of lights. */
-    << "\" sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\""
-    /* Stated although they are the standalone's defaults, because Blender's differ (it blurs glossy
-     * bounces by 1 and skips lights below 0.01 of a path's light): a scene rebuilt in Blender
-     * (scripts/fallback_render.py) takes them from here. */
-    << " filter_glossy=\"0\" light_sampling_threshold=\"0\""
-    /* No adaptive sampling (Cycles' default stops converged pixels after 64 samples): N samples are N
-     * samples in every pixel, so renders at equal samples compare and references converge everywhere. */
-    << " use_adaptive_sampling=\"false\" seed=\"" << o.seed << "\" />\n";
-  x << "<!-- lights: " << rig.name << " (" << xml_escape(rig.description) << ") -->\n";
-  x << "<background>\n  <background name=\"bg\" strength=\"" << (rig.environment ? 1.0 : 0.0)
-    << "\" color=\"1 1 1\" />\n  <connect from=\"bg background\" to=\"output surface\" />\n</background>\n";
-  if (!rig.lights.empty()) {
-    x << "<shader name=\"lamp\">\n  <emission name=\"e\" color=\"1 1 1\" strength=\"1\" />\n"
-      << "  <connect from=\"e emission\" to=\"output surface\" />\n</shader>\n";
-    x << "<state shader=\"lamp\">\n";
-    for (const RigLight &l : rig.lights) {
-      if (l.kind == RigLight::Kind::point) {
-        /* Cycles 4.3 lights are placed by their own 3x4 transform (rows; translation in the last column);
-         * the enclosing <transform> does not apply to them. Scaled scenes scale the power with the area. */
-        const double ls = s * o.light_scale, w = l.strength * ls * ls;
-        x << "  <light light_type=\"point\" tfm=\"1 0 0 " << l.x * ls << " 0 1 0 " << l.y * ls << " 0 0 1 " << l.z * ls
-          << "\" strength=\"" << w << " " << w << " " << w << "\" size=\"" << l.size * ls << "\" />\n";
-      }
-      else {
-        /* A distant light shines along -Z of its transform (Light::get_dir() is minus the third column; the
-         * kernel's direction toward the light is that column), so the third column is the unit vector
-         * toward the light; the first two only orient its disc. Its angle is the full angular diameter in
-         * radians. Camera rays do not see it: the back rig's disc (radiance ~3300) is in the frame, above
-         * the ply, and would swamp every whole-frame measurement. */
-        const Eigen::Vector3d z(l.x, l.y, l.z), u = z.unitOrthogonal(), v = z.cross(u);
-        x << "  <light light_type=\"distant\" tfm=\"";
-        for (int r = 0; r < 3; r++) {
-          /* (+ 0.0 writes -0 as 0) */
-          x << (r ? " " : "") << u[r] + 0.0 << " " << v[r] + 0.0 << " " << z[r] + 0.0 << " 0";
-        }
-        x << "\" strength=\"" << l.strength << " " << l.strength << " " << l.strength
-          << "\" angle=\"" << l.size * kDeg << "\" use_mis=\"true\" use_camera=\"false\" />\n";
-      }
-    }
-    x << "</state>\n";
-  }
-}
-
-/* One thick curve per ply (or yarn), shaded by the neural model or by a baseline. */
-void write_aggregated(std::ostringstream &x, const PlySceneOptions &o, const std::string &model_path,
-                      const PlyCurves &curves_in, bool yarn_level, const std::vector<Placement> &plies)
-{
-  const double s = o.unit_scale;
-  /* One thick curve along the ply axis, radius 1: the bounding cylinder the maps were gathered on. */
-  x << "<shader name=\"yarn\">\n";
-  if (!o.baseline.empty()) {
-    x << baseline_shader(o.baseline, o.baseline_colour);
-  }
-  else {
-    x << "  <neural_yarn_bsdf name=\"y\" model=\"" << xml_escape(model_path) << "\""
-      << (o.embed_model ? " model_json=\"" + xml_escape(read_text_file(o.model)) + "\"" : std::string()) << " />\n"
-      << "  <connect from=\"y bsdf\" to=\"output surface\" />\n";
+    case Material::Kind::sheen:
+      x << "  <principled_bsdf name=\"b\" base_color=\"" << colour_text(m.colour)
+        << "\" specular_ior_level=\"0.5\" sheen_weight=\"1\" sheen_tint=\"1 1 1\" />\n"
+        << "  <connect from=\"b bsdf\" to=\"output surface\" />\n";
+      break;
+    case Material::Kind::diffuse:
+      x << "  <diffuse_bsdf name=\"y\" color=\"" << m.colour.r << " " << m.colour.g << " " << m.colour.b << "\" />\n"
+        << "  <connect from=\"y bsdf\" to=\"output surface\" />\n";
+      break;
   }
   x << "</shader>\n";
-  /* The ply curves as given, or each straight ply as 17 keys along x. */
-  std::vector<std::vector<Eigen::Vector3d>> axes = yarn_level ? curves_in.yarns : curves_in.plies;
-  const double curve_radius = yarn_level ? curves_in.yarn_radius : 1.0;
-  if (axes.empty()) {
-    const int keys = 17;
-    for (const Placement &pl : plies) {
-      std::vector<Eigen::Vector3d> axis;
-      for (int k = 0; k < keys; k++) {
-        axis.emplace_back(-0.5 * o.ply_length + o.ply_length * k / (keys - 1), pl.y, pl.z);
-      }
-      axes.push_back(std::move(axis));
-    }
-  }
-  x << "<state shader=\"yarn\">\n<hair nkeys=\"";
-  for (size_t i = 0; i < axes.size(); i++) {
-    x << (i ? " " : "") << axes[i].size();
-  }
-  x << "\" radius=\"" << s * curve_radius << "\"\n  P=\"";
-  bool first = true;
-  for (const auto &axis : axes) {
-    for (const Eigen::Vector3d &p : axis) {
-      x << (first ? "" : " ") << s * p.x() << " " << s * p.y() << " " << s * p.z();
-      first = false;
-    }
-  }
-  x << "\" />\n</state>\n</cycles>\n";
 }
 
-/* The fibers with the Khungurn fiber closure. */
-void write_fibers(std::ostringstream &x, const FiberPreset &preset, const geometry::CurveSet &curves)
+/* The curves as one <hair> element (the XML reader takes one radius for all of them). */
+void write_curves(std::ostringstream &x, const CurveObject &obj)
 {
-  x << "<shader name=\"fiber\">\n  <khungurn_fiber_bsdf name=\"f\" C_R=\"" << preset.C_R[0] << " " << preset.C_R[1]
-    << " " << preset.C_R[2] << "\" C_TT=\"" << preset.C_TT[0] << " " << preset.C_TT[1] << " " << preset.C_TT[2]
-    << "\" beta_R=\"" << preset.beta_R_deg * kDeg << "\" beta_TT=\"" << preset.beta_TT_deg * kDeg
-    << "\" gamma_TT=\"" << preset.gamma_TT_deg * kDeg << "\" />\n"
-    << "  <connect from=\"f bsdf\" to=\"output surface\" />\n</shader>\n";
-  x << "<state shader=\"fiber\">\n<hair nkeys=\"";
-  for (int c = 0; c < curves.num_curves(); c++) {
-    x << (c ? " " : "") << curves.offsets[size_t(c) + 1] - curves.offsets[size_t(c)];
+  const geometry::CurveSet &c = obj.curves;
+  if (c.num_curves() == 0) {
+    throw std::runtime_error("object '" + obj.name + "' has no curves");
   }
-  x << "\"\n  radius=\"" << curves.radii.at(0) << "\"\n  P=\"";
-  for (size_t i = 0; i < curves.points.size(); i++) {
-    const auto &p = curves.points[i];
+  for (const float r : c.radii) {
+    if (r != c.radii[0]) {
+      throw std::runtime_error("object '" + obj.name + "': Cycles XML takes one radius for all curves of a <hair>");
+    }
+  }
+  x << "<state shader=\"" << obj.shader << "\">\n<hair nkeys=\"";
+  for (int k = 0; k < c.num_curves(); k++) {
+    x << (k ? " " : "") << c.offsets[size_t(k) + 1] - c.offsets[size_t(k)];
+  }
+  x << "\"\n  radius=\"" << c.radii[0] << "\"\n  P=\"";
+  for (size_t i = 0; i < c.points.size(); i++) {
+    const Eigen::Vector3f &p = c.points[i];
     x << (i ? " " : "") << p.x() << " " << p.y() << " " << p.z();
   }
-  x << "\" />\n</state>\n</cycles>\n";
-}
-
-/* Through a temporary file and a rename: a reader never sees half a scene. */
-void write_text_atomically(const std::string &path, const std::string &text)
-{
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    if (!out) {
-      throw std::runtime_error("cannot write scene '" + path + "'");
-    }
-    out << text;
-    if (!out.flush()) {
-      throw std::runtime_error("cannot write scene '" + path + "'");
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    throw std::runtime_error("cannot move the scene into place at '" + path + "'");
-  }
+  x << "\" />\n</state>\n";
 }
 
 }  // namespace
 
-void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &o, const std::string &path)
+std::string cycles_xml(const Scene &scene, const std::string &scene_path)
 {
-  const LightRig rig = check_options(preset, o);
-  /* Read (and refuse a bad file) before anything is written. */
-  const PlyCurves curves_in = o.plies.empty() ? PlyCurves{} : read_ply_curves(o.plies);
-  const bool yarn_level = o.level == "yarns";
-  check_level_and_baseline(o, curves_in, yarn_level);
-  const BounceLimits limits = o.artist_bounces ? BounceLimits::blender_addon()
-                                               : BounceLimits{o.max_bounce, o.max_bounce, o.max_bounce,
-                                                              o.max_bounce, o.max_bounce};
-  /* Aggregated geometry: one thick curve per ply, shaded by the neural model or by a baseline. */
-  const bool aggregated = !o.model.empty() || !o.baseline.empty();
-  const std::string model_path = o.model.empty() ? std::string() : scene_model_path(preset, o, curves_in, yarn_level, path);
-  const std::vector<Placement> plies = ply_placements(o);
-  /* Only the explicit version packs fibers. */
-  const geometry::CurveSet curves = aggregated ? geometry::CurveSet{} : explicit_fibers(preset, o, curves_in, plies);
-
   std::ostringstream x;
   x.precision(7);
-  x << "<?xml version=\"1.0\"?>\n<!-- neuralyarn: " << preset.name
-    << (!o.baseline.empty() ? " ply, aggregated (one thick curve, baseline " + o.baseline + ")"
-        : aggregated       ? std::string(" ply, aggregated (one thick curve, neural_yarn_bsdf)")
-                           : std::string(" ply, explicit fibers (khungurn_fiber_bsdf)"))
+  x << "<?xml version=\"1.0\"?>\n<!-- neuralyarn: " << scene.title
     << " (generated by `neuralyarn cycles-scene`) -->\n<cycles>\n";
-  write_setting(x, o, rig, limits);
-  if (aggregated) {
-    write_aggregated(x, o, model_path, curves_in, yarn_level, plies);
+  write_setting(x, scene);
+  for (const CurveObject &obj : scene.objects) {
+    write_shader(x, obj, scene_path);
+    write_curves(x, obj);
   }
-  else {
-    write_fibers(x, preset, curves);
-  }
-  write_text_atomically(path, x.str());
+  x << "</cycles>\n";
+  return x.str();
 }
 
 }  // namespace neuralyarn::scenes

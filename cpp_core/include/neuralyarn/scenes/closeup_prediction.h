@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 //
 // The close-up's image predicted without a renderer (issue 17: the tabulated method and the split of the
-// error into aggregation and fitting). In the close-up (scenes/cycles_xml.h) the camera sees one straight,
+// error into aggregation and fitting). In the close-up (scenes/ply_scene.h) the camera sees one straight,
 // convex ply under a uniform environment or distant lights and a black background. Light that leaves the
 // ply never returns to it, so the expected value of a pixel is one integral of the ply's far-field
 // scattering function S |cos theta_o| at the camera ray's hit: for a distant light of irradiance E over a
@@ -25,7 +25,7 @@
 #include "neuralyarn/kernel/frames.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/rdm/gather.h"
-#include "neuralyarn/scenes/cycles_xml.h"
+#include "neuralyarn/scenes/ply_scene.h"
 
 namespace neuralyarn::scenes {
 
