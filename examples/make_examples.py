@@ -98,6 +98,17 @@ def three_ply(yarns: list) -> list:
     return plies
 
 
+#: The patches' yarns (yarn radius 0.5 in Crane's units), each yarn plied from 3 plies by three_ply().
+PATCHES = {"knit": lambda: geometry.plain_knit(4, 4, samples_per_loop=48),
+           "weave": lambda: geometry.woven_fabric("twill", 6, 6, spacing=2.5, yarn_radius=0.5)}
+
+
+def patch(kind: str, out: str) -> list[str]:
+    """Writes a patch's plies file (out/<kind>_plies.json) and returns cycles-scene's arguments that draw it."""
+    plies = os.path.join(out, f"{kind}_plies.json")
+    return patch_args(plies, plies_file(plies, three_ply(PATCHES[kind]())))
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "examples"))
@@ -122,13 +133,9 @@ def main() -> int:
             raise SystemExit(f"make_examples: {tool} is not built; run scripts/setup.sh first")
     os.makedirs(args.out, exist_ok=True)
 
-    # Patch geometry (the same for every preset): yarn radius 0.5 in Crane's units, 3 plies each, written once
-    # as plies files that cycles-scene draws for every preset and method.
-    patches = {}
-    for kind, yarns in (("knit", geometry.plain_knit(4, 4, samples_per_loop=48)),
-                        ("weave", geometry.woven_fabric("twill", 6, 6, spacing=2.5, yarn_radius=0.5))):
-        plies = os.path.join(args.out, f"{kind}_plies.json")
-        patches[kind] = patch_args(plies, plies_file(plies, three_ply(yarns)))
+    # Patch geometry (the same for every preset), written once as plies files that cycles-scene draws for every
+    # preset and method.
+    patches = {kind: patch(kind, args.out) for kind in PATCHES}
 
     scenes = []
     for p in args.presets:

@@ -23,13 +23,14 @@ def read_exr(path: str) -> np.ndarray:
     return np.asarray(img, dtype=np.float64)
 
 
-def write_exr(path: str, img: np.ndarray) -> None:
-    """An (H, W, 3) image as a float32 RGB EXR, written to a temporary name and moved into place."""
+def write_exr(path: str, img: np.ndarray, half: bool = False) -> None:
+    """An (H, W, 3) image as a float32 (or with `half` float16) RGB EXR, written to a temporary name and moved
+    into place."""
     import os
     import OpenEXR
     tmp = path + ".tmp.exr"
     with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
-                      {"RGB": np.ascontiguousarray(img[..., :3], dtype=np.float32)}) as f:
+                      {"RGB": np.ascontiguousarray(img[..., :3], dtype=np.float16 if half else np.float32)}) as f:
         f.write(tmp)
     os.replace(tmp, path)
 
