@@ -11,10 +11,11 @@ packing seed:
     <out>/<preset>_yarn.xml     aggregated (one thick curve of the ply's radius, neural_yarn_bsdf)
 and two small patches of aggregated plies:
     <out>/knit_<preset>.xml     a 4 x 4 plain knit (Crane's loop curve) of 3-ply yarns
-    <out>/weave_<preset>.xml    a 6 x 6 twill of 3-ply yarns
+    <out>/twill_<preset>.xml    a 6 x 6 twill of 3-ply yarns
 (with --explicit-patches also their explicit fibers, <out>/knit_<preset>_fibers.xml, ...), the patches' ply
-curves made by the Blender add-on's own geometry package (addon/geometry: the curves the add-on gives Blender)
-and written once as plies files (<out>/knit_plies.json, weave_plies.json). Every scene is written by
+curves made by the Blender add-on's own geometry package (addon/geometry: the curves the add-on gives Blender;
+scripts/garment.py patch_plies) and written once as plies files (<out>/knit_plies.json, twill_plies.json), as the
+evaluation harness's scenes `knit` and `twill` are. Every scene is written by
 `neuralyarn cycles-scene` (the close-up's light rig, moved out with the camera for the patches); each
 aggregated one also as its description (<out>/<name>.json), which Blender renders through the add-on
 (scripts/fallback_render.py). Model paths in the scenes are relative to the scene file, so <out> can be moved
@@ -24,22 +25,18 @@ with build/cycles/bin/cycles; everything is seeded, so the images are reproducib
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import os
 import re
 import subprocess
 import sys
 import time
 
-import numpy as np
-
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
 sys.path.insert(0, os.path.join(ROOT, "addon"))
-import geometry  # noqa: E402  (addon/geometry: pure numpy)
 from resources import PRESETS  # noqa: E402  (addon/resources.py: the core's preset list)
 sys.path.insert(0, os.path.join(ROOT, "scripts"))
-from evaluate import CLOSEUP_DISTANCE, CLOSEUP_FOV  # noqa: E402  (cycles-scene's camera, as the harness has it)
+from evaluate import patch_scene_args  # noqa: E402  (the patches as the evaluation harness draws them)
+from garment import PATCHES  # noqa: E402
 
 
 def run(cmd: list[str]) -> str:
@@ -63,57 +60,11 @@ def check_image(exr: str) -> float:
     return mean
 
 
-def plies_file(path: str, curves: list) -> float:
-    """Writes a patch's ply curves as a plies file (docs/file_formats.md) for `cycles-scene --plies`: centred at
-    the origin in the xy plane, tilted 35 degrees about x toward the camera (which looks along +z from z < 0).
-    Returns the patch's size (its bounding box's diagonal) in ply radii, cycles-scene's unit."""
-    pts = np.concatenate([c.points for c in curves])
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    center = (lo + hi) / 2
-    tilt = math.radians(35.0)
-    rot = np.array([[1, 0, 0], [0, math.cos(tilt), -math.sin(tilt)], [0, math.sin(tilt), math.cos(tilt)]])
-    r_ply = float(np.mean([c.radius.mean() for c in curves]))
-    plies = []
-    for c in curves:
-        p = np.concatenate([c.points, c.points[:1]]) if c.cyclic else c.points
-        plies.append([round(float(v), 6) for v in ((p - center) @ rot.T).ravel()])
-    with open(path, "w", encoding="utf-8") as f:
-        json.dump({"format": "neuralyarn-plies 1", "ply_radius": r_ply, "plies": plies}, f, separators=(",", ":"))
-    return float(np.linalg.norm(hi - lo)) / r_ply
-
-
-def patch_args(plies: str, size: float) -> list[str]:
-    """cycles-scene's arguments of a patch: its plies, a camera that frames it (the close-up's field of view,
-    CLOSEUP_FOV), and the close-up's key and rim lights moved out with the camera (same irradiance)."""
-    distance = 0.55 * size / math.tan(0.5 * CLOSEUP_FOV)
-    return ["--plies", plies, "--camera-distance", f"{distance:.4f}",
-            "--light-scale", f"{distance / CLOSEUP_DISTANCE:.6g}", "--segments-per-turn", "12"]
-
-
-def three_ply(yarns: list) -> list:
-    """Each yarn as 3 S-twisted plies (the paper's 3-ply yarns), ply twist alpha 0.5."""
-    plies = []
-    for y in yarns:
-        plies += geometry.twist_plies(y, 3, alpha_yarn=0.5, samples_per_turn=24)
-    return plies
-
-
-#: The patches' yarns (yarn radius 0.5 in Crane's units), each yarn plied from 3 plies by three_ply().
-PATCHES = {"knit": lambda: geometry.plain_knit(4, 4, samples_per_loop=48),
-           "weave": lambda: geometry.woven_fabric("twill", 6, 6, spacing=2.5, yarn_radius=0.5)}
-
-
-def patch(kind: str, out: str) -> list[str]:
-    """Writes a patch's plies file (out/<kind>_plies.json) and returns cycles-scene's arguments that draw it."""
-    plies = os.path.join(out, f"{kind}_plies.json")
-    return patch_args(plies, plies_file(plies, three_ply(PATCHES[kind]())))
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "examples"))
     ap.add_argument("--presets", nargs="+", default=PRESETS, choices=PRESETS)
-    ap.add_argument("--scenes", nargs="+", default=["closeup", "knit", "weave"], choices=["closeup", "knit", "weave"],
+    ap.add_argument("--scenes", nargs="+", default=["closeup", *PATCHES], choices=["closeup", *PATCHES],
                     help="which scenes to write (default all)")
     ap.add_argument("--render", action="store_true", help="render every scene with build/cycles/bin/cycles")
     ap.add_argument("--samples", type=int, default=64)
@@ -121,7 +72,7 @@ def main() -> int:
     ap.add_argument("--height", type=int, default=160)
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--explicit-patches", action="store_true",
-                    help="also write knit/weave patches with explicit fibers (the close-up's ply swept along every "
+                    help="also write knit/twill patches with explicit fibers (the close-up's ply swept along every "
                          "ply curve; millions of curve keys)")
     ap.add_argument("--check", action="store_true",
                     help="with --render: fail unless every image is finite (no NaN/Inf) and not black")
@@ -135,7 +86,7 @@ def main() -> int:
 
     # Patch geometry (the same for every preset), written once as plies files that cycles-scene draws for every
     # preset and method.
-    patches = {kind: patch(kind, args.out) for kind in PATCHES}
+    patches = {kind: list(patch_scene_args(args.out, kind)) for kind in PATCHES}
 
     scenes = []
     for p in args.presets:
@@ -157,7 +108,7 @@ def main() -> int:
         if "closeup" in args.scenes:
             scenes += [(fibers, args.width, args.height), (yarn, args.width, args.height)]
         scenes += [(os.path.join(args.out, f"{kind}_{p}.xml"), args.width, args.width)
-                   for kind in ("knit", "weave") if kind in args.scenes]
+                   for kind in PATCHES if kind in args.scenes]
     print(f"make_examples: wrote {len(scenes)} scenes to {args.out}")
 
     if args.render:

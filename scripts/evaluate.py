@@ -18,7 +18,10 @@ the same.
 Scenes: `garment` (on request; --garment-stitches, default 40 x 40: a plain-knit sleeve of 3-ply yarn,
 scripts/garment.py, seen whole at 320 x 240, the point lights moved out with the camera; its central region is
 the middle half of the frame, all fabric; explicit fibers only up to ~50 M curve keys, a 10 x 10 piece for
-fleece, larger pieces are refused and recorded as failed), and `closeup`, the single-ply close-up of `neuralyarn cycles-scene` (ply radius 1 along x, camera at
+fleece, larger pieces are refused and recorded as failed), `knit` and `twill` (on request: a 4 x 4 plain knit
+and a 6 x 6 twill of 3-ply yarns, scripts/garment.py patch_plies, as examples/make_examples.py draws them, seen
+whole in a square image as wide as --width, the point lights moved out with the camera; central region the
+middle half of the frame; references of one orientation, as the garment's), and `closeup`, the single-ply close-up of `neuralyarn cycles-scene` (ply radius 1 along x, camera at
 distance 12 — or each of --distances, in ply radii: the ply is about height / (0.483 distance) pixels wide —
 the ply 48 long, or longer with the distance, so that its ends are out of the frame), and `yarn` (on request), the
 same close-up of one straight 3-ply yarn (scripts/garment.py straight_yarn_plies: the garment's plying; the
@@ -80,7 +83,7 @@ import numpy as np
 
 from evaluate_charts import (CLOSEUP_DISTANCE, REFERENCE_METHOD, error_distance_charts, error_time_charts, label,
                              group_of, speed_summary, stem, summary_table)
-from garment import garment_plies, straight_yarn_plies, yarn_radius
+from garment import PATCHES, garment_plies, patch_plies, straight_yarn_plies, yarn_radius
 from images import LUMINANCE, display, display_ssim, exposure_of, read_exr, write_exr
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
@@ -91,9 +94,12 @@ MODELS = os.path.join(ROOT, "models")
 
 with open(os.path.join(ROOT, "cpp_core", "data", "presets.json"), encoding="utf-8") as _f:
     PRESETS = list(json.load(_f)["presets"])  # the core's preset list, in its order
-SCENES = ["closeup", "yarn", "garment"]
+SCENES = ["closeup", "yarn", *PATCHES, "garment"]
 #: Scenes seen from --distances (the others frame themselves).
 DISTANCE_SCENES = ("closeup", "yarn")
+#: Scenes of many plies, framed whole: their central region is the middle half of the frame, their references
+#: one orientation (the plies already show the cross-section turned by the golden angle from ply to ply).
+FRAMED_SCENES = (*PATCHES, "garment")
 DEFAULT_SCENES = ["closeup"]
 #: The garment (scripts/garment.py: a plain-knit sleeve of 3-ply yarn): image size, explicit fibers' keys per
 #: helix turn (the examples' patches use as many), the frame's margin around the tube, references of one
@@ -240,8 +246,9 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
     if "yarns" in a.methods:
         if a.yarns:
             raise Usage("method yarns renders the presets only (their yarn-level models)")
-        if "closeup" in a.scenes:
-            raise Usage("method yarns draws yarns: scenes yarn and garment (the close-up is one ply)")
+        if "closeup" in a.scenes or any(p in a.scenes for p in PATCHES):
+            raise Usage("method yarns draws yarns: scenes yarn and garment (the close-up is one ply, the patches' "
+                        "plies files have no yarns)")
         for p in a.presets:
             if not os.path.isfile(yarn_model_path(p)):
                 raise Usage(f"method yarns: model '{yarn_model_path(p)}' is missing "
@@ -310,11 +317,28 @@ def scene_path(a, scene: str, method: str, preset: str, light: str, seed: int, r
 
 
 def for_scene(a, scene: str):
-    """The settings as one scene renders with them (the garment's own image size and reference orientations)."""
-    if scene != "garment":
-        return a
-    return types.SimpleNamespace(**{**vars(a), "width": GARMENT["width"], "height": GARMENT["height"],
-                                    "ref_rotations": GARMENT["ref_rotations"]})
+    """The settings as one scene renders with them (the garment's own image size, a patch's square one, and
+    their references of one orientation)."""
+    if scene == "garment":
+        return types.SimpleNamespace(**{**vars(a), "width": GARMENT["width"], "height": GARMENT["height"],
+                                        "ref_rotations": GARMENT["ref_rotations"]})
+    if scene in PATCHES:
+        return types.SimpleNamespace(**{**vars(a), "height": a.width, "ref_rotations": 1})
+    return a
+
+
+@functools.lru_cache(maxsize=None)
+def patch_scene_args(out: str, kind: str) -> tuple[str, ...]:
+    """cycles-scene's arguments for a patch (garment.patch_plies): its plies file (OUT/<kind>_plies.json, written
+    once a run), a camera that frames it (the close-up's field of view), the close-up's point lights moved out
+    with the camera (the same irradiance), 12 keys per helix turn for its explicit fibers (as the garment)."""
+    p = patch_plies(kind)
+    path = os.path.join(out, f"{kind}_plies.json")
+    with open(path, "w") as f:
+        json.dump(p, f, separators=(",", ":"))
+    d = 0.55 * p["size"] / math.tan(0.5 * CLOSEUP_FOV)
+    return ("--plies", path, "--camera-distance", f"{d:.4f}", "--light-scale", f"{d / CLOSEUP_DISTANCE:.6g}",
+            "--segments-per-turn", str(GARMENT["segments_per_turn"]))
 
 
 def garment_scene_args(a) -> list[str]:
@@ -354,6 +378,8 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
             "--height", str(a.height), "--out", path]
     if scene == "garment":
         args += garment_scene_args(a)
+    elif scene in PATCHES:
+        args += patch_scene_args(os.path.join(a.out, "scenes"), scene)
     elif scene == "yarn":
         args += ["--plies", straight_yarn_file(a.out, ply_length(distance, a)), "--camera-distance", f"{distance:g}"]
     else:
@@ -743,11 +769,12 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         ref_scene = scene_path(a, scene, REFERENCE_METHOD, preset, light, REFERENCE_SEEDS["A"], distance=distance)
         if os.path.isfile(ref_scene):  # (reference() writes it even when it cannot render)
             cam_distance, fov = camera(ref_scene)
-            if distance is None:  # the garment's own camera
+            if distance is None:  # the garment's or a patch's own camera
                 group["distance"] = distance = cam_distance
             cameras.setdefault(scene, {"distance": CLOSEUP_DISTANCE, "fov": fov, "ply_length": CLOSEUP_PLY_LENGTH,
                                        "distances": {}} if scene in DISTANCE_SCENES else
-                               {"distance": cam_distance, "fov": fov, "stitches": a.garment_stitches,
+                               {"distance": cam_distance, "fov": fov,
+                                **({"stitches": a.garment_stitches} if scene == "garment" else {}),
                                 "width": a.width, "height": a.height, "distances": {}})
             cameras[scene]["distances"][f"{distance:g}"] = {
                 "ply_length": ply_length(distance, a) if scene in DISTANCE_SCENES else None,
@@ -755,7 +782,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         if not ref_failed:
             ref_img = read_exr(os.path.join(a.out, refs["A"]["image"]))
             try:
-                if scene == "garment":  # the middle half of the frame: all fabric
+                if scene in FRAMED_SCENES:  # the middle half of the frame: the fabric
                     region = (slice(a.height // 4, a.height - a.height // 4), slice(a.width // 4, a.width - a.width // 4))
                     region_name = "central"
                 else:  # the ply's, or the yarn's bounding cylinder
@@ -765,7 +792,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                 region, region_name = (slice(None), slice(None)), "frame"
         floor = {**group, "region": region_name, "failed": "; ".join(failed.values()) or False,
                  "region_share": None if ref_failed else region_share(
-                     ref_img, region, ply_band(region) if scene != "garment" and region_name == "central" else None)}
+                     ref_img, region, ply_band(region) if scene in DISTANCE_SCENES and region_name == "central" else None)}
         if not failed:
             floor.update(metrics(read_exr(os.path.join(a.out, refs["B"]["image"])), ref_img, region))
         else:

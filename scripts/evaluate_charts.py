@@ -258,7 +258,8 @@ def error_time_charts(out: str, results: dict) -> list[str]:
             ax.axhline(floors[group], color="grey", ls=":", lw=1, label="reference noise floor")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_title(f"{group[1]}, {group[2]}" + ("" if at_own_distance(group) else f", distance {group[3]:g}"),
+        scene = f"{group[0]}: " if len({g[0] for g in groups}) > 1 else ""  # (several scenes in one chart)
+        ax.set_title(f"{scene}{group[1]}, {group[2]}" + ("" if at_own_distance(group) else f", distance {group[3]:g}"),
                      fontsize=8)
         ax.tick_params(labelsize=6)
         if legend:

@@ -12,7 +12,8 @@ outward; in ply radii (ply radius 1), the tube's front at z = 0 facing a camera 
 vertically and across. Deterministic (no random numbers). Prints one line: rows, stitches, plies, points,
 tube radius and height in ply radii. The file also holds the yarns the plies were twisted from ("yarns",
 "yarn_radius", "plies_per_yarn", "ply_twist"): the yarn level draws those (docs/decisions.md D27).
-`straight_yarn_plies` is the harness's yarn close-up: one straight 3-ply yarn along x.
+`straight_yarn_plies` is the harness's yarn close-up: one straight 3-ply yarn along x; `patch_plies` the
+examples' and the harness's small patches (a 4 x 4 plain knit, a 6 x 6 twill) of 3-ply yarns.
 """
 from __future__ import annotations
 
@@ -82,6 +83,29 @@ def straight_yarn_plies(length: float) -> dict:
     return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": length,
             "plies": [[round(float(v), 5) for v in p.points.ravel()] for p in plies],
             **_yarns([[round(float(v), 5) for v in axis[[0, -1]].ravel()]])}
+
+
+#: The patches' yarns (yarn radius 0.5 in Crane's units): examples/make_examples.py's and the harness's scenes
+#: `knit` and `twill`.
+PATCHES = {"knit": lambda: geometry.plain_knit(4, 4, samples_per_loop=48),
+           "twill": lambda: geometry.woven_fabric("twill", 6, 6, spacing=2.5, yarn_radius=0.5)}
+
+
+def patch_plies(kind: str) -> dict:
+    """A patch as a plies file's content in ply radii (ply radius 1): each yarn of PATCHES[kind] twisted from
+    PLIES_PER_YARN plies, centred at the origin in the xy plane and tilted 35 degrees about x toward a camera on
+    -z; "size" is the diagonal of its bounding box before the tilt."""
+    plies = []
+    for y in PATCHES[kind]():
+        plies += geometry.twist_plies(y, PLIES_PER_YARN, alpha_yarn=ALPHA_YARN, samples_per_turn=24)
+    r_ply = float(np.mean([p.radius.mean() for p in plies]))
+    pts = [(np.concatenate([p.points, p.points[:1]]) if p.cyclic else p.points) / r_ply for p in plies]
+    every = np.concatenate(pts)
+    lo, hi = every.min(axis=0), every.max(axis=0)
+    tilt = math.radians(35.0)
+    rot = np.array([[1, 0, 0], [0, math.cos(tilt), -math.sin(tilt)], [0, math.sin(tilt), math.cos(tilt)]])
+    return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "size": float(np.linalg.norm(hi - lo)),
+            "plies": [[round(float(v), 5) for v in ((p - 0.5 * (lo + hi)) @ rot.T).ravel()] for p in pts]}
 
 
 def main(argv: list[str]) -> int:

@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from evaluate import CLI, CYCLES, ROOT
+from evaluate import CLI, CYCLES, ROOT, patch_scene_args
 from images import display, exposure_of, read_exr, write_exr
 
 REFERENCES = os.path.join(ROOT, "tests", "data", "regression")
@@ -32,7 +32,7 @@ MODELS = os.path.join(ROOT, "models")
 IDIFF = ["-fail", "0.016", "-failpercent", "1"]
 #: (name, renderer, cycles-scene arguments, samples): the close-up (the camera moved in: the ply a third of the
 #: frame's height) of three presets under three rigs by every method (explicit fibers, the native closure, a
-#: baseline, the OSL and stock-node fallbacks in Blender), and make_examples.py's knit patch.
+#: baseline, the OSL and stock-node fallbacks in Blender), and the harness's knit patch (make_examples.py's).
 WIDTH, HEIGHT = 64, 32
 CLOSEUP = ["--camera-distance", "5", "--ply-length", "30"]
 KNIT = "knit"  # (the knit's plies file and camera: knit_args())
@@ -55,11 +55,9 @@ CASES = [
 
 
 def knit_args(out: str) -> list[str]:
-    """cycles-scene's arguments of examples/make_examples.py's 4 x 4 knit of 3-ply yarns (its plies file, written
-    into `out`, and the camera that frames it), in a square image."""
-    sys.path.insert(0, os.path.join(ROOT, "examples"))
-    import make_examples
-    return [*make_examples.patch("knit", out), "--width", str(WIDTH), "--height", str(WIDTH)]
+    """cycles-scene's arguments of the 4 x 4 knit of 3-ply yarns (its plies file, written into `out`, and the
+    camera that frames it), in a square image."""
+    return [*patch_scene_args(out, "knit"), "--width", str(WIDTH), "--height", str(WIDTH)]
 
 
 def scene_args(args: list[str], out: str) -> list[str]:

@@ -119,3 +119,30 @@ def test_the_yarn_close_up_at_every_level(tmp_path):
     bad = subprocess.run(["bash", EVALUATE, "--quick", "--scenes", "closeup", "--methods", "yarns", "--out",
                           str(tmp_path / "bad")], capture_output=True, text=True, timeout=60)
     assert bad.returncode == 1 and "yarn" in bad.stderr
+
+
+def test_the_patches_in_the_harness(tmp_path):
+    """scenes knit and twill (garment.patch_plies: the examples' patches): every method draws the same plies file,
+    framed whole in a square image, measured over the middle half of the frame."""
+    knit = garment.patch_plies("knit")
+    assert knit == garment.patch_plies("knit")  # deterministic
+    pts = np.concatenate([np.reshape(p, (-1, 3)) for p in knit["plies"]])
+    assert np.allclose(0.5 * (pts.min(axis=0) + pts.max(axis=0))[:2], 0.0, atol=0.5 * knit["size"] / 10)
+    r = subprocess.run(["bash", EVALUATE, "--quick", "--scenes", "knit", "twill", "--lights", "key-rim", "--methods",
+                        "explicit", "native", "--ref-spp", "16", "--out", str(tmp_path)], capture_output=True,
+                       text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-3000:]
+    res = json.load(open(tmp_path / "results.json"))
+    assert {(x["scene"], x["method"]) for x in res["runs"]} == {(s, m) for s in ("knit", "twill")
+                                                                for m in ("explicit", "native")}
+    for x in res["runs"]:
+        assert x["failed"] is False and x["region"] == "central" and x["flip"] is not None, x
+        assert x["distance"] == res["scenes"][x["scene"]]["distance"] > 12.0
+        assert res["scenes"][x["scene"]]["width"] == res["scenes"][x["scene"]]["height"]
+        plies = json.load(open(tmp_path / "scenes" / f"{x['scene']}_plies.json"))["plies"]
+        if x["method"] == "native":
+            assert x["curve_keys"] == sum(len(p) // 3 for p in plies)
+            # a wrong frame, light scale or model would be off by far more than the near-field error (~10 %)
+            assert abs(x["mean_luminance_error"]) < 0.35, x
+        else:
+            assert x["curve_keys"] > 100 * sum(len(p) // 3 for p in plies)
