@@ -165,7 +165,6 @@ os._exit(0)
 
 def built(tmp_path, name: str, *scene_args):
     """What Blender holds after building the description of `cycles-scene SCENE_ARGS` (saved, reopened)."""
-    import evaluate  # noqa: F401  (scripts/ on sys.path)
     desc, blend = tmp_path / f"{name}.json", tmp_path / f"{name}.blend"
     cycles_scene(*scene_args, "--width", 32, "--height", 16, "--out", desc)
     r = fallback_render(desc, tmp_path / f"{name}.exr", "--samples", 1, "--save-blend", blend)
