@@ -49,8 +49,9 @@ Metrics against reference A (linear HDR images):
   ssim                     scripts/images.py: display images (the reference's 99.5th percentile
                            maps to 1, clamped, sRGB), Gaussian window sigma 1.5.
 Cost: seconds_load (wall time of a 1-sample render of the same scene, the median of three), seconds_render
-(wall time minus that), peak_rss_mb (/usr/bin/time %M), baseline_rss_mb (an empty scene's), curve_keys (from
-the scene). Speed against error (scripts/evaluate_charts.py): per (scene, preset, light) FLIP against render
+(wall time minus that), peak_rss_mb (/usr/bin/time %M), baseline_rss_mb (an empty scene's in the method's own
+renderer: the standalone Cycles, or Blender for osl and nodes; both in results.json's `baseline_rss_mb`),
+curve_keys (cycles-scene's report of the scene). Speed against error (scripts/evaluate_charts.py): per (scene, preset, light) FLIP against render
 time over --spp, one curve per method; results.json's `summary` has per scene and method the speed-up over
 explicit fibers at equal FLIP and at equal samples, and the memory ratio above the baseline.
 
@@ -426,9 +427,9 @@ def written(scene: str) -> dict:
     return WRITTEN[scene]
 
 
-def empty_scene(a) -> str:
-    """Camera and a black background only: the renderer's own memory (baseline_rss_mb)."""
-    path = os.path.join(a.out, "scenes", "empty.xml")
+def empty_scene(a, ext: str = "xml") -> str:
+    """Camera and a black background only: the renderer's own memory (baseline_rss_mb); `ext` json for Blender."""
+    path = os.path.join(a.out, "scenes", f"empty.{ext}")
     cycles_scene(["--empty", "--width", str(a.width), "--height", str(a.height), "--out", path])
     return path
 
@@ -709,15 +710,23 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
     n_runs = len(a.methods) * len(a.spp) * a.seeds
     # The baselines' colours are fitted on the close-up (one ply under even light) for every scene.
     fits = [("closeup", p) for p in a.presets] if a.baselines else []
-    progress = Progress(1 + len(fits) * (1 + len(a.baselines)) + len(groups) * (2 + len(a.methods) + n_runs))
+    # The renderers' own memory: the standalone Cycles', and Blender's for the methods it renders.
+    renderers = ["cycles"] + (["blender"] if any(m in FALLBACKS for m in a.methods) else [])
+    progress = Progress(len(renderers) + len(fits) * (1 + len(a.baselines)) +
+                        len(groups) * (2 + len(a.methods) + n_runs))
     failures = 0
 
-    try:
-        baseline = render(a, empty_scene(a), 1, os.path.join(a.out, "renders", "empty.exr"),
-                          progress("empty scene (baseline memory) 1 spp"))["peak_rss_mb"]
-    except RenderFailed as e:
-        baseline, failures = None, failures + 1
-        log(f"the empty scene: FAILED, {e}")
+    empty_rss = {}
+    for renderer in renderers:
+        try:
+            blender = renderer == "blender"
+            empty_rss[renderer] = render(a, empty_scene(a, "json" if blender else "xml"), 1,
+                                         os.path.join(a.out, "renders", f"empty_{renderer}.exr"),
+                                         progress(f"empty scene in {renderer} (baseline memory) 1 spp"),
+                                         "nodes" if blender else None)["peak_rss_mb"]
+        except RenderFailed as e:
+            empty_rss[renderer], failures = None, failures + 1
+            log(f"the empty scene in {renderer}: FAILED, {e}")
 
     # The baselines' colours (preset, method) -> RGB, from the close-up's reference A under the environment.
     colours, baseline_fits = {}, []
@@ -820,7 +829,8 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                 for seed in range(1, a.seeds + 1):
                     rec = {**group, "method": method, "spp": spp, "region": region_name,
                            "seed": seed, "seconds_load": None, "seconds_render": None, "peak_rss_mb": None,
-                           "baseline_rss_mb": baseline, "curve_keys": keys, **{k: None for k in METRIC_KEYS},
+                           "baseline_rss_mb": empty_rss["blender" if method in FALLBACKS else "cycles"],
+                           "curve_keys": keys, **{k: None for k in METRIC_KEYS},
                            "image": None, "failed": False}
                     what = progress(f"{method} {at} {spp} spp seed {seed}")
                     if load_failed:
@@ -874,6 +884,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         "yarns": a.yarns,
         "references": references,
         "noise_floor": noise_floor,
+        "baseline_rss_mb": empty_rss,
         "runs": runs,
     }
     results["summary"] = speed_summary(results)

@@ -147,6 +147,9 @@ def test_the_stock_fallbacks_under_a_distant_light(tmp_path):
     for method, run in runs.items():
         assert not run["failed"], (method, run["failed"])
         assert abs(run["mean_luminance_error"]) < 0.5, (method, run["mean_luminance_error"])
+    # Their memory above Blender's own empty scene, not the standalone Cycles' (Blender's process is larger).
+    assert res["baseline_rss_mb"]["blender"] > res["baseline_rss_mb"]["cycles"] > 0
+    assert all(run["baseline_rss_mb"] == res["baseline_rss_mb"]["blender"] for run in runs.values())
     # Blender builds each run's scene from its description (.json), with the scene's own model.
     for run in runs.values():
         scene = os.path.join(tmp_path, "scenes", os.path.basename(run["image"]).split("_16spp")[0] + "_seed1.json")
