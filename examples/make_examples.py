@@ -86,29 +86,28 @@ def main() -> int:
 
     # Patch geometry (the same for every preset), written once as plies files that cycles-scene draws for every
     # preset and method.
-    patches = {kind: list(patch_scene_args(args.out, kind)) for kind in PATCHES}
+    patches = {kind: list(patch_scene_args(args.out, kind)) for kind in PATCHES if kind in args.scenes}
 
-    scenes = []
+    scenes = []  # (XML to render, width, height)
     for p in args.presets:
         model = os.path.join(ROOT, "models", p + ".json")
-        fibers = os.path.join(args.out, f"{p}_fibers.xml")
-        yarn = os.path.join(args.out, f"{p}_yarn.xml")
-        size = ["--width", str(args.width), "--height", str(args.height)]
+        if "closeup" in args.scenes:
+            fibers, yarn = (os.path.join(args.out, f"{p}_{v}") for v in ("fibers", "yarn"))
+            size = ["--width", str(args.width), "--height", str(args.height)]
+            run([cli, "cycles-scene", "--preset", p, *size, "--out", fibers + ".xml"])
+            # Each aggregated scene also as its description, which Blender renders (scripts/fallback_render.py).
+            run([cli, "cycles-scene", "--preset", p, "--model", model, *size, "--out", yarn + ".xml",
+                 "--out", yarn + ".json"])
+            scenes += [(fibers + ".xml", args.width, args.height), (yarn + ".xml", args.width, args.height)]
         square = ["--width", str(args.width), "--height", str(args.width)]
-        run([cli, "cycles-scene", "--preset", p, *size, "--out", fibers])
-        # Each aggregated scene also as its description, which Blender's builder renders (scripts/fallback_render.py).
-        run([cli, "cycles-scene", "--preset", p, "--model", model, *size, "--out", yarn, "--out", yarn[:-4] + ".json"])
         for kind, patch in patches.items():
             name = os.path.join(args.out, f"{kind}_{p}")
             run([cli, "cycles-scene", "--preset", p, "--model", model, *square, *patch, "--out", name + ".xml",
                  "--out", name + ".json"])
+            scenes.append((name + ".xml", args.width, args.width))
             if args.explicit_patches:
                 run([cli, "cycles-scene", "--preset", p, *square, *patch, "--out", name + "_fibers.xml"])
                 scenes.append((name + "_fibers.xml", args.width, args.width))
-        if "closeup" in args.scenes:
-            scenes += [(fibers, args.width, args.height), (yarn, args.width, args.height)]
-        scenes += [(os.path.join(args.out, f"{kind}_{p}.xml"), args.width, args.width)
-                   for kind in PATCHES if kind in args.scenes]
     print(f"make_examples: wrote {len(scenes)} scenes to {args.out}")
 
     if args.render:

@@ -308,13 +308,22 @@ def ply_length(distance: float, a) -> float:
     return round(max(CLOSEUP_PLY_LENGTH, 2.1 * across), 1)
 
 
+def fallback_of(method: str) -> str | None:
+    """The add-on's body (osl, nodes) Blender renders a method with; None: the standalone Cycles renders it."""
+    return method if method in FALLBACKS else None
+
+
+def scene_ext(method: str) -> str:
+    """A method's scene file: Cycles XML, or for Blender the scene description its builder reads."""
+    return "json" if fallback_of(method) else "xml"
+
+
 def scene_path(a, scene: str, method: str, preset: str, light: str, seed: int, rotation: float = 0.0,
                distance: float | None = CLOSEUP_DISTANCE) -> str:
-    """Where write_scene writes the scene of one render: Cycles XML, or for the methods Blender renders the
-    scene description (.json) its builder reads."""
+    """Where write_scene writes the scene of one render (scene_ext)."""
     turned = f"_rot{rotation:g}" if rotation else ""
-    ext = "json" if method in FALLBACKS else "xml"
-    return os.path.join(a.out, "scenes", f"{stem((scene, preset, light, distance))}_{method}_seed{seed}{turned}.{ext}")
+    return os.path.join(a.out, "scenes",
+                        f"{stem((scene, preset, light, distance))}_{method}_seed{seed}{turned}.{scene_ext(method)}")
 
 
 def for_scene(a, scene: str):
@@ -331,15 +340,19 @@ def for_scene(a, scene: str):
 @functools.lru_cache(maxsize=None)
 def patch_scene_args(out: str, kind: str) -> tuple[str, ...]:
     """cycles-scene's arguments for a patch (garment.patch_plies): its plies file (OUT/<kind>_plies.json, written
-    once a run), a camera that frames it (the close-up's field of view), the close-up's point lights moved out
-    with the camera (the same irradiance), 12 keys per helix turn for its explicit fibers (as the garment)."""
+    once a run) and a camera that frames it (the close-up's field of view)."""
     p = patch_plies(kind)
-    path = os.path.join(out, f"{kind}_plies.json")
+    return framed_plies_args(os.path.join(out, f"{kind}_plies.json"), p, 0.55 * p["size"] / math.tan(0.5 * CLOSEUP_FOV))
+
+
+def framed_plies_args(path: str, plies: dict, distance: float) -> tuple[str, ...]:
+    """cycles-scene's arguments for a plies file's content (written to `path`) seen from `distance` ply radii: the
+    close-up's point lights moved out with the camera (the same irradiance), the garment's keys per helix turn
+    for the explicit fibers."""
     with open(path, "w") as f:
-        json.dump(p, f, separators=(",", ":"))
-    d = 0.55 * p["size"] / math.tan(0.5 * CLOSEUP_FOV)
-    return ("--plies", path, "--camera-distance", f"{d:.4f}", "--light-scale", f"{d / CLOSEUP_DISTANCE:.6g}",
-            "--segments-per-turn", str(GARMENT["segments_per_turn"]))
+        json.dump(plies, f, separators=(",", ":"))
+    return ("--plies", path, "--camera-distance", f"{distance:.4f}", "--light-scale",
+            f"{distance / CLOSEUP_DISTANCE:.6g}", "--segments-per-turn", str(GARMENT["segments_per_turn"]))
 
 
 def garment_scene_args(a) -> list[str]:
@@ -350,15 +363,11 @@ def garment_scene_args(a) -> list[str]:
 def _garment_scene_args(out: str, n: int) -> tuple[str, ...]:
     """cycles-scene's arguments for the garment: its plies file (DIR/scenes/garment_SxS.json, written once a
     run), the camera that frames the whole tube, the point lights moved out with it."""
-    path = os.path.join(out, "scenes", f"garment_{n}x{n}.json")
     g = garment_plies(n, n)
-    with open(path, "w") as f:
-        json.dump(g, f, separators=(",", ":"))
     t = math.tan(0.5 * CLOSEUP_FOV)  # the shorter side's: the height here
     aspect = GARMENT["width"] / GARMENT["height"]
     d = GARMENT["margin"] * max(0.5 * g["height"] / t, 0.5 * g["width"] / (t * aspect))
-    return ("--plies", path, "--camera-distance", f"{d:.4f}", "--light-scale", f"{d / CLOSEUP_DISTANCE:.6g}",
-            "--segments-per-turn", str(GARMENT["segments_per_turn"]))
+    return framed_plies_args(os.path.join(out, "scenes", f"garment_{n}x{n}.json"), g, d)
 
 
 @functools.lru_cache(maxsize=None)
@@ -375,7 +384,7 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
     """The scene file of one render (`neuralyarn cycles-scene`: the close-up, or with `--plies` the garment);
     `rotation` turns the explicit ply (each ply) about its axis (degrees); a baseline method needs its `colour`."""
     path = scene_path(a, scene, method, preset, light, seed, rotation, distance)
-    args = ["cycles-scene", *yarn_args(a.yarns, preset), "--lights", light, "--seed", str(seed), "--width", str(a.width),
+    args = [*yarn_args(a.yarns, preset), "--lights", light, "--seed", str(seed), "--width", str(a.width),
             "--height", str(a.height), "--out", path]
     if scene == "garment":
         args += garment_scene_args(a)
@@ -395,7 +404,7 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
         args += ["--level", "yarns", "--model", yarn_model_path(preset)]
     elif method in a.baselines:
         args += ["--baseline", method, "--baseline-colour", *(f"{c:.6f}" for c in colour)]
-    cycles_scene(args[1:])
+    cycles_scene(args)
     return path
 
 
@@ -405,20 +414,15 @@ WRITTEN: dict[str, dict] = {}
 WROTE = re.compile(r"wrote (.+) \((\d+) curves, (\d+) curve keys; camera at (\S+) (\S+) (\S+), fov (\S+)\)")
 
 
-def cycles_scene(args: list[str]) -> list[str]:
-    """Runs `neuralyarn cycles-scene ARGS`, records what it reports of every file it wrote (WRITTEN) and returns
-    their paths. Raises RenderFailed with the tool's message."""
-    paths = []
-    for line in run_cli(["cycles-scene", *args]).splitlines():
-        m = WROTE.fullmatch(line.strip())
-        if m:
-            WRITTEN[m.group(1)] = {"curves": int(m.group(2)), "curve_keys": int(m.group(3)),
-                                   "camera_position": [float(m.group(k)) for k in (4, 5, 6)],
-                                   "fov": float(m.group(7))}
-            paths.append(m.group(1))
-    if not paths:
+def cycles_scene(args: list[str]) -> None:
+    """Runs `neuralyarn cycles-scene ARGS` and records what it reports of every file it wrote (WRITTEN). Raises
+    RenderFailed with the tool's message."""
+    reported = [WROTE.fullmatch(line.strip()) for line in run_cli(["cycles-scene", *args]).splitlines()]
+    for m in filter(None, reported):
+        WRITTEN[m.group(1)] = {"curves": int(m.group(2)), "curve_keys": int(m.group(3)),
+                               "camera_position": [float(m.group(k)) for k in (4, 5, 6)], "fov": float(m.group(7))}
+    if not any(reported):
         raise RenderFailed(f"neuralyarn cycles-scene {' '.join(args)}: reported no scene written")
-    return paths
 
 
 def written(scene: str) -> dict:
@@ -819,7 +823,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                     raise RenderFailed("no colour (its fit failed)")
                 xml = write_scene(a, scene, method, preset, light, 1, colour=colour, distance=distance)
                 load = load_seconds(a, xml, os.path.join(a.out, "renders", f"{name}_{method}_1spp.exr"),
-                                    what, method if method in FALLBACKS else None)
+                                    what, fallback_of(method))
             except RenderFailed as e:
                 load_failed = f"load render failed: {e}"
                 failures += 1
@@ -829,7 +833,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                 for seed in range(1, a.seeds + 1):
                     rec = {**group, "method": method, "spp": spp, "region": region_name,
                            "seed": seed, "seconds_load": None, "seconds_render": None, "peak_rss_mb": None,
-                           "baseline_rss_mb": empty_rss["blender" if method in FALLBACKS else "cycles"],
+                           "baseline_rss_mb": empty_rss["blender" if fallback_of(method) else "cycles"],
                            "curve_keys": keys, **{k: None for k in METRIC_KEYS},
                            "image": None, "failed": False}
                     what = progress(f"{method} {at} {spp} spp seed {seed}")
@@ -842,7 +846,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                     try:
                         xml_s = xml if seed == 1 else write_scene(a, scene, method, preset, light, seed, colour=colour,
                                                                   distance=distance)
-                        cost = render(a, xml_s, spp, exr, what, method if method in FALLBACKS else None)
+                        cost = render(a, xml_s, spp, exr, what, fallback_of(method))
                     except RenderFailed as e:
                         rec["failed"] = str(e)
                         failures += 1

@@ -144,8 +144,7 @@ def key_of(s: dict) -> str:
 
 
 def write_scene(a, s: dict, method: str, seed: int, rotation: float = 0.0) -> str:
-    ext = "json" if method in ev.FALLBACKS else "xml"  # Blender builds the scene from its description
-    path = os.path.join(a.out, "scenes", f"{key_of(s)}_{method}_seed{seed}_rot{rotation:g}.{ext}")
+    path = os.path.join(a.out, "scenes", f"{key_of(s)}_{method}_seed{seed}_rot{rotation:g}.{ev.scene_ext(method)}")
     args = [*scene_args(s), "--seed", str(seed), "--out", path]
     if rotation:
         args += ["--ply-rotation", f"{rotation:g}"]
@@ -165,8 +164,7 @@ def render_view(a, s: dict, method: str, spp: int, seed: int, what: str) -> tupl
     """One render of the scene spec by a method; (image, seconds). Non-finite pixels are kept (counted)."""
     xml = write_scene(a, s, method, seed)
     exr = os.path.join(a.out, "renders", f"{key_of(s)}_{method}_{spp}spp_seed{seed}.exr")
-    fb = method if method in ev.FALLBACKS else None
-    cost = render_spec(a, s, xml, spp, exr, what, fb, finite=False)
+    cost = render_spec(a, s, xml, spp, exr, what, ev.fallback_of(method), finite=False)
     return read_exr(exr), cost["seconds"]
 
 

@@ -2,8 +2,6 @@
 #include "neuralyarn/scenes/ply_scene.h"
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 #include <stdexcept>
 
 #include <filesystem>
@@ -12,6 +10,7 @@
 
 #include "neuralyarn/geometry/ply.h"
 #include "neuralyarn/geometry/sweep.h"
+#include "neuralyarn/io.h"
 #include "neuralyarn/scenes/ply_curves.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/units.h"
@@ -48,16 +47,6 @@ RigLight sphere(double x, double y, double z)
   return l;
 }
 
-std::string read_text_file(const std::string &path)
-{
-  std::ifstream f(path, std::ios::binary);
-  if (!f) {
-    throw std::runtime_error("model '" + path + "': cannot open the file");
-  }
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
 }
 
 const std::vector<LightRig> &light_rigs()
@@ -317,8 +306,8 @@ geometry::CurveSet explicit_fibers(const FiberPreset &preset, const PlySceneOpti
   return curves;
 }
 
-/* Camera, film, integrator, background and lights. */
-void set_up(Scene &scene, const PlySceneOptions &o, const LightRig &rig, const BounceLimits &limits)
+/* Camera, film and integrator. */
+void set_up(Scene &scene, const PlySceneOptions &o, const BounceLimits &limits)
 {
   const double s = o.unit_scale;
   /* The camera camera_distance radii in front of the ply (-z), looking at the origin along +z. */
@@ -344,6 +333,12 @@ void set_up(Scene &scene, const PlySceneOptions &o, const LightRig &rig, const B
    * in every pixel, so renders at equal samples compare and references converge everywhere. */
   in.use_adaptive_sampling = false;
   in.seed = o.seed;
+}
+
+/* The rig's background and lights. */
+void light(Scene &scene, const PlySceneOptions &o, const LightRig &rig)
+{
+  const double s = o.unit_scale;
   scene.lighting = rig.name, scene.lighting_description = rig.description;
   scene.background.strength = rig.environment ? 1.0 : 0.0;
   scene.background.colour = {1.0, 1.0, 1.0};
@@ -398,7 +393,12 @@ CurveObject aggregated(const PlySceneOptions &o, const std::string &model_path, 
     m.kind = Material::Kind::neural_yarn;
     m.model_path = model_path;
     if (o.embed_model) {
-      m.model_json = read_text_file(o.model);
+      try {
+        m.model_json = read_file(o.model);
+      }
+      catch (const std::runtime_error &e) {
+        throw std::runtime_error("model '" + o.model + "': " + e.what());
+      }
     }
   }
   /* The ply curves as given, or each straight ply as 17 keys along x: the bounding cylinder the maps were
@@ -464,13 +464,11 @@ Scene ply_scene(const FiberPreset &preset, const PlySceneOptions &o)
                                : !o.baseline.empty()  ? " ply, aggregated (one thick curve, baseline " + o.baseline + ")"
                                : aggregated_version   ? std::string(" ply, aggregated (one thick curve, neural_yarn_bsdf)")
                                                       : std::string(" ply, explicit fibers (khungurn_fiber_bsdf)"));
-  set_up(scene, o, rig, limits);
-  if (o.empty) {
-    scene.lights.clear();
-    scene.background.strength = 0.0;
-    scene.lighting.clear();
+  set_up(scene, o, limits);
+  if (o.empty) { /* a black background (Background's default), nothing else */
     return scene;
   }
+  light(scene, o, rig);
   const std::vector<Placement> plies = ply_placements(o);
   if (aggregated_version) {
     scene.objects.push_back(aggregated(o, model_path, curves_in, yarn_level, plies));

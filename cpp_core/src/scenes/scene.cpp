@@ -1,11 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "neuralyarn/scenes/scene.h"
 
-#include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <stdexcept>
 
+#include "neuralyarn/io.h"
 #include "neuralyarn/scenes/cycles_xml.h"
 #include "neuralyarn/scenes/scene_json.h"
 
@@ -44,27 +43,6 @@ std::string model_path_for(const std::string &model_path, const std::string &sce
   return relative.empty() ? std::filesystem::absolute(model_path).string() : relative;
 }
 
-namespace {
-/* Through a temporary file and a rename: a reader never sees half a scene. */
-void write_text_atomically(const std::string &path, const std::string &text)
-{
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    if (!out) {
-      throw std::runtime_error("cannot write scene '" + path + "'");
-    }
-    out << text;
-    if (!out.flush()) {
-      throw std::runtime_error("cannot write scene '" + path + "'");
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    throw std::runtime_error("cannot move the scene into place at '" + path + "'");
-  }
-}
-}  // namespace
-
 void check_scene_extension(const std::string &path)
 {
   const std::string ext = std::filesystem::path(path).extension().string();
@@ -77,8 +55,14 @@ void check_scene_extension(const std::string &path)
 void write_scene(const Scene &scene, const std::string &path)
 {
   check_scene_extension(path);
-  write_text_atomically(path, std::filesystem::path(path).extension() == ".xml" ? cycles_xml(scene, path)
-                                                                                : scene_json(scene, path).dump() + "\n");
+  const std::string text = std::filesystem::path(path).extension() == ".xml" ? cycles_xml(scene, path)
+                                                                             : scene_json(scene, path).dump() + "\n";
+  try {
+    write_file_atomically(path, text, ""); /* a reader never sees half a scene */
+  }
+  catch (const std::runtime_error &e) {
+    throw std::runtime_error("cannot write scene '" + path + "': " + e.what());
+  }
 }
 
 }  // namespace neuralyarn::scenes
