@@ -9,6 +9,7 @@
 
 #include "cli_common.h"
 #include "neuralyarn/io.h"
+#include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/bake.h"
 #include "neuralyarn/model/calibration.h"
 #include "neuralyarn/model/fidelity.h"
@@ -68,6 +69,10 @@ void add_train_options(CLI::App *cmd, TrainModelOptions *o)
                   "the training maps")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
+  cmd->add_option("--r-free-path", o->r_free_path,
+                  "The R lobe's mean free path to its fiber in ply radii (0: the surface fiber alone); default: "
+                  "0.6 x pi / (2 sqrt(N rho)), 0 for a yarn-level model")
+      ->check(finite_range(0.0, ny::kYarnMaxFreePath));
   cmd->add_option("--fit-samples", o->fit.samples, "M exits drawn for the proxy fit")
       ->check(CLI::Range(100, 100000000))
       ->capture_default_str();
@@ -206,6 +211,10 @@ class Commands : public ModelCommands {
         ->check(CLI::Range(100, 100000000))
         ->capture_default_str();
     fit_->add_option("--seed", topt_.fit.seed, "Seed of the drawn exits")->capture_default_str();
+    fit_->add_option("--r-free-path", topt_.r_free_path,
+                     "Set the R lobe's mean free path to its fiber (ply radii) before the R shape is re-fitted "
+                     "(default: keep the model's)")
+        ->check(finite_range(0.0, ny::kYarnMaxFreePath));
 
     bake_ = app.add_subcommand("bake", "Gather maps, train, fit and check: a model from fiber parameters");
     add_preset_options(bake_, &preset_, &params_);
@@ -334,6 +343,9 @@ class Commands : public ModelCommands {
     const std::string out = out_.empty() ? model_ : out_;
     check_writable(out);
     model::fit_model_proxy(&m, maps, topt_.fit);
+    if (topt_.r_free_path >= 0.0) {
+      m.r_free_path = topt_.r_free_path;
+    }
     m.r_shape = model::fit_r_shape(m, maps);
     m.calibration = model::calibrate_energy(m, maps, threads_);
     refresh_fallback(&m);

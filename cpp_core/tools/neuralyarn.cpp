@@ -221,6 +221,7 @@ struct SceneCommand {
   std::vector<double> baseline_colour;
   std::vector<int> region;
   std::vector<std::string> predict_maps, predict_lights;
+  std::string predict_lobes = "RM";
   bool predict_fallback = false;
 
   explicit SceneCommand(CLI::App &app)
@@ -330,6 +331,11 @@ struct SceneCommand {
     cmd->add_flag("--predict-fallback", predict_fallback,
                   "With --predict-region and --model: also predict the model's stock-Blender fallback (its "
                   "fallback tables, as Blender renders them)");
+    cmd->add_option("--predict-lobes", predict_lobes,
+                    "With --predict-region: the lobes of the model and the maps to predict: RM (what renders), or R "
+                    "or M alone (which lobe a difference is in; distant lights only)")
+        ->check(CLI::IsMember({"RM", "R", "M"}))
+        ->capture_default_str();
     cmd->add_option("--predict-maps", predict_maps,
                     "With --predict-region: also predict with these radiance distribution maps (.nyrdm) as the "
                     "ply's scattering (the tabulated far field)")
@@ -364,8 +370,9 @@ struct SceneCommand {
     if (!region.empty()) {
       predict();
     }
-    else if (!predict_maps.empty() || !predict_lights.empty() || predict_fallback) {
-      throw std::runtime_error("--predict-maps, --predict-lights and --predict-fallback need --predict-region");
+    else if (!predict_maps.empty() || !predict_lights.empty() || predict_fallback || predict_lobes != "RM") {
+      throw std::runtime_error(
+          "--predict-maps, --predict-lights, --predict-lobes and --predict-fallback need --predict-region");
     }
     return 0;
   }
@@ -395,16 +402,28 @@ struct SceneCommand {
     if (predict_fallback && opt.model.empty()) {
       throw std::runtime_error("--predict-fallback needs --model");
     }
+    const scenes::Lobes lobes = scenes::parse_lobes(predict_lobes);
+    if (lobes != scenes::Lobes::kRM) {
+      if (predict_fallback) {
+        throw std::runtime_error("--predict-fallback predicts the fallback whole: no --predict-lobes");
+      }
+      for (const scenes::LightRig &rig : rigs) {
+        if (rig.environment) {
+          throw std::runtime_error("--predict-lobes " + predict_lobes + ": one lobe alone has no albedo; the '" +
+                                   rig.name + "' rig needs RM");
+        }
+      }
+    }
     if (!opt.model.empty()) {
       const model::YarnModel m = model::load_model(opt.model);
-      print(scenes::model_far_field(m), "model", "");
+      print(scenes::model_far_field(m, lobes), "model", "");
       if (predict_fallback) {
         print(scenes::fallback_far_field(m), "fallback", "");
       }
     }
     for (const std::string &path : predict_maps) {
       const rdm::RdmMaps maps = rdm::load_maps(path);
-      print(scenes::maps_far_field(maps), "maps", " " + path);
+      print(scenes::maps_far_field(maps, lobes), "maps", " " + path);
     }
   }
 };

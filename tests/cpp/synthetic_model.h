@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // A synthetic neural yarn model for the tests: seeded random networks in a plausible output range and a
-// small calibration table near identity and an R azimuth table far from uniform (used by test_yarn_bsdf.cpp
+// small calibration table near identity, an R azimuth table far from uniform and the R lobe's nodes (used by test_yarn_bsdf.cpp
 // and test_fallback.cpp).
 #pragma once
 
@@ -10,6 +10,7 @@
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/model.h"
+#include "neuralyarn/model/r_shape.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/train/mlp.h"
 
@@ -69,6 +70,9 @@ inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, doubl
       m.r_shape.values.push_back(0.5f + 0.4f * U(rng));
     }
   }
+  /* The R lobe's nodes (the bake's free path), so every test also runs through them; silk's untwisted
+   * fibers included. */
+  m.r_free_path = model::r_free_path(m);
   return m;
 }
 

@@ -90,8 +90,8 @@ TEST(Fallback, TablesAreTheKernelsValuesAtCellCentres)
   EXPECT_LT(f.kappa_M_up, 1.0);
 }
 
-/* E_R = c_R rho_R F / 2 (what the tables store) against the integral of yarn_eval_R_fiber in the
- * surface-fiber frame: 30-point Gauss-Legendre panels no wider than beta_R / 2 within 12 beta_R of the
+/* E_R = c_R rho_R F / 2 (what the tables store) against the integral of the R lobe, node by node in each
+ * node's fiber frame: 30-point Gauss-Legendre panels no wider than beta_R / 2 within 12 beta_R of the
  * specular cone theta~_o = -theta~_i, wider outside; the azimuth is uniform on (-pi/2, pi/2) (one panel set
  * split at the cut). */
 TEST(Fallback, ReflectionEnergyMatchesQuadratureAroundTheSpecularCone)
@@ -108,20 +108,30 @@ TEST(Fallback, ReflectionEnergyMatchesQuadratureAroundTheSpecularCone)
     for (int i = 0; i < f.theta_bins; i++) {
       for (int j = 0; j < f.phi_bins; j++) {
         const ny::YarnLobes l = ny::yarn_lobes(p, view(f, i, j));
-        const double mu = -double(ny::theta_of(l.wi_f));
-        std::vector<double> pts;
-        for (int s = -12; s <= 12; s++) {
-          pts.push_back(mu + 0.5 * s * beta);
+        std::array<double, 3> e{};
+        for (int q = 0; q < l.n_R; q++) {
+          /* Node q's lobe in its own fiber frame, about its specular cone (its mean, the -theta~ of w_i). */
+          const double mu = double(l.node[q].tn_R.mu);
+          std::vector<double> pts;
+          for (int s = -12; s <= 12; s++) {
+            pts.push_back(mu + 0.5 * s * beta);
+          }
+          const std::vector<double> ts = nytest::breakpoints(pts, -0.5 * kPi, 0.5 * kPi, 0.2);
+          const std::vector<double> ps = nytest::breakpoints({-0.5 * kPi, 0.5 * kPi}, -kPi, kPi, 0.5);
+          const auto eq = nytest::integrate_2d_fixed<3>(
+              [&](double th, double ph) {
+                ny::Rgb R, TT;
+                ny::yarn_eval_R_parts(l, q, ny::yarn_outgoing(ny::direction_from_angles(float(th), float(ph))), &R,
+                                      &TT);
+                const ny::Rgb v = (ny::make_rgb(1.0f) - l.tau) * R + l.tau * TT;
+                const double w = std::cos(th) / l.n_R;
+                return std::array<double, 3>{v.r * w, v.g * w, v.b * w};
+              },
+              ts, ps);
+          for (int c = 0; c < 3; c++) {
+            e[size_t(c)] += eq[size_t(c)];
+          }
         }
-        const std::vector<double> ts = nytest::breakpoints(pts, -0.5 * kPi, 0.5 * kPi, 0.2);
-        const std::vector<double> ps = nytest::breakpoints({-0.5 * kPi, 0.5 * kPi}, -kPi, kPi, 0.5);
-        const auto e = nytest::integrate_2d_fixed<3>(
-            [&](double th, double ph) {
-              const ny::Rgb v = ny::yarn_eval_R_fiber(l, ny::direction_from_angles(float(th), float(ph)));
-              const double w = std::cos(th);
-              return std::array<double, 3>{v.r * w, v.g * w, v.b * w};
-            },
-            ts, ps);
         const size_t k = size_t(i * f.phi_bins + j);
         for (int c = 0; c < 3; c++) {
           EXPECT_NEAR(f.E_R[k * 3 + size_t(c)], e[size_t(c)], 1e-4 * e[size_t(c)] + 1e-9)

@@ -178,12 +178,15 @@ TEST(LobeFidelity, ModelGridsHoldTheLobesEnergies)
             ny::Rgb v;
             if (r_lobe) {
               /* weight_R / 2 times the part of the cos^2-normalised Gaussian inside [-pi/2, pi/2] (all of it
-               * but near grazing incidence), by quadrature. */
+               * but near grazing incidence), by quadrature, averaged over the R nodes. */
               double mass = 0;
               const int nq = 20000;
-              for (int q = 0; q < nq; q++) {
-                const double th = -0.5 * kPi + kPi * (q + 0.5) / nq;
-                mass += ny::longitudinal_eval(l.m_R, float(th)) * std::cos(th) * std::cos(th) * kPi / nq;
+              for (int node = 0; node < l.n_R; node++) {
+                for (int q = 0; q < nq; q++) {
+                  const double th = -0.5 * kPi + kPi * (q + 0.5) / nq;
+                  mass += ny::longitudinal_eval(l.node[node].m_R, float(th)) * std::cos(th) * std::cos(th) * kPi /
+                          nq / l.n_R;
+                }
               }
               v = l.weight_R * float(0.5 * mass);
             }

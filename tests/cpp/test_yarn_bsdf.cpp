@@ -56,15 +56,20 @@ TEST(YarnBsdf, ReflectionLobeEnergyIsHalfTheFiberR)
       if (theta_i > 1.4) {
         EXPECT_GT(l.q_TT, 0.1f) << preset;
       }
-      /* Integrate over the surface-fiber frame's (theta~, phi~): dw = cos theta~ dtheta~ dphi~. */
+      /* Integrate each R node over its own fiber frame's (theta~, phi~): dw = cos theta~ dtheta~ dphi~. */
+      ASSERT_EQ(l.n_R, ny::kYarnRNodes) << preset;
       const int nt = 6000, np = 512;
       double e = 0.0;
-      for (int i = 0; i < nt; i++) {
-        const double th = -kPi / 2 + kPi * (i + 0.5) / nt;
-        for (int j = 0; j < np; j++) {
-          const double ph = -kPi + 2 * kPi * (j + 0.5) / np;
-          e += ny::average(ny::yarn_eval_R_fiber(l, ny::direction_from_angles(float(th), float(ph)))) *
-               std::cos(th) * (kPi / nt) * (2 * kPi / np);
+      for (int q = 0; q < l.n_R; q++) {
+        for (int i = 0; i < nt; i++) {
+          const double th = -kPi / 2 + kPi * (i + 0.5) / nt;
+          for (int j = 0; j < np; j++) {
+            const double ph = -kPi + 2 * kPi * (j + 0.5) / np;
+            ny::Rgb R, TT;
+            ny::yarn_eval_R_parts(l, q, ny::yarn_outgoing(ny::direction_from_angles(float(th), float(ph))), &R, &TT);
+            e += ny::average((ny::make_rgb(1.0f) - l.tau) * R + l.tau * TT) * std::cos(th) * (kPi / nt) *
+                 (2 * kPi / np) / l.n_R;
+          }
         }
       }
       EXPECT_NEAR(e, 0.5 * ny::average(l.weight_R), 2e-3 * ny::average(l.weight_R)) << preset << " " << theta_i;
@@ -77,8 +82,10 @@ TEST(YarnBsdf, PdfIntegratesToOneAndSamplerMatchesIt)
   const model::YarnModel m = synthetic_model("fleece", 5);
   const std::vector<float> flat = m.kernel_flat();
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
-  /* Bins over the surface-fiber frame's (theta~, phi~); expected counts by 8 x 8 sub-quadrature. */
-  const int nt = 36, np = 48, sub = 8;
+  /* Bins over the surface-fiber frame's (theta~, phi~); expected counts by 24 x 24 sub-quadrature: the R
+   * nodes' horizons, where near-normal light puts the TT part's mass, cut these bins obliquely (8 x 8 read
+   * chi2 1996 for 1727 degrees of freedom there). */
+  const int nt = 36, np = 48, sub = 24;
   for (double theta_i : {0.2, 0.9, 1.45}) {
     const ny::Vec3 wi = from_polar(theta_i, 0.4);
     const ny::YarnLobes l = ny::yarn_lobes(p, wi);
@@ -286,6 +293,7 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
     /* A version 3 file (layout 3: no TT fields in the header, azimuth rows without the TT share) loads
      * with its tables and no TT share, so it renders as it did. */
     model::YarnModel no_tt = m;
+    no_tt.r_free_path = 0.0; /* layout 3 has none */
     for (size_t r = 0; r < no_tt.r_shape.values.size(); r += size_t(no_tt.r_shape.stride())) {
       std::fill_n(no_tt.r_shape.values.begin() + long(r) + no_tt.r_shape.azimuth_bins, 3, 0.0f);
     }
@@ -293,7 +301,7 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
     std::vector<float> f = v3["kernel_flat"].get<std::vector<float>>(), f3(f.begin(), f.begin() + 24);
     for (int k : {ny::kYarnFlatOffset_T, ny::kYarnFlatOffset_R, ny::kYarnFlatOffset_M, ny::kYarnFlatOffset_Cal,
                   ny::kYarnFlatOffset_Az}) {
-      f3[size_t(k)] -= 2.0f; /* the header was 2 floats shorter */
+      f3[size_t(k)] -= float(ny::kYarnFlatHeader - 24); /* the header was shorter */
     }
     const size_t az = size_t(f[ny::kYarnFlatOffset_Az]);
     f3.insert(f3.end(), f.begin() + ny::kYarnFlatHeader, f.begin() + long(az));
@@ -311,6 +319,39 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
     std::ofstream(old) << v3.dump();
     const model::YarnModel o = model::load_model(old);
     EXPECT_EQ(o.kernel_flat(), no_tt.kernel_flat()) << "a layout 3 file must load as the same model without TT";
+  }
+  {
+    /* A layout 4 file (no R free path: the header one float shorter) loads as the same model with the free
+     * path 0, its fallback tables (computed for the layout 4 array, named by its hash) with it. */
+    model::YarnModel surface = m;
+    surface.r_free_path = 0.0;
+    model::FallbackOptions fo;
+    fo.theta_bins = 4;
+    fo.phi_bins = 4;
+    surface.fallback = model::compute_fallback(surface, fo);
+    nlohmann::json v4 = model::model_to_json(surface);
+    std::vector<float> f = v4["kernel_flat"].get<std::vector<float>>();
+    f.erase(f.begin() + ny::kYarnFlatFreePath);
+    for (int k : {ny::kYarnFlatOffset_T, ny::kYarnFlatOffset_R, ny::kYarnFlatOffset_M, ny::kYarnFlatOffset_Cal,
+                  ny::kYarnFlatOffset_Az}) {
+      f[size_t(k)] -= 1.0f;
+    }
+    f[0] = 4.0f;
+    f[1] = float(f.size());
+    v4["kernel_flat"] = f;
+    v4.erase("r_free_path");
+    v4["fallback"]["kernel_flat_fnv1a64"] = model::fnv1a64_hex(f);
+    const std::string old = (dir / "v4.json").string();
+    std::ofstream(old) << v4.dump();
+    const model::YarnModel o = model::load_model(old);
+    EXPECT_EQ(o.kernel_flat(), surface.kernel_flat()) << "a layout 4 file must load as the same model";
+    ASSERT_TRUE(o.fallback.has_value());
+    EXPECT_EQ(o.fallback->W, surface.fallback->W);
+    EXPECT_EQ(o.fallback->kernel_flat_hash, model::fnv1a64_hex(surface.kernel_flat()));
+    /* The free path needs the layout that holds it. */
+    v4["r_free_path"] = 0.1;
+    std::ofstream(old) << v4.dump();
+    EXPECT_THROW(model::load_model(old), model::ModelError);
   }
 
   auto expect_error = [&](const std::string &name, const std::string &text, const std::string &needle) {

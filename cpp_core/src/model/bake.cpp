@@ -223,6 +223,7 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
     a /= wsum;
   }
   /* The R lobe's shape (its energy is unchanged by it; it depends on R alone), then the energies. */
+  m.r_free_path = o.r_free_path >= 0.0 ? o.r_free_path : r_free_path(m);
   m.r_shape = fit_r_shape(m, maps);
   m.calibration = calibrate_energy(m, maps, o.threads);
   m.provenance = {{"maps", maps_provenance(maps)},

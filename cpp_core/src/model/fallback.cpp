@@ -451,7 +451,8 @@ json fallback_to_json(const FallbackTables &f)
               {"kernel_flat_fnv1a64", f.kernel_flat_hash}};
 }
 
-FallbackTables fallback_from_json(const json &j, const YarnModel &model, const std::string &where_in)
+FallbackTables fallback_from_json(const json &j, const YarnModel &model, const std::string &where_in,
+                                  const std::string *written_flat_hash)
 {
   const std::string where = where_in + "fallback: ";
   if (!j.is_object()) {
@@ -517,11 +518,13 @@ FallbackTables fallback_from_json(const json &j, const YarnModel &model, const s
   }
   f.W = table_from(j, "W", n * f.lobes.size() * 3, 0.0, kMaxWeight, where);
   f.kernel_flat_hash = j["kernel_flat_fnv1a64"].get<std::string>();
-  if (f.kernel_flat_hash != expect.kernel_flat_hash) {
+  const std::string &hash = written_flat_hash ? *written_flat_hash : expect.kernel_flat_hash;
+  if (f.kernel_flat_hash != hash) {
     throw ModelError(where + "the tables were computed for another model ('kernel_flat_fnv1a64' " + f.kernel_flat_hash +
-                     ", the model's is " + expect.kernel_flat_hash +
+                     ", the model's is " + hash +
                      "): the model changed after they were made; re-run `neuralyarn fallback MODEL`");
   }
+  f.kernel_flat_hash = expect.kernel_flat_hash; /* the same model, its array in this layout */
   return f;
 }
 

@@ -93,31 +93,36 @@ void integrate_r_parts(const ny::YarnBsdfParams &p, const rdm::MapResolution &b,
   constexpr int n_sub = 4, n_theta = 32, n_phi = 64;
   for (int s = 0; s < n_sub * n_sub; s++) {
     const ny::YarnLobes l = ny::yarn_lobes(p, incident_sub_direction(b, ti, pi, s, n_sub));
-    /* One stratified set per part of the proposal (the TT part only where it has a share), combined by
-     * the balance heuristic: each sample weighs eval / (sum over sets of count x density). */
+    /* Each R node (weight 1 / n_R) on its own: one stratified set per part of its proposal (the TT part only
+     * where it has a share), combined by the balance heuristic: each sample weighs eval / (sum over sets of
+     * count x density). */
     const int parts = l.q_TT > 0.0f ? 2 : 1;
-    const float count = float(n_sub * n_sub * n_theta * n_phi);
-    for (int part = 0; part < parts; part++) {
-      for (int j = 0; j < n_theta; j++) {
-        const float u1 = (j + 0.5f) / n_theta;
-        const float theta = ny::sample_truncated_normal(part == 0 ? l.tn_R : l.tn_TT, u1);
-        for (int k = 0; k < n_phi; k++) {
-          const float u2 = (k + 0.5f) / n_phi;
-          const float phi = part == 0 ? -ny::kHalfPi + ny::kPi * u2 : ny::sample_truncated_normal(l.tn_TT_phi, u2);
-          const ny::Vec3 wo_f = ny::direction_from_angles(theta, phi);
-          const ny::YarnOutgoing o = ny::yarn_outgoing(wo_f); /* w_o's angles once, for pdf and eval */
-          float pdf_R, pdf_TT;
-          ny::yarn_pdf_R_parts(l, o, &pdf_R, &pdf_TT);
-          const float pdf = count * (parts == 2 ? pdf_R + pdf_TT : pdf_R);
-          if (!(pdf > 0.0f)) {
-            continue;
+    const float count = float(n_sub * n_sub * n_theta * n_phi * l.n_R);
+    for (int q = 0; q < l.n_R; q++) {
+      const ny::YarnRNode &node = l.node[q];
+      for (int part = 0; part < parts; part++) {
+        for (int j = 0; j < n_theta; j++) {
+          const float u1 = (j + 0.5f) / n_theta;
+          const float theta = ny::sample_truncated_normal(part == 0 ? node.tn_R : node.tn_TT, u1);
+          for (int k = 0; k < n_phi; k++) {
+            const float u2 = (k + 0.5f) / n_phi;
+            const float phi =
+                part == 0 ? -ny::kHalfPi + ny::kPi * u2 : ny::sample_truncated_normal(node.tn_TT_phi, u2);
+            const ny::Vec3 wo_f = ny::direction_from_angles(theta, phi);
+            const ny::YarnOutgoing o = ny::yarn_outgoing(wo_f); /* w_o's angles once, for pdf and eval */
+            float pdf_R, pdf_TT;
+            ny::yarn_pdf_R_parts(l, q, o, &pdf_R, &pdf_TT);
+            const float pdf = count * (parts == 2 ? pdf_R + pdf_TT : pdf_R);
+            if (!(pdf > 0.0f)) {
+              continue;
+            }
+            const ny::Vec3 wo = l.n_R == 1 ? ny::surface_fiber_to_yarn(p.twist, wo_f) : ny::r_node_to_yarn(node, wo_f);
+            int to, po;
+            rdm::outgoing_bin(b, wo.x, wo.y, wo.z, &to, &po);
+            ny::Rgb R, TT;
+            ny::yarn_eval_R_parts(l, q, o, &R, &TT);
+            add(to, po, phi, R * (1.0f / pdf), TT * (1.0f / pdf), l.tau);
           }
-          const ny::Vec3 wo = ny::surface_fiber_to_yarn(p.twist, wo_f);
-          int to, po;
-          rdm::outgoing_bin(b, wo.x, wo.y, wo.z, &to, &po);
-          ny::Rgb R, TT;
-          ny::yarn_eval_R_parts(l, o, &R, &TT);
-          add(to, po, phi, R * (1.0f / pdf), TT * (1.0f / pdf), l.tau);
         }
       }
     }

@@ -211,6 +211,7 @@ std::vector<float> YarnModel::kernel_flat() const
   f[ny::kYarnFlatBeta_R] = fp.beta_R;
   f[ny::kYarnFlatBeta_TT] = fp.beta_TT;
   f[ny::kYarnFlatGamma_TT] = fp.gamma_TT;
+  f[ny::kYarnFlatFreePath] = float(r_free_path);
   f[ny::kYarnFlatKappa_R] = float(proxy.kappa_R);
   f[ny::kYarnFlatBeta_M] = float(proxy.beta_M);
   f[ny::kYarnFlatGamma_M] = float(proxy.gamma_M);
@@ -265,6 +266,7 @@ json model_to_json(const YarnModel &m)
                       {"azimuth_bins", m.r_shape.azimuth_bins},
                       {"layout", "[theta_i][phi_i][nu over phi~_o in (-90, 90) deg, tau r, g, b]: the R lobe's azimuth density and TT share"}};
   }
+  j["r_free_path"] = m.r_free_path;
   /* What a renderer uploads, ready to use (kernel/yarn_bsdf.h): the calibration table's values are only
    * here; the loader checks that the rest agrees with the parts above. */
   j["kernel_flat"] = m.kernel_flat();
@@ -348,13 +350,31 @@ YarnModel model_from_json(const json &j, const std::string &source)
     m.albedo_M[c] = v.get<double>();
   }
   const int version = j["version"].get<int>();
+  std::string written_flat_hash;
   if (version >= 2) {
     /* The kernel array: layout 2 (no R table; the calibration table runs to the end), 3 (the R azimuth table
-     * without the TT share, under "r_azimuth") and 4 (this code's). Older layouts are only checked for their
-     * version and numbers and rebuilt with the tables taken over (a TT share of 0 renders as they did). */
-    const int layout = std::min(version, 4); /* 2, 3 or 4 (a yarn's version 5 has layout 4) */
-    const std::vector<float> flat = float_array(j, "kernel_flat", where);
+     * without the TT share, under "r_azimuth"), 4 (no R free path) and 5 (this code's). Layouts 2 and 3 are
+     * only checked for their version and numbers and rebuilt with the tables taken over (a TT share of 0
+     * renders as they did); a layout 4 array is moved to layout 5 with the free path 0 (the same rendering)
+     * and then checked as one. */
+    std::vector<float> flat = float_array(j, "kernel_flat", where);
+    written_flat_hash = fnv1a64_hex(flat); /* what the fallback tables name */
+    int layout = std::min(version, 4); /* 2, 3 or 4 (a yarn's version 5 has layout 4 or 5) */
+    if (layout == 4 && !flat.empty() && flat[0] == 4.0f) {
+      std::vector<float> upgraded(flat.size() + 1);
+      if (!ny::yarn_flat_from_layout4(flat.data(), int(flat.size()), upgraded.data())) {
+        throw ModelError(where + "'kernel_flat' is not a layout 4 array");
+      }
+      if (j.contains("r_free_path")) {
+        throw ModelError(where + "'r_free_path' needs a layout 5 'kernel_flat'");
+      }
+      flat = std::move(upgraded);
+    }
     if (layout == 4) {
+      layout = 5;
+      if (j.contains("r_free_path")) {
+        m.r_free_path = finite_in(j, "r_free_path", 0.0, ny::kYarnMaxFreePath, where);
+      }
       if (const char *problem = ny::yarn_flat_check(flat.data(), int(flat.size()))) {
         throw ModelError(where + "'kernel_flat' " + problem);
       }
@@ -380,7 +400,7 @@ YarnModel model_from_json(const json &j, const std::string &source)
     if (layout >= 3 && j.contains(r_key)) {
       m.r_shape = r_shape_from(j[r_key], flat, where + r_key + ": ", layout == 3);
     }
-    if (layout == 4 && m.kernel_flat() != flat) {
+    if (layout == 5 && m.kernel_flat() != flat) {
       throw ModelError(where + "'kernel_flat' disagrees with the networks, preset and sampling parameters");
     }
   }
@@ -389,7 +409,7 @@ YarnModel model_from_json(const json &j, const std::string &source)
   /* A version 2 or 3 file's fallback tables refer to its older kernel array by hash; they are left out (the
    * maths is the same: `neuralyarn fallback` recomputes them in the current layout). */
   if (j.contains("fallback") && version >= 4) {
-    m.fallback = fallback_from_json(j["fallback"], m, where);
+    m.fallback = fallback_from_json(j["fallback"], m, where, &written_flat_hash);
   }
   return m;
 }

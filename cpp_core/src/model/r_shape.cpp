@@ -19,6 +19,14 @@ namespace {
 constexpr double kMaxDensityRatio = 20.0;
 }  // namespace
 
+double r_free_path(const YarnModel &model)
+{
+  if (model.structure.is_yarn()) {
+    return 0.0;
+  }
+  return kRFreePathScale * kPi / (2.0 * std::sqrt(double(model.preset.N) * model.preset.rho));
+}
+
 Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd &G, const Eigen::VectorXd &h)
 {
   const int n = int(h.size());

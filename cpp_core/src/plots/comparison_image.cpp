@@ -50,7 +50,7 @@ void write_comparison_image(const YarnModel &model, const rdm::RdmMaps &maps, do
       case 2:
         return ny::make_rgb(rr[0], rr[1], rr[2]);
       default:
-        return ny::yarn_eval_R_fiber(l, ny::yarn_to_surface_fiber(p.twist, wo));
+        return ny::yarn_eval_R(p, l, wo);
     }
   };
   float vmax[2] = {0, 0};

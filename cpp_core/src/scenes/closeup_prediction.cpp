@@ -48,30 +48,74 @@ std::vector<Eigen::Vector3d> disc_directions(const Eigen::Vector3d &z, double de
 }
 }  // namespace
 
-FarField model_far_field(const model::YarnModel &model)
+Lobes parse_lobes(const std::string &name)
+{
+  if (name == "RM") {
+    return Lobes::kRM;
+  }
+  if (name == "R") {
+    return Lobes::kR;
+  }
+  if (name == "M") {
+    return Lobes::kM;
+  }
+  throw std::runtime_error("unknown lobes '" + name + "': RM, R or M");
+}
+
+namespace {
+
+[[noreturn]] void single_lobe_albedo()
+{
+  throw std::runtime_error("one lobe alone has no albedo: predict the environment with both lobes (RM)");
+}
+
+}  // namespace
+
+FarField model_far_field(const model::YarnModel &model, Lobes lobes)
 {
   auto flat = std::make_shared<std::vector<float>>(model.kernel_flat());
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat->data());
   FarField f;
-  f.eval = [flat, p](const ny::Vec3 &wi, const ny::Vec3 &wo) {
-    return to_rgb3(ny::yarn_eval_lobes(p, ny::yarn_lobes(p, wi), wo));
+  f.eval = [flat, p, lobes](const ny::Vec3 &wi, const ny::Vec3 &wo) {
+    const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+    if (!l.valid) {
+      return Rgb3{0.0, 0.0, 0.0};
+    }
+    switch (lobes) {
+      case Lobes::kR:
+        return to_rgb3(ny::yarn_eval_R(p, l, wo));
+      case Lobes::kM:
+        return to_rgb3(ny::yarn_eval_M(p, l, wo));
+      case Lobes::kRM:
+        break;
+    }
+    return to_rgb3(ny::yarn_eval_lobes(p, l, wo));
   };
-  f.albedo = [flat, p](const ny::Vec3 &wi) { return to_rgb3(model::white_furnace(p, wi)); };
+  f.albedo = [flat, p, lobes](const ny::Vec3 &wi) {
+    if (lobes != Lobes::kRM) {
+      single_lobe_albedo();
+    }
+    return to_rgb3(model::white_furnace(p, wi));
+  };
   return f;
 }
 
-FarField maps_far_field(const rdm::RdmMaps &maps)
+FarField maps_far_field(const rdm::RdmMaps &maps, Lobes lobes)
 {
   FarField f;
-  f.eval = [&maps](const ny::Vec3 &wi, const ny::Vec3 &wo) {
+  const double r_on = lobes == Lobes::kM ? 0.0 : 1.0, m_on = lobes == Lobes::kR ? 0.0 : 1.0;
+  f.eval = [&maps, r_on, m_on](const ny::Vec3 &wi, const ny::Vec3 &wo) {
     int ti, pi, to, po;
     rdm::incident_bin(maps.bins, wi.x, wi.y, wi.z, &ti, &pi);
     rdm::outgoing_bin(maps.bins, wo.x, wo.y, wo.z, &to, &po);
     const size_t k = maps.map_index(ti, pi, to, po);
-    return Rgb3{double(maps.r[k]) + maps.m[k], double(maps.r[k + 1]) + maps.m[k + 1],
-                double(maps.r[k + 2]) + maps.m[k + 2]};
+    return Rgb3{r_on * maps.r[k] + m_on * maps.m[k], r_on * maps.r[k + 1] + m_on * maps.m[k + 1],
+                r_on * maps.r[k + 2] + m_on * maps.m[k + 2]};
   };
-  f.albedo = [&maps](const ny::Vec3 &wi) {
+  f.albedo = [&maps, lobes](const ny::Vec3 &wi) {
+    if (lobes != Lobes::kRM) {
+      single_lobe_albedo();
+    }
     int ti, pi;
     rdm::incident_bin(maps.bins, wi.x, wi.y, wi.z, &ti, &pi);
     const size_t k = maps.incident_index(ti, pi) * 3;

@@ -42,6 +42,15 @@
 // azimuth is so far below the horizon that the truncated normal holds no float mass, tau is 0. Both
 // parts hold rho_R F / 2, so the energy identity above holds for any tau.
 //
+// The R lobe's fiber is not the surface fiber under the entry point (docs/decisions.md D38). Light entering
+// the ply travels a free path s before its first event, s ~ Exp(lambda) (lambda: the model's free path, in
+// ply radii). The fiber it meets sits deeper, where the helices are less tilted (twist alpha (1 - s w_i.z)),
+// and around the ply's circumference by an angle a = -w_i.y s, where the ply's normal is rotated by a about
+// the axis. So S_R is the mean of the single-fiber lobe over kYarnRNodes such fibers (s at the midpoints of
+// Exp(lambda)'s quantiles), each in its own frame: w -> M(alpha (1 - s w_i.z)) R_x(a) w. Every node's lobe
+// holds rho_R F / 2, so their mean does, exactly. Azimuth table rows are those of w_i. lambda = 0: one node,
+// the surface fiber (layouts before 5).
+//
 // Both arguments point away from the surface. The first is the direction the maps call incident (the
 // light side when the maps were gathered; a path tracer passes the direction toward the previous vertex,
 // using reciprocity), the second the one that is evaluated or sampled. eval returns S |cos theta_o|, the
@@ -96,9 +105,16 @@ enum YarnFlatField {
   kYarnFlatAzBins = 23,       /* its bins over phi~_o in [-pi/2, pi/2]; a row is those densities and tau rgb */
   kYarnFlatBeta_TT = 24,      /* radians: the surface fibers' TT lobe (R part's TT share)         */
   kYarnFlatGamma_TT = 25,     /* radians                                                          */
-  kYarnFlatHeader = 26
+  kYarnFlatFreePath = 26,     /* lambda: the R lobe's mean free path to its fiber, ply radii (0: surface fiber) */
+  kYarnFlatHeader = 27
 };
-constexpr float kYarnFlatFormat = 4.0f;
+constexpr float kYarnFlatFormat = 5.0f;
+/* The R lobe's fibers when the free path is positive (one, the surface fiber, when it is 0). */
+constexpr int kYarnRNodes = 4;
+/* Quantile midpoints of Exp(1), -log(1 - (q + 1/2) / kYarnRNodes): the nodes' free paths over lambda. */
+constexpr float kYarnRNodePaths[kYarnRNodes] = {0.13353139f, 0.47000363f, 0.98082925f, 2.07944154f};
+/* Largest free path a model may carry (ply radii). */
+constexpr float kYarnMaxFreePath = 2.0f;
 constexpr int kYarnCalStride = 7; /* dP_T, c_R.r, c_R.g, c_R.b, c_M.r, c_M.g, c_M.b */
 
 /* Floats per row of the R shape table: az_bins densities nu, then tau r, g, b. */
@@ -109,6 +125,8 @@ struct YarnBsdfParams {
   NY_GLOBAL const float *net_R; /* 3 -> 1, exp head: rho_R(w_i)            */
   NY_GLOBAL const float *net_M; /* 6 -> 3, exp head: S_M |cos theta_o|     */
   TwistRotation twist;
+  float alpha;     /* the surface fibers' twist, from which the R nodes' twists follow */
+  float free_path; /* lambda, ply radii */
   FiberBsdfParams fiber; /* C_R, beta_R of the surface fibers; C_TT = 0 (R only) */
   float kappa_R;
   float beta_M, gamma_M, kappa_M;
@@ -167,7 +185,8 @@ NY_KERNEL_FN const char *yarn_flat_check(NY_GLOBAL const float *f, int n)
   }
   if (!(f[kYarnFlatKappa_R] >= 0.0f && f[kYarnFlatKappa_R] <= 1.0f && f[kYarnFlatKappa_M] >= 0.0f &&
         f[kYarnFlatKappa_M] <= 1.0f && f[kYarnFlatBeta_R] > 0.0f && f[kYarnFlatBeta_M] > 0.0f &&
-        f[kYarnFlatGamma_M] > 0.0f && f[kYarnFlatBeta_TT] > 0.0f && f[kYarnFlatGamma_TT] > 0.0f))
+        f[kYarnFlatGamma_M] > 0.0f && f[kYarnFlatBeta_TT] > 0.0f && f[kYarnFlatGamma_TT] > 0.0f &&
+        f[kYarnFlatFreePath] >= 0.0f && f[kYarnFlatFreePath] <= kYarnMaxFreePath))
   {
     return "has sampling parameters out of range";
   }
@@ -213,6 +232,37 @@ NY_KERNEL_FN const char *yarn_flat_check(NY_GLOBAL const float *f, int n)
   return nullptr;
 }
 
+/* A layout 4 array (no free path) as layout 5: `out` (n + 1 floats) gets the free path 0 at its header's end
+ * and every offset and the size moved by one. It renders exactly as the layout 4 array did (one R node, the
+ * surface fiber). Returns false, leaving `out` alone, if `f` is not a layout 4 array whose offsets lie in it. */
+NY_KERNEL_FN bool yarn_flat_from_layout4(NY_GLOBAL const float *f, int n, float *out)
+{
+  constexpr int header4 = kYarnFlatFreePath;
+  if (n < header4 || f[kYarnFlatVersion] != 4.0f || f[kYarnFlatSize] != (float)n) {
+    return false;
+  }
+  const int offsets[5] = {kYarnFlatOffset_T, kYarnFlatOffset_R, kYarnFlatOffset_M, kYarnFlatOffset_Cal,
+                          kYarnFlatOffset_Az};
+  for (int k = 0; k < 5; k++) {
+    if (!(f[offsets[k]] >= (float)header4 && f[offsets[k]] <= (float)n)) {
+      return false;
+    }
+  }
+  for (int i = 0; i < header4; i++) {
+    out[i] = f[i];
+  }
+  out[kYarnFlatFreePath] = 0.0f;
+  for (int i = header4; i < n; i++) {
+    out[i + 1] = f[i];
+  }
+  out[kYarnFlatVersion] = kYarnFlatFormat;
+  out[kYarnFlatSize] = (float)(n + 1);
+  for (int k = 0; k < 5; k++) {
+    out[offsets[k]] = f[offsets[k]] + 1.0f;
+  }
+  return true;
+}
+
 #endif /* NY_KERNEL_DEVICE */
 
 /* Reads the parameters from a flat array that the host has validated (model/model.h does). */
@@ -223,6 +273,8 @@ NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(NY_GLOBAL const float *f)
   p.net_R = f + (int)f[kYarnFlatOffset_R];
   p.net_M = f + (int)f[kYarnFlatOffset_M];
   p.twist = make_twist_rotation(f[kYarnFlatAlpha]);
+  p.alpha = f[kYarnFlatAlpha];
+  p.free_path = f[kYarnFlatFreePath];
   p.fiber.C_R = make_rgb(f[kYarnFlatC_R], f[kYarnFlatC_R + 1], f[kYarnFlatC_R + 2]);
   p.fiber.C_TT = make_rgb(0.0f);
   p.fiber.beta_R = f[kYarnFlatBeta_R];
@@ -285,6 +337,14 @@ NY_KERNEL_FN void yarn_calibration(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, 
  * longitudinal normalisers; docs/benchmarks.md). A renderer computes it once per shading point
  * (yarn_lobes(p, w_i)) and passes it to yarn_eval_lobes(), yarn_pdf_lobes() and yarn_sample_lobes() for every
  * w_o there; yarn_eval(), yarn_pdf() and yarn_sample() recompute it per call. */
+/* One fiber of the R lobe (see the top): w -> its fiber frame M_q R_x(a_q) w. */
+struct YarnRNode {
+  float ca, sa;         /* cos, sin of a_q */
+  TwistRotation twist;  /* M_q */
+  LongitudinalLobe m_R, m_TT;
+  TruncatedNormal tn_R, tn_TT, tn_TT_phi; /* theta~_o of both parts, phi~_o (upper half) of the TT part */
+};
+
 struct YarnLobes {
   bool valid;     /* w_i strictly above the surface; otherwise the BSDF is zero */
   Vec3 wi;        /* yarn frame            */
@@ -294,17 +354,28 @@ struct YarnLobes {
   Rgb weight_R;   /* c_R rho_R F(theta~_i): the R lobe's energy is half of it (upper half of azimuths) */
   Rgb scale_M;    /* c_M e(w_i): the factor on the M network's output */
   float p_T, p_R, p_M; /* lobe selection probabilities, summing to 1 */
-  LongitudinalLobe m_R;
-  TruncatedNormal tn_R, tn_M;
+  TruncatedNormal tn_M;
   float kappa_vm; /* von Mises concentration of the M azimuth */
   NY_GLOBAL const float *az_row[4]; /* the R azimuth table's rows around w_i and their weights (az_bins 0: uniform) */
   float az_w[4];
   int az_bins;
   Rgb tau;        /* the R part's TT share (0 without a table or where the TT azimuth has no mass) */
   float q_TT;     /* the TT part's share of the R energy: its selection probability within R */
-  LongitudinalLobe m_TT;
-  TruncatedNormal tn_TT, tn_TT_phi; /* theta~_o and phi~_o (on the upper half) of the TT part */
+  int n_R;        /* R nodes in use: kYarnRNodes, or 1 (free path 0: the surface fiber, frame = the base one) */
+  YarnRNode node[kYarnRNodes];
 };
+
+/* w (yarn frame) in node q's fiber frame, and back. */
+NY_KERNEL_FN Vec3 yarn_to_r_node(NY_PRIVATE const YarnRNode &n, Vec3 w)
+{
+  return yarn_to_surface_fiber(n.twist, make_vec3(w.x, n.ca * w.y - n.sa * w.z, n.sa * w.y + n.ca * w.z));
+}
+
+NY_KERNEL_FN Vec3 r_node_to_yarn(NY_PRIVATE const YarnRNode &n, Vec3 w_f)
+{
+  const Vec3 w = surface_fiber_to_yarn(n.twist, w_f);
+  return make_vec3(w.x, n.ca * w.y + n.sa * w.z, -n.sa * w.y + n.ca * w.z);
+}
 
 NY_KERNEL_FN float yarn_transmission(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi)
 {
@@ -387,13 +458,6 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
   l.p_T = l.P_T;
   l.p_R = (1.0f - l.P_T) * p.kappa_R;
   l.p_M = (1.0f - l.P_T) * (1.0f - p.kappa_R);
-  if (with_eval) {
-    l.m_R = make_longitudinal_lobe(-theta_i, p.fiber.beta_R);
-  }
-  else {
-    l.m_R = LongitudinalLobe{-theta_i, p.fiber.beta_R, 0.0f};
-  }
-  l.tn_R = make_truncated_normal(-theta_i, p.fiber.beta_R, -kHalfPi, kHalfPi);
   l.tn_M = make_truncated_normal(-theta_i, p.beta_M, -kHalfPi, kHalfPi);
   l.kappa_vm = 1.0f / (p.gamma_M * p.gamma_M);
   l.az_bins = 0;
@@ -409,24 +473,39 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
     }
     l.az_bins = p.az_bins;
   }
-  /* The TT part, if it has a share: forward azimuth phi~_i + pi, truncated to the upper half. */
-  /* Without a share the TT part is never evaluated nor sampled (q_TT = 0): no erfc for it. */
-  l.q_TT = 0.0f;
-  l.tn_TT = l.tn_R;
-  l.m_TT = l.m_R;
-  l.tn_TT_phi = TruncatedNormal{0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
-  if (average(l.tau) > 0.0f) {
-    l.tn_TT_phi = make_truncated_normal(wrap_angle(phi_of(l.wi_f) + kPi), p.fiber.gamma_TT, -kHalfPi, kHalfPi);
-    if (!(l.tn_TT_phi.mass > 0.0f)) {
-      l.tau = make_rgb(0.0f);
+  /* The R nodes: their frames and longitudinal lobes (and, if the TT part has a share, its forward azimuth
+   * phi~_i + pi truncated to the upper half: without a share it is never evaluated nor sampled, no erfc). */
+  l.n_R = p.free_path > 0.0f ? kYarnRNodes : 1;
+  const bool has_tt = average(l.tau) > 0.0f;
+  for (int q = 0; q < l.n_R; q++) {
+    NY_PRIVATE YarnRNode &n = l.node[q];
+    const float s = l.n_R > 1 ? p.free_path * kYarnRNodePaths[q] : 0.0f;
+    const float a = -wi.y * s;
+    n.ca = cosf(a);
+    n.sa = sinf(a);
+    n.twist = make_twist_rotation(p.alpha * fmaxf(1.0f - s * wi.z, 0.0f));
+    const Vec3 wi_q = yarn_to_r_node(n, wi);
+    const float theta_q = theta_of(wi_q);
+    n.m_R = with_eval ? make_longitudinal_lobe(-theta_q, p.fiber.beta_R)
+                      : LongitudinalLobe{-theta_q, p.fiber.beta_R, 0.0f};
+    n.tn_R = make_truncated_normal(-theta_q, p.fiber.beta_R, -kHalfPi, kHalfPi);
+    n.tn_TT = n.tn_R;
+    n.m_TT = n.m_R;
+    n.tn_TT_phi = TruncatedNormal{0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+    if (has_tt) {
+      n.tn_TT_phi = make_truncated_normal(wrap_angle(phi_of(wi_q) + kPi), p.fiber.gamma_TT, -kHalfPi, kHalfPi);
+      if (!(n.tn_TT_phi.mass > 0.0f)) {
+        l.tau = make_rgb(0.0f); /* every node's TT part must hold the lobe's energy, or none has a share */
+      }
+      n.tn_TT = make_truncated_normal(-theta_q, p.fiber.beta_TT, -kHalfPi, kHalfPi);
+      n.m_TT = with_eval ? make_longitudinal_lobe(-theta_q, p.fiber.beta_TT, true)
+                         : LongitudinalLobe{-theta_q, p.fiber.beta_TT, 0.0f};
     }
   }
+  l.q_TT = 0.0f;
   const float e_R = average(l.weight_R);
   if (average(l.tau) > 0.0f && e_R > 0.0f) {
     l.q_TT = clampf(average(l.weight_R * l.tau) / e_R, 0.0f, 1.0f);
-    l.tn_TT = make_truncated_normal(-theta_i, p.fiber.beta_TT, -kHalfPi, kHalfPi);
-    l.m_TT = with_eval ? make_longitudinal_lobe(-theta_i, p.fiber.beta_TT, true)
-                       : LongitudinalLobe{-theta_i, p.fiber.beta_TT, 0.0f};
   }
   return l;
 }
@@ -469,40 +548,48 @@ NY_KERNEL_FN float yarn_r_azimuth(NY_PRIVATE const YarnLobes &l, float phi)
   return kPi * nu;
 }
 
-/* The R lobe's two parts at w_o (surface-fiber frame), each with the lobe's whole weight: the reflection
- * (its azimuth density nu) and the TT part (0 where it has no share). S_R |cos| = (1 - tau) R + tau TT. The
- * cosine is the fiber's own (longitudinal), so that each part's energy is exactly rho_R F / 2: half of
- * the fiber's albedo, the half whose azimuth leaves the surface. */
-NY_KERNEL_FN void yarn_eval_R_parts(NY_PRIVATE const YarnLobes &l, NY_PRIVATE const YarnOutgoing &o, NY_PRIVATE Rgb *R,
-                                    NY_PRIVATE Rgb *TT)
+/* Node q's two parts of the R lobe at w_o (o: w_o in the node's fiber frame), each with the lobe's whole
+ * weight: the reflection (its azimuth density nu) and the TT part (0 where it has no share).
+ * S_R |cos| = mean over the nodes of (1 - tau) R + tau TT. The cosine is the fiber's own (longitudinal), so
+ * that each part's energy is exactly rho_R F / 2: half of the fiber's albedo, the half whose azimuth
+ * leaves the surface. */
+NY_KERNEL_FN void yarn_eval_R_parts(NY_PRIVATE const YarnLobes &l, int q, NY_PRIVATE const YarnOutgoing &o,
+                                    NY_PRIVATE Rgb *R, NY_PRIVATE Rgb *TT)
 {
   *R = *TT = make_rgb(0.0f);
   if (!l.valid || !(o.w.z > 0.0f)) {
     return;
   }
+  NY_PRIVATE const YarnRNode &n = l.node[q];
   const float c = o.cos_theta;
-  *R = l.weight_R * (longitudinal_eval(l.m_R, o.theta) * kInvTwoPi * c * yarn_r_azimuth(l, o.phi));
+  *R = l.weight_R * (longitudinal_eval(n.m_R, o.theta) * kInvTwoPi * c * yarn_r_azimuth(l, o.phi));
   if (l.q_TT > 0.0f) {
-    *TT = l.weight_R * (longitudinal_eval(l.m_TT, o.theta) * 0.5f * c * truncated_normal_pdf(l.tn_TT_phi, o.phi));
+    *TT = l.weight_R * (longitudinal_eval(n.m_TT, o.theta) * 0.5f * c * truncated_normal_pdf(n.tn_TT_phi, o.phi));
   }
 }
 
-NY_KERNEL_FN void yarn_eval_R_parts(NY_PRIVATE const YarnLobes &l, Vec3 wo_f, NY_PRIVATE Rgb *R, NY_PRIVATE Rgb *TT)
+/* w_o in node q's frame: `o_base` (w_o in the surface-fiber frame) when that is the node's frame. */
+NY_KERNEL_FN YarnOutgoing yarn_r_node_outgoing(NY_PRIVATE const YarnLobes &l, int q, Vec3 wo,
+                                               NY_PRIVATE const YarnOutgoing &o_base)
 {
-  yarn_eval_R_parts(l, yarn_outgoing(wo_f), R, TT);
+  return l.n_R == 1 ? o_base : yarn_outgoing(yarn_to_r_node(l.node[q], wo));
 }
 
-/* S_R |cos theta~_o|, w_o in the surface-fiber frame. */
-NY_KERNEL_FN Rgb yarn_eval_R_fiber(NY_PRIVATE const YarnLobes &l, NY_PRIVATE const YarnOutgoing &o)
+/* S_R |cos theta_o| at w_o (yarn frame; o_base: w_o in the surface-fiber frame). */
+NY_KERNEL_FN Rgb yarn_eval_R(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE const YarnOutgoing &o_base)
 {
-  Rgb R, TT;
-  yarn_eval_R_parts(l, o, &R, &TT);
-  return (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
+  Rgb sum = make_rgb(0.0f);
+  for (int q = 0; q < l.n_R; q++) {
+    Rgb R, TT;
+    yarn_eval_R_parts(l, q, yarn_r_node_outgoing(l, q, wo, o_base), &R, &TT);
+    sum = sum + (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
+  }
+  return sum * (1.0f / (float)l.n_R);
 }
 
-NY_KERNEL_FN Rgb yarn_eval_R_fiber(NY_PRIVATE const YarnLobes &l, Vec3 wo_f)
+NY_KERNEL_FN Rgb yarn_eval_R(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo)
 {
-  return yarn_eval_R_fiber(l, yarn_outgoing(wo_f));
+  return yarn_eval_R(l, wo, yarn_outgoing(yarn_to_surface_fiber(p.twist, wo)));
 }
 
 NY_KERNEL_FN Rgb yarn_eval_M(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo)
@@ -519,33 +606,33 @@ NY_KERNEL_FN Rgb yarn_eval_M(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE cons
 /* Smallest cos(theta~_o) used to turn a (theta, phi) density into solid angle (as fiber_bsdf.h). */
 constexpr float kYarnMinCosTheta = 1e-7f;
 
-/* Densities of the R and M proposals in solid angle, w_o in the surface-fiber frame. The R proposal has
- * two parts (reflection; TT, density 0 when it has no share). */
-NY_KERNEL_FN void yarn_pdf_R_parts(NY_PRIVATE const YarnLobes &l, NY_PRIVATE const YarnOutgoing &o,
+/* Densities of node q's R proposal in solid angle (o: w_o in the node's frame), in two parts (reflection;
+ * TT, density 0 when it has no share). */
+NY_KERNEL_FN void yarn_pdf_R_parts(NY_PRIVATE const YarnLobes &l, int q, NY_PRIVATE const YarnOutgoing &o,
                                    NY_PRIVATE float *pdf_R, NY_PRIVATE float *pdf_TT)
 {
   *pdf_R = *pdf_TT = 0.0f;
   if (!(o.w.z > 0.0f)) {
     return;
   }
+  NY_PRIVATE const YarnRNode &n = l.node[q];
   const float inv_cos = 1.0f / fmaxf(o.cos_theta, kYarnMinCosTheta);
-  *pdf_R = truncated_normal_pdf(l.tn_R, o.theta) * kInvPi * inv_cos;
+  *pdf_R = truncated_normal_pdf(n.tn_R, o.theta) * kInvPi * inv_cos;
   if (l.q_TT > 0.0f) {
-    *pdf_TT = truncated_normal_pdf(l.tn_TT, o.theta) * truncated_normal_pdf(l.tn_TT_phi, o.phi) * inv_cos;
+    *pdf_TT = truncated_normal_pdf(n.tn_TT, o.theta) * truncated_normal_pdf(n.tn_TT_phi, o.phi) * inv_cos;
   }
 }
 
-NY_KERNEL_FN void yarn_pdf_R_parts(NY_PRIVATE const YarnLobes &l, Vec3 wo_f, NY_PRIVATE float *pdf_R,
-                                   NY_PRIVATE float *pdf_TT)
+/* The R proposal's density at w_o: the mean over the nodes (each drawn with probability 1 / n_R). */
+NY_KERNEL_FN float yarn_pdf_R(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE const YarnOutgoing &o_base)
 {
-  yarn_pdf_R_parts(l, yarn_outgoing(wo_f), pdf_R, pdf_TT);
-}
-
-NY_KERNEL_FN float yarn_pdf_R_fiber(NY_PRIVATE const YarnLobes &l, NY_PRIVATE const YarnOutgoing &o)
-{
-  float r, tt;
-  yarn_pdf_R_parts(l, o, &r, &tt);
-  return (1.0f - l.q_TT) * r + l.q_TT * tt;
+  float sum = 0.0f;
+  for (int q = 0; q < l.n_R; q++) {
+    float r, tt;
+    yarn_pdf_R_parts(l, q, yarn_r_node_outgoing(l, q, wo, o_base), &r, &tt);
+    sum += (1.0f - l.q_TT) * r + l.q_TT * tt;
+  }
+  return sum / (float)l.n_R;
 }
 
 /* The M proxy alone: kappa_M TN(theta~_o) vM(phi~_o) / cos theta~_o + (1 - kappa_M) / 4 pi. The fit
@@ -569,11 +656,12 @@ NY_KERNEL_FN float yarn_pdf_M_fiber(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVA
   return yarn_m_proxy_pdf(l.tn_M, l.kappa_vm, p.kappa_M, o);
 }
 
-/* The non-delta sampler's density at o, conditional on not choosing T. */
-NY_KERNEL_FN float yarn_pdf_fiber(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l,
+/* The non-delta sampler's density at w_o (yarn frame; o: in the surface-fiber frame), conditional on not
+ * choosing T. */
+NY_KERNEL_FN float yarn_pdf_fiber(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo,
                                   NY_PRIVATE const YarnOutgoing &o)
 {
-  return p.kappa_R * yarn_pdf_R_fiber(l, o) + (1.0f - p.kappa_R) * yarn_pdf_M_fiber(p, l, o);
+  return p.kappa_R * yarn_pdf_R(l, wo, o) + (1.0f - p.kappa_R) * yarn_pdf_M_fiber(p, l, o);
 }
 
 /* Non-delta part: eval = (S_R + S_M) |cos theta_o|. */
@@ -582,7 +670,7 @@ NY_KERNEL_FN Rgb yarn_eval_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE 
   if (!l.valid) {
     return make_rgb(0.0f);
   }
-  return yarn_eval_R_fiber(l, yarn_outgoing(yarn_to_surface_fiber(p.twist, wo))) + yarn_eval_M(p, l, wo);
+  return yarn_eval_R(p, l, wo) + yarn_eval_M(p, l, wo);
 }
 
 /* Density of the non-delta sampler, conditional on not choosing T (integrates to 1 over the sphere). */
@@ -591,7 +679,7 @@ NY_KERNEL_FN float yarn_pdf_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE
   if (!l.valid) {
     return 0.0f;
   }
-  return yarn_pdf_fiber(p, l, yarn_outgoing(yarn_to_surface_fiber(p.twist, wo)));
+  return yarn_pdf_fiber(p, l, wo, yarn_outgoing(yarn_to_surface_fiber(p.twist, wo)));
 }
 
 /* Both at once, as a renderer asks for them (the angles of w_o computed once): yarn_eval_lobes() and
@@ -604,8 +692,8 @@ NY_KERNEL_FN Rgb yarn_eval_pdf_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIV
     return make_rgb(0.0f);
   }
   const YarnOutgoing o = yarn_outgoing(yarn_to_surface_fiber(p.twist, wo));
-  *pdf = yarn_pdf_fiber(p, l, o);
-  return yarn_eval_R_fiber(l, o) + yarn_eval_M(p, l, wo);
+  *pdf = yarn_pdf_fiber(p, l, wo, o);
+  return yarn_eval_R(l, wo, o) + yarn_eval_M(p, l, wo);
 }
 
 NY_KERNEL_FN Rgb yarn_eval(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, Vec3 wo, NY_PRIVATE float *pdf)
@@ -658,15 +746,25 @@ NY_KERNEL_FN bool yarn_sample_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVA
     }
     u = clampf((u - l.p_T) / (1.0f - l.p_T), 0.0f, 0.99999994f);
   }
-  Vec3 wo_f;
+  Vec3 wo_f; /* the surface-fiber frame's, unless an R node other than the surface fiber drew w_o */
+  bool base = true;
   if (u < p.kappa_R) {
-    if (u < p.kappa_R * l.q_TT) {
-      /* R's TT part: through a surface fiber, forward. */
-      wo_f = direction_from_angles(sample_truncated_normal(l.tn_TT, u1), sample_truncated_normal(l.tn_TT_phi, u2));
+    /* R: node q (each with probability 1 / n_R), then its part. */
+    const int k = l.n_R == 1 ? 0 : (int)(u / p.kappa_R * (float)l.n_R);
+    const int q = k < l.n_R - 1 ? k : l.n_R - 1;
+    const float v = l.n_R == 1 ? u : u - p.kappa_R * (float)q / (float)l.n_R; /* within the node's share */
+    NY_PRIVATE const YarnRNode &n = l.node[q];
+    if (v < p.kappa_R / (float)l.n_R * l.q_TT) {
+      /* R's TT part: through the fiber, forward. */
+      wo_f = direction_from_angles(sample_truncated_normal(n.tn_TT, u1), sample_truncated_normal(n.tn_TT_phi, u2));
     }
     else {
-      /* R: the specular cone of the surface fibers, upper half of the azimuths. */
-      wo_f = direction_from_angles(sample_truncated_normal(l.tn_R, u1), kPi * u2 - kHalfPi);
+      /* R: the fiber's specular cone, upper half of the azimuths. */
+      wo_f = direction_from_angles(sample_truncated_normal(n.tn_R, u1), kPi * u2 - kHalfPi);
+    }
+    if (l.n_R > 1) {
+      s->wo = r_node_to_yarn(n, wo_f);
+      base = false;
     }
   }
   else {
@@ -682,13 +780,15 @@ NY_KERNEL_FN bool yarn_sample_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVA
       wo_f = sample_uniform_sphere(u1, u2);
     }
   }
-  s->wo = surface_fiber_to_yarn(p.twist, wo_f);
-  const YarnOutgoing o = yarn_outgoing(wo_f);
-  const float pdf = yarn_pdf_fiber(p, l, o);
+  if (base) {
+    s->wo = surface_fiber_to_yarn(p.twist, wo_f);
+  }
+  const YarnOutgoing o = yarn_outgoing(base ? wo_f : yarn_to_surface_fiber(p.twist, s->wo));
+  const float pdf = yarn_pdf_fiber(p, l, s->wo, o);
   if (!(pdf > 0.0f)) {
     return false;
   }
-  const Rgb f = yarn_eval_R_fiber(l, o) + yarn_eval_M(p, l, s->wo);
+  const Rgb f = yarn_eval_R(l, s->wo, o) + yarn_eval_M(p, l, s->wo);
   s->pdf = pdf;
   s->weight = f * (1.0f / (include_T ? (1.0f - l.p_T) * pdf : pdf));
   return true;

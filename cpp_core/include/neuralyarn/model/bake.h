@@ -40,6 +40,8 @@ struct TrainModelOptions {
    * the training maps (candidate_score). One by default: that choice does not pick the network that renders
    * closer to independent maps (docs/decisions.md D33). */
   int m_candidates = 1;
+  /* The R lobe's free path (ply radii); negative: r_free_path() of the model (model/r_shape.h). */
+  double r_free_path = -1.0;
   int threads = 0;
   ProxyFitOptions fit;
   bool fit_proxy = true;

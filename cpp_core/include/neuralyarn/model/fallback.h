@@ -131,7 +131,10 @@ std::string fnv1a64_hex(const std::vector<float> &values);
 
 nlohmann::json fallback_to_json(const FallbackTables &f);
 /* Validates sizes, ranges and finiteness and that the scalars and hash agree with `model` (whose other
- * parts are already loaded); throws ModelError naming the key, prefixed by `where`. */
-FallbackTables fallback_from_json(const nlohmann::json &j, const YarnModel &model, const std::string &where);
+ * parts are already loaded); throws ModelError naming the key, prefixed by `where`. The hash must be
+ * `written_flat_hash` if given (the kernel array as the file holds it, in an older layout); the tables
+ * returned name the model's array in the current layout. */
+FallbackTables fallback_from_json(const nlohmann::json &j, const YarnModel &model, const std::string &where,
+                                  const std::string *written_flat_hash = nullptr);
 
 }  // namespace neuralyarn::model

@@ -78,7 +78,8 @@ LobeGrid model_lobe_grid(const YarnModel &model, const rdm::MapResolution &bins,
 ny::Vec3 incident_sub_direction(const rdm::MapResolution &bins, int ti, int pi, int s, int n);
 
 /* The R lobe of `p` integrated over the map bins for incident bin (ti, pi): 4 x 4 incident directions
- * inside the bin, each lobe by 32 x 64 stratified samples of each part of its own proposal (reflection:
+ * inside the bin, each lobe node by node (kernel/yarn_bsdf.h), each node by 32 x 64 stratified samples of
+ * each part of its own proposal (reflection:
  * truncated normal in theta~, uniform phi~ on the upper half; TT, where it has a share: the two truncated
  * normals), combined by the balance heuristic; add(to, po, energy) receives every sample's share of the
  * lobe's energy, averaged over the incident directions. Used by the measure and the R shape fit. */
@@ -86,8 +87,8 @@ void integrate_r_lobe(const ny::YarnBsdfParams &p, const rdm::MapResolution &bin
                       const std::function<void(int to, int po, const ny::Rgb &energy)> &add);
 
 /* The same integration with the lobe's two parts apart (kernel/yarn_bsdf.h yarn_eval_R_parts, each with the
- * lobe's whole weight), the sample's azimuth phi~_o and the TT share tau of its incident direction: the R
- * shape fit. */
+ * lobe's whole weight over the number of nodes), the sample's azimuth phi~_o about its node's fiber and the
+ * TT share tau of its incident direction: the R shape fit. */
 void integrate_r_parts(const ny::YarnBsdfParams &p, const rdm::MapResolution &bins, int ti, int pi,
                        const std::function<void(int to, int po, float phi_f, const ny::Rgb &R, const ny::Rgb &TT,
                                                 const ny::Rgb &tau)> &add);

@@ -74,6 +74,9 @@ struct YarnModel {
   SamplingProxy proxy;
   EnergyCalibration calibration;
   RShapeTable r_shape;
+  /* The R lobe's mean free path to its fiber, in ply radii (kernel/yarn_bsdf.h; 0: the surface fiber alone,
+   * as models before it rendered). */
+  double r_free_path = 0.0;
   std::array<double, 3> albedo_M{}; /* M albedo averaged over w_i on the hemisphere */
   nlohmann::json provenance = nlohmann::json::object(); /* maps, seeds, code version, dates */
   nlohmann::json fidelity = nlohmann::json::object();   /* the numbers of `neuralyarn check`, if run */

@@ -29,7 +29,14 @@ struct RShapeOptions {
   bool fit_tt = true; /* false: tau = 0 (the reflection part only, as model layout 3) */
 };
 
-/* The table for `model` (its current table is ignored) on `maps` (same preset). */
+/* The R lobe's mean free path to its fiber (kernel/yarn_bsdf.h), in ply radii: a fraction
+ * kRFreePathScale of the free path of a ray across the cross-section's fibers, pi / (2 sqrt(N rho)) (N
+ * fibers of radius sqrt(rho / N) in a unit disc), chosen by measurement (docs/decisions.md D38). 0 for a
+ * yarn-level model (not measured there). */
+constexpr double kRFreePathScale = 0.6;
+double r_free_path(const YarnModel &model);
+
+/* The table for `model` (its current table is ignored; its free path is used) on `maps` (same preset). */
 RShapeTable fit_r_shape(const YarnModel &model, const rdm::RdmMaps &maps, const RShapeOptions &options = {});
 
 /* min |A x - y|^2 subject to x >= 0, from the normal equations G = A^T A, h = A^T y (Lawson and Hanson's

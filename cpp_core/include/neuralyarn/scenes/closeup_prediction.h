@@ -37,13 +37,19 @@ struct FarField {
   std::function<Rgb3(const ny::Vec3 &wi)> albedo;
 };
 
+/* Which of the non-delta lobes a far field holds: both (what renders), or one of them, to tell which lobe
+ * a fitting error is in. A single lobe has no albedo (the environment's pixel): its `albedo` throws. */
+enum class Lobes { kRM, kR, kM };
+/* "RM", "R", "M"; throws std::runtime_error for anything else. */
+Lobes parse_lobes(const std::string &name);
+
 /* The model as the native closure renders it: R + M (with calibration and R azimuth); T is the
  * transparent closure (a delta that the rigs' lights never lie on, and 1 x the white background). */
-FarField model_far_field(const model::YarnModel &model);
+FarField model_far_field(const model::YarnModel &model, Lobes lobes = Lobes::kRM);
 
 /* The maps: the bin of (w_i, w_o), R + M; the albedo is the bin's exit energy (T + R + M). The maps must
  * outlive the returned functions. */
-FarField maps_far_field(const rdm::RdmMaps &maps);
+FarField maps_far_field(const rdm::RdmMaps &maps, Lobes lobes = Lobes::kRM);
 
 /* The model's stock-Blender fallback (its "fallback" tables, model/fallback.h) as Blender renders it:
  * transparent() and the weighted built-in lobes. Throws std::runtime_error when the model has none. */
@@ -56,7 +62,7 @@ struct PixelRegion {
 
 /* The expected mean colour over the region of the close-up under `rig` (its environment or distant
  * lights; throws std::runtime_error for sphere lights, whose near-field position and size this does not
- * model), with the pixels filtered as Cycles does (Blackman-Harris, 1.5 pixels wide). */
+ * model), with the pixels filtered as the scenes state it (a box one pixel wide, decisions D36). */
 Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &region);
 
 }  // namespace neuralyarn::scenes
