@@ -58,7 +58,8 @@ def _fail(where: str, message: str) -> ModelFileError:
 
 
 # The kernel array's layout (cpp_core/include/neuralyarn/kernel/yarn_bsdf.h, YarnFlatField; mlp.h).
-_FLAT_HEADERS = {3: 24, 4: 26}  # layout 3: no TT fields, azimuth rows without the TT share
+_FLAT_HEADERS = {3: 24, 4: 26, 5: 27}  # layout 3: no TT fields, azimuth rows without the TT share; 4: no free path
+_MAX_FREE_PATH = 2.0  # kYarnMaxFreePath: the R lobe's mean free path, ply radii
 _MLP_MAX_LAYERS, _MLP_MAX_WIDTH = 8, 64
 _HEAD_SIGMOID, _HEAD_EXP = 1, 2
 _CAL_STRIDE = 7
@@ -81,10 +82,11 @@ def _network_ok(f: list, offset: int, end: int, inputs: int, outputs: int, head:
     return widths[0] == inputs and widths[L] == outputs and f[offset + L + 2] == head and offset + count <= end
 
 
-def kernel_flat_problem(f: list, layout: int = 4) -> str | None:
-    """What is wrong with a layout 4 kernel array (the native closure's input), or None: the same checks as
+def kernel_flat_problem(f: list, layout: int = 5) -> str | None:
+    """What is wrong with a layout 5 kernel array (the native closure's input), or None: the same checks as
     the C++ loader's yarn_flat_check, so that the add-on packs no model the patched Cycles would refuse.
-    Layout 3 (version 3 files, which the C++ loader rebuilds with no TT share) gets the checks it had."""
+    Layout 4 (no R free path, which the C++ loader moves to layout 5 with the free path 0) and layout 3
+    (version 3 files, which it rebuilds with no TT share) get the checks they had."""
     n = len(f)
     header = _FLAT_HEADERS[layout]
     if n < header:
@@ -96,7 +98,8 @@ def kernel_flat_problem(f: list, layout: int = 4) -> str | None:
     if f[1] != n:
         return "its size field disagrees with its length"
     if not (0.0 <= f[7] <= 1.0 and 0.0 <= f[10] <= 1.0 and f[6] > 0.0 and f[8] > 0.0 and f[9] > 0.0 and
-            (layout == 3 or (f[24] > 0.0 and f[25] > 0.0))):
+            (layout == 3 or (f[24] > 0.0 and f[25] > 0.0)) and
+            (layout < 5 or 0.0 <= f[26] <= _MAX_FREE_PATH)):
         return "has sampling parameters out of range"
     oT, oR, oM, oC, oA = f[14], f[15], f[16], f[17], f[20]
     if not (0.0 <= oT <= oR <= oM <= oC <= oA <= n) or oA != int(oA):
@@ -116,7 +119,7 @@ def kernel_flat_problem(f: list, layout: int = 4) -> str | None:
     if not no_table and (not (1 <= at <= 1024 and 1 <= ap <= 1024 and 2 <= ab <= 1024) or
                          at != int(at) or ap != int(ap) or ab != int(ab)):
         return "has an R azimuth table of the wrong shape"
-    stride = int(ab) + (3 if layout == 4 else 0)  # the densities, then (layout 4) the TT share r, g, b
+    stride = int(ab) + (3 if layout >= 4 else 0)  # the densities, then (layout 4 on) the TT share r, g, b
     if int(oA) + (0 if no_table else int(at) * int(ap) * stride) != n:
         return "has an R azimuth table of the wrong size"
     if any(v < 0.0 for v in f[int(oA):]):
@@ -176,12 +179,22 @@ def parse_model(text: str, source: str) -> YarnModel:
                 isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in flat):
             raise _fail(source, "'kernel_flat' is not a layout 2 array of finite numbers")
     else:
-        problem = kernel_flat_problem(flat, 3 if version == 3 else 4)
+        # Version 4 and 5 files hold layout 4 (no R free path) or 5 (this code's), as their array says.
+        layout = 3 if version == 3 else 5 if flat and flat[0] == 5.0 else 4
+        problem = kernel_flat_problem(flat, layout)
         if problem:
             raise _fail(source, f"'kernel_flat' {problem}")
+        free_path = data.get("r_free_path", 0.0 if layout < 5 else None)
+        if layout < 5 and "r_free_path" in data:
+            raise _fail(source, "'r_free_path' needs a layout 5 'kernel_flat'")
+        if layout == 5 and (not isinstance(free_path, (int, float)) or isinstance(free_path, bool) or
+                            not math.isfinite(free_path) or not 0.0 <= free_path <= _MAX_FREE_PATH or
+                            abs(flat[26] - free_path) > 1e-6 * max(1.0, free_path)):
+            raise _fail(source, f"'r_free_path' must be a number in [0, {_MAX_FREE_PATH}] equal to the "
+                                f"kernel array's (got {free_path!r})")
     model = YarnModel(source=source, text=text, data=data, preset_name=preset["name"], alpha=float(alpha),
                       level=level, plies=int(plies), ply_twist=float(ply_twist))
-    if flat and flat[0] == 4.0 and abs(flat[2] - model.alpha) > 1e-6 * max(1.0, abs(model.alpha)):
+    if flat and flat[0] in (4.0, 5.0) and abs(flat[2] - model.alpha) > 1e-6 * max(1.0, abs(model.alpha)):
         raise _fail(source, "'kernel_flat' twist disagrees with the model's "
                             + ("surface twist" if level == "yarns" else "preset alpha"))
     model.fallback  # validates the tables now, so a bad file is reported when it is loaded, not at render time

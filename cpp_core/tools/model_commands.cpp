@@ -71,7 +71,7 @@ void add_train_options(CLI::App *cmd, TrainModelOptions *o)
       ->capture_default_str();
   cmd->add_option("--r-free-path", o->r_free_path,
                   "The R lobe's mean free path to its fiber in ply radii (0: the surface fiber alone); default: "
-                  "0.6 x pi / (2 sqrt(N rho)), 0 for a yarn-level model")
+                  "0 or 0.6 x pi / (2 sqrt(N rho)), whichever fits the R map better (0 for a yarn-level model)")
       ->check(finite_range(0.0, ny::kYarnMaxFreePath));
   cmd->add_option("--fit-samples", o->fit.samples, "M exits drawn for the proxy fit")
       ->check(CLI::Range(100, 100000000))

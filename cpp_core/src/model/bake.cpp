@@ -147,6 +147,38 @@ double candidate_score(const LobeComparison &m_lobe)
 }
 
 namespace {
+/* The R lobe's free path and shape table. Asked for (>= 0): that free path. Otherwise 0 (the surface fiber)
+ * or r_free_path(), whichever puts the fitted lobe closer to the maps (candidate_score of the R lobe): the
+ * nodes move the cone where twisted plies put it and cost untwisted ones at grazing light (D38). Returns
+ * the candidates' scores (empty when there was no choice). */
+nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double requested)
+{
+  const double lambda = r_free_path(*m);
+  if (requested >= 0.0 || lambda == 0.0) {
+    m->r_free_path = requested >= 0.0 ? requested : 0.0;
+    m->r_shape = fit_r_shape(*m, maps);
+    return nlohmann::json();
+  }
+  const LobeGrid map_R = pool_map_lobe(maps, Lobe::kR);
+  nlohmann::json scores = nlohmann::json::array();
+  double best_score = 0.0;
+  YarnModel best;
+  for (const double candidate : {0.0, lambda}) {
+    YarnModel c = *m;
+    c.r_free_path = candidate;
+    c.r_shape = fit_r_shape(c, maps);
+    const double score = candidate_score(compare_lobes(model_lobe_grid(c, maps.bins, Lobe::kR), map_R));
+    scores.push_back({{"r_free_path", candidate}, {"r_lobe_l1", score}});
+    if (scores.size() == 1 || score < best_score) {
+      best_score = score;
+      best = std::move(c);
+    }
+  }
+  m->r_free_path = best.r_free_path;
+  m->r_shape = std::move(best.r_shape);
+  return scores;
+}
+
 /* Seed of M candidate k (0-based): candidate 0 is the single-seed model's network. */
 uint64_t m_candidate_seed(uint64_t seed, int k)
 {
@@ -223,13 +255,15 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
     a /= wsum;
   }
   /* The R lobe's shape (its energy is unchanged by it; it depends on R alone), then the energies. */
-  m.r_free_path = o.r_free_path >= 0.0 ? o.r_free_path : r_free_path(m);
-  m.r_shape = fit_r_shape(m, maps);
+  const nlohmann::json r_scores = fit_r_lobe(&m, maps, o.r_free_path);
   m.calibration = calibrate_energy(m, maps, o.threads);
   m.provenance = {{"maps", maps_provenance(maps)},
                   {"training_seed", o.seed},
                   {"created", utc_now()},
                   {"code_version", std::string(kVersion) + "+" + kGitRevision}};
+  if (!r_scores.empty()) {
+    m.provenance["r_free_path_scores"] = r_scores;
+  }
   if (o.m_candidates > 1) {
     select_m_candidate(&m, maps, o, transmission, stage);
   }

@@ -365,10 +365,13 @@ YarnModel model_from_json(const json &j, const std::string &source)
       if (!ny::yarn_flat_from_layout4(flat.data(), int(flat.size()), upgraded.data())) {
         throw ModelError(where + "'kernel_flat' is not a layout 4 array");
       }
+      flat = std::move(upgraded);
       if (j.contains("r_free_path")) {
         throw ModelError(where + "'r_free_path' needs a layout 5 'kernel_flat'");
       }
-      flat = std::move(upgraded);
+    }
+    else if (layout < 4 && j.contains("r_free_path")) {
+      throw ModelError(where + "'r_free_path' needs a layout 5 'kernel_flat'");
     }
     if (layout == 4) {
       layout = 5;

@@ -40,7 +40,8 @@ struct TrainModelOptions {
    * the training maps (candidate_score). One by default: that choice does not pick the network that renders
    * closer to independent maps (docs/decisions.md D33). */
   int m_candidates = 1;
-  /* The R lobe's free path (ply radii); negative: r_free_path() of the model (model/r_shape.h). */
+  /* The R lobe's free path (ply radii); negative: 0 or r_free_path() of the model (model/r_shape.h),
+   * whichever fits the R map better (docs/decisions.md D38). */
   double r_free_path = -1.0;
   int threads = 0;
   ProxyFitOptions fit;
