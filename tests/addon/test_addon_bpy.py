@@ -563,7 +563,7 @@ def _corruptions():
         return json.dumps(data)
 
     return [
-        ("NaN in the kernel", raw(lambda t: t.replace('"kernel_flat": [4.0,', '"kernel_flat": [NaN,', 1))),
+        ("NaN in the kernel", raw(lambda t: t.replace('"kernel_flat": [5.0,', '"kernel_flat": [NaN,', 1))),
         ("Infinity in the kernel", flat(lambda f: f.__setitem__(40, 1e999))),
         ("short kernel", flat(lambda f: f.__delitem__(slice(-5, None)))),
         ("kernel layout 2 in a version 4 file", flat(lambda f: f.__setitem__(0, 2.0))),
@@ -573,6 +573,10 @@ def _corruptions():
         ("negative R azimuth density", flat(lambda f: f.__setitem__(len(f) - 4, -0.5))),
         ("TT share above 1", flat(lambda f: f.__setitem__(len(f) - 1, 1.5))),
         ("a layout 3 array in a version 4 file", lambda data: json.dumps(_as_version3(data, version=4))),
+        ("R free path beyond 2 ply radii", lambda data: json.dumps(
+            dict(data, r_free_path=3.0, kernel_flat=data["kernel_flat"][:26] + [3.0] + data["kernel_flat"][27:]))),
+        ("R free path other than the kernel's", lambda data: json.dumps(dict(data, r_free_path=0.05))),
+        ("an R free path with a layout 4 array", lambda data: json.dumps(dict(_as_layout4(data), r_free_path=0.0))),
         ("a kernel weight changed", flat(lambda f: f.__setitem__(60, f[60] + 0.25))),
         ("stale fallback tables", stale_tables),
         ("no fallback bins", lambda data: _edit(["fallback", "theta_bins"], 0)(data)),
@@ -589,20 +593,36 @@ def _core_fallback(model: str, out, theta_bins: int, phi_bins: int) -> str:
     return out.read_text()
 
 
+def _as_layout4(data, fnv=None):
+    """The model as a file before the R free path: a layout 4 array (the header without it, offsets one
+    less), no "r_free_path" (the core reads it as 0); its fallback tables name that array by its hash `fnv`
+    (left as they are without one)."""
+    f = data["kernel_flat"]
+    old = f[:26] + f[27:]
+    for k in (14, 15, 16, 17, 20):
+        old[k] -= 1
+    old[0], old[1] = 4.0, float(len(old))
+    out = {k: v for k, v in data.items() if k != "r_free_path"}
+    out["kernel_flat"] = old
+    if fnv:
+        out["fallback"] = dict(data["fallback"], kernel_flat_fnv1a64=fnv(old))
+    return out
+
+
 def _as_version3(data, version=3, fnv=None):
     """The model as a version 3 file wrote it: layout 3 (no TT fields in the header, azimuth rows without the
     TT share, the table under "r_azimuth"), the TT share dropped; its fallback tables name that array by its
     hash `fnv` (left out without one)."""
     f = data["kernel_flat"]
-    header, az, bins = 26, int(f[20]), int(f[23])
+    header, az, bins = 27, int(f[20]), int(f[23])
     old = f[:24]
     for k in (14, 15, 16, 17, 20):
-        old[k] -= 2
+        old[k] -= header - 24
     old += f[header:az]
     for r in range(az, len(f), bins + 3):
         old += f[r:r + bins]
     old[0], old[1] = 3.0, float(len(old))
-    out = {k: v for k, v in data.items() if k not in ("fallback", "r_shape")}
+    out = {k: v for k, v in data.items() if k not in ("fallback", "r_shape", "r_free_path")}
     out.update(version=version, kernel_flat=old, r_azimuth=data["r_shape"])
     if fnv:
         out["fallback"] = dict(data["fallback"], kernel_flat_fnv1a64=fnv(old))
@@ -610,7 +630,7 @@ def _as_version3(data, version=3, fnv=None):
 
 
 @pytest.mark.parametrize("case", [c[0] for c in _corruptions()] +
-                         ["the shipped model", "a version 3 file", "1 x 1 fallback tables"])
+                         ["the shipped model", "a version 3 file", "a layout 4 file", "1 x 1 fallback tables"])
 def test_model_files_the_core_refuses_are_refused(bpy, addon, tmp_path, case):
     if not os.path.isfile(_CLI):
         pytest.skip(f"the core's CLI is not built at {_CLI}")
@@ -620,6 +640,7 @@ def test_model_files_the_core_refuses_are_refused(bpy, addon, tmp_path, case):
     fnv = addon.fallback.schema.fnv1a64_hex
     accepted = {"the shipped model": lambda: json.dumps(data),
                 "a version 3 file": lambda: json.dumps(_as_version3(data, fnv=fnv)),
+                "a layout 4 file": lambda: json.dumps(_as_layout4(data, fnv=fnv)),
                 "1 x 1 fallback tables": lambda: _core_fallback(shipped, tmp_path / "one.json", 1, 1)}
     text = accepted[case]() if case in accepted else dict(_corruptions())[case](data)
     path = tmp_path / "model.json"

@@ -314,6 +314,7 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
     v3["version"] = 3;
     v3["r_azimuth"] = v3["r_shape"];
     v3.erase("r_shape");
+    v3.erase("r_free_path");
     v3.erase("fallback");
     const std::string old = (dir / "v3.json").string();
     std::ofstream(old) << v3.dump();
