@@ -111,8 +111,12 @@ enum YarnFlatField {
 constexpr float kYarnFlatFormat = 5.0f;
 /* The R lobe's fibers when the free path is positive (one, the surface fiber, when it is 0). */
 constexpr int kYarnRNodes = 4;
-/* Quantile midpoints of Exp(1), -log(1 - (q + 1/2) / kYarnRNodes): the nodes' free paths over lambda. */
-constexpr float kYarnRNodePaths[kYarnRNodes] = {0.13353139f, 0.47000363f, 0.98082925f, 2.07944154f};
+/* Node q's free path over lambda: the midpoint of Exp(1)'s q-th quantile, -log(1 - (q + 1/2) / kYarnRNodes)
+ * (a function, not a table: device code reads no namespace-scope arrays). */
+NY_KERNEL_FN float yarn_r_node_path(int q)
+{
+  return q == 0 ? 0.13353139f : q == 1 ? 0.47000363f : q == 2 ? 0.98082925f : 2.07944154f;
+}
 /* Largest free path a model may carry (ply radii). */
 constexpr float kYarnMaxFreePath = 2.0f;
 constexpr int kYarnCalStride = 7; /* dP_T, c_R.r, c_R.g, c_R.b, c_M.r, c_M.g, c_M.b */
@@ -479,7 +483,7 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
   const bool has_tt = average(l.tau) > 0.0f;
   for (int q = 0; q < l.n_R; q++) {
     NY_PRIVATE YarnRNode &n = l.node[q];
-    const float s = l.n_R > 1 ? p.free_path * kYarnRNodePaths[q] : 0.0f;
+    const float s = l.n_R > 1 ? p.free_path * yarn_r_node_path(q) : 0.0f;
     const float a = -wi.y * s;
     n.ca = cosf(a);
     n.sa = sinf(a);
