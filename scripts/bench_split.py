@@ -39,11 +39,13 @@ from images import read_exr
 PREDICTED = ("environment", "front", "grazing", "back", "axis")
 
 
-def predict(preset: str, lights: list[str], size: tuple[int, int], region, maps: list[str], yarns: dict) -> dict:
+def predict(preset: str, lights: list[str], size: tuple[int, int], region, maps: list[str], yarns: dict,
+            model: str | None = None, lobes: str = "RM") -> dict:
     """{(light, "model" | "maps_A" | "maps_B"): RGB} from one `cycles-scene --predict-region` call (each map
-    file loaded once for all the lights)."""
+    file loaded once for all the lights): of the preset's model (or `model`), R + M (or `lobes`: "R", "M")."""
     rows, cols = region
-    args = [CLI, "cycles-scene", *yarn_args(yarns, preset), "--lights", lights[0], "--model", model_path(yarns, preset),
+    args = [CLI, "cycles-scene", *yarn_args(yarns, preset), "--lights", lights[0],
+            "--model", model or model_path(yarns, preset), "--predict-lobes", lobes,
             "--width", str(size[0]), "--height", str(size[1]), "--ply-length", f"{CLOSEUP_PLY_LENGTH:g}",
             "--predict-region", str(cols.start), str(rows.start), str(cols.stop - cols.start),
             str(rows.stop - rows.start), "--predict-lights", ",".join(lights),

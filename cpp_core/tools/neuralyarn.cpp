@@ -402,17 +402,10 @@ struct SceneCommand {
     if (predict_fallback && opt.model.empty()) {
       throw std::runtime_error("--predict-fallback needs --model");
     }
+    /* A single lobe under the environment: its far field refuses the albedo (closeup_prediction.h). */
     const scenes::Lobes lobes = scenes::parse_lobes(predict_lobes);
-    if (lobes != scenes::Lobes::kRM) {
-      if (predict_fallback) {
-        throw std::runtime_error("--predict-fallback predicts the fallback whole: no --predict-lobes");
-      }
-      for (const scenes::LightRig &rig : rigs) {
-        if (rig.environment) {
-          throw std::runtime_error("--predict-lobes " + predict_lobes + ": one lobe alone has no albedo; the '" +
-                                   rig.name + "' rig needs RM");
-        }
-      }
+    if (lobes != scenes::Lobes::kRM && predict_fallback) {
+      throw std::runtime_error("--predict-fallback predicts the fallback whole: no --predict-lobes");
     }
     if (!opt.model.empty()) {
       const model::YarnModel m = model::load_model(opt.model);

@@ -162,22 +162,22 @@ nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double request
   }
   const LobeGrid map_R = pool_map_lobe(maps, Lobe::kR);
   nlohmann::json scores = nlohmann::json::array();
-  double best_score = 0.0;
-  YarnModel best;
+  double best_score = 0.0, best_path = 0.0;
+  RShapeTable best_shape;
   for (const double candidate : {0.0, lambda}) {
-    YarnModel c = *m;
-    c.r_free_path = candidate;
-    c.r_shape = fit_r_shape(c, maps);
-    const LobeComparison cmp = compare_lobes(model_lobe_grid(c, maps.bins, Lobe::kR), map_R);
+    m->r_free_path = candidate;
+    m->r_shape = fit_r_shape(*m, maps);
+    const LobeComparison cmp = compare_lobes(model_lobe_grid(*m, maps.bins, Lobe::kR), map_R);
     const double score = cmp.l1_max_but_grazing; /* the goal's measure (issue 17); raw L1 without maps B */
     scores.push_back({{"r_free_path", candidate}, {"r_lobe_l1_worst", score}, {"r_lobe_l1_mean", candidate_score(cmp)}});
     if (scores.size() == 1 || score < best_score) {
       best_score = score;
-      best = std::move(c);
+      best_path = candidate;
+      best_shape = m->r_shape;
     }
   }
-  m->r_free_path = best.r_free_path;
-  m->r_shape = std::move(best.r_shape);
+  m->r_free_path = best_path;
+  m->r_shape = std::move(best_shape);
   return scores;
 }
 

@@ -350,7 +350,7 @@ YarnModel model_from_json(const json &j, const std::string &source)
     m.albedo_M[c] = v.get<double>();
   }
   const int version = j["version"].get<int>();
-  std::string written_flat_hash;
+  std::optional<std::string> written_flat_hash; /* of a layout 4 array, which its fallback tables name */
   if (version >= 2) {
     /* The kernel array: layout 2 (no R table; the calibration table runs to the end), 3 (the R azimuth table
      * without the TT share, under "r_azimuth"), 4 (no R free path) and 5 (this code's). Layouts 2 and 3 are
@@ -358,19 +358,16 @@ YarnModel model_from_json(const json &j, const std::string &source)
      * renders as they did); a layout 4 array is moved to layout 5 with the free path 0 (the same rendering)
      * and then checked as one. */
     std::vector<float> flat = float_array(j, "kernel_flat", where);
-    written_flat_hash = fnv1a64_hex(flat); /* what the fallback tables name */
     int layout = std::min(version, 4); /* 2, 3 or 4 (a yarn's version 5 has layout 4 or 5) */
     if (layout == 4 && !flat.empty() && flat[0] == 4.0f) {
       std::vector<float> upgraded(flat.size() + 1);
       if (!ny::yarn_flat_from_layout4(flat.data(), int(flat.size()), upgraded.data())) {
         throw ModelError(where + "'kernel_flat' is not a layout 4 array");
       }
+      written_flat_hash = fnv1a64_hex(flat);
       flat = std::move(upgraded);
-      if (j.contains("r_free_path")) {
-        throw ModelError(where + "'r_free_path' needs a layout 5 'kernel_flat'");
-      }
     }
-    else if (layout < 4 && j.contains("r_free_path")) {
+    if (j.contains("r_free_path") && (layout < 4 || written_flat_hash)) {
       throw ModelError(where + "'r_free_path' needs a layout 5 'kernel_flat'");
     }
     if (layout == 4) {
@@ -412,7 +409,7 @@ YarnModel model_from_json(const json &j, const std::string &source)
   /* A version 2 or 3 file's fallback tables refer to its older kernel array by hash; they are left out (the
    * maths is the same: `neuralyarn fallback` recomputes them in the current layout). */
   if (j.contains("fallback") && version >= 4) {
-    m.fallback = fallback_from_json(j["fallback"], m, where, &written_flat_hash);
+    m.fallback = fallback_from_json(j["fallback"], m, where, written_flat_hash ? &*written_flat_hash : nullptr);
   }
   return m;
 }

@@ -483,12 +483,18 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
   const bool has_tt = average(l.tau) > 0.0f;
   for (int q = 0; q < l.n_R; q++) {
     NY_PRIVATE YarnRNode &n = l.node[q];
-    const float s = l.n_R > 1 ? p.free_path * yarn_r_node_path(q) : 0.0f;
-    const float a = -wi.y * s;
-    n.ca = cosf(a);
-    n.sa = sinf(a);
-    n.twist = make_twist_rotation(p.alpha * fmaxf(1.0f - s * wi.z, 0.0f));
-    const Vec3 wi_q = yarn_to_r_node(n, wi);
+    if (l.n_R == 1) { /* the surface fiber: the base frame */
+      n.ca = 1.0f;
+      n.sa = 0.0f;
+      n.twist = p.twist;
+    }
+    else {
+      const float s = p.free_path * yarn_r_node_path(q), a = -wi.y * s;
+      n.ca = cosf(a);
+      n.sa = sinf(a);
+      n.twist = make_twist_rotation(p.alpha * fmaxf(1.0f - s * wi.z, 0.0f));
+    }
+    const Vec3 wi_q = l.n_R == 1 ? l.wi_f : yarn_to_r_node(n, wi);
     const float theta_q = theta_of(wi_q);
     n.m_R = with_eval ? make_longitudinal_lobe(-theta_q, p.fiber.beta_R)
                       : LongitudinalLobe{-theta_q, p.fiber.beta_R, 0.0f};
