@@ -18,4 +18,5 @@ float sqrtf(float), expf(float), logf(float), sinf(float), cosf(float), tanf(flo
 #define NY_KERNEL_FN inline
 #define NY_GLOBAL __attribute__((address_space(1)))
 #define NY_PRIVATE
+#define NY_CONSTANT static constexpr __attribute__((address_space(2))) /* Metal: static constant constexpr */
 #define NY_FLOAT_AS_UINT(f) __builtin_bit_cast(uint32_t, f)

@@ -10,17 +10,21 @@
 // of a fiber's projected solid angle, int M cos^2(theta_o) d(theta_o) = 1, so the fiber BSDF's energy is
 // exactly F + (1 - F) C_TT.
 //
-// How G is computed (docs/conventions.md, "cos^2 normaliser"):
-//   * If both bounds are at least 6 beta away from mu, the truncation changes G by less than 1e-11
-//     relative, and the untruncated closed form holds:  G = (1 + cos(2 mu) exp(-2 beta^2)) / 2.
-//   * Otherwise the integral is taken by Gauss-Legendre quadrature over the window
-//     [max(-pi/2, mu - 9 beta), min(pi/2, mu + 9 beta)], split at mu into two panels of 16 nodes each.
-//     Against 30-digit adaptive quadrature the worst relative error over beta in [0.5, 300] degrees and
-//     mu in [-pi/2, pi/2] is 1e-8 (in double; the float result is therefore float-exact).
+// How G is computed (docs/conventions.md, "cos^2 normaliser"; docs/decisions.md D39):
+//   * Over the whole line G_inf = (1 - exp(-2 beta^2)) / 2 + sin^2(d) exp(-2 beta^2), d = pi/2 - |mu| (the
+//     textbook (1 + cos(2 mu) exp(-2 beta^2)) / 2, written so that float keeps its digits near the bound, where
+//     both terms are ~ beta^2). If both bounds are at least 6 beta away from mu, the truncation changes G by
+//     less than 1e-11 relative and G = G_inf.
+//   * Nearer, G = G_inf r(beta, d / beta): the ratio r is tabulated (cos2_table.h, scripts/make_cos2_table.py)
+//     for beta up to 30 degrees and interpolated by Catmull-Rom splines; relative error below 4e-6. The table
+//     replaced a 32-node quadrature per lobe that was a third of the yarn closure's cost per shading point.
+//   * Wider lobes: Gauss-Legendre quadrature over the window [max(-pi/2, mu - 9 beta), min(pi/2, mu + 9 beta)],
+//     split at mu into two panels of 16 nodes each (1e-8 relative in double against 30-digit quadrature).
 // The authors' code instead integrates an 8th-order polynomial fit of cos^2, whose absolute error of 1e-4
 // is as large as G itself at grazing incidence (G ~ beta^2 / 2 when mu = -+pi/2 and beta = 1 degree).
 #pragma once
 
+#include "cos2_table.h"
 #include "platform.h"
 #include "special.h"
 
@@ -63,12 +67,55 @@ NY_KERNEL_FN float cos2_gaussian_panel(float mu, float beta, float lo, float hi)
   return sum * half * inv_beta;
 }
 
+/* (1 - exp(-x)) for x >= 0 without the cancellation of 1 - expf(-x) at small x (no expm1 on every device):
+ * five terms of the series below 0.05 (truncation < 3e-11 relative). */
+NY_KERNEL_FN float one_minus_exp_neg(float x)
+{
+  if (x < 0.05f) {
+    return x * (1.0f - x * 0.5f * (1.0f - x * (1.0f / 3.0f) * (1.0f - x * 0.25f * (1.0f - x * 0.2f))));
+  }
+  return 1.0f - expf(-x);
+}
+
+/* G over the whole line (see the file comment); d = pi/2 - |mu|. */
+NY_KERNEL_FN float cos2_gaussian_untruncated(float d, float beta)
+{
+  const float s = sinf(d);
+  return 0.5f * one_minus_exp_neg(2.0f * beta * beta) + s * s * expf(-2.0f * beta * beta);
+}
+
+/* Catmull-Rom spline through p0..p3 at x in [0, 1] between p1 and p2. */
+NY_KERNEL_FN float catmull_rom(float p0, float p1, float p2, float p3, float x)
+{
+  return p1 + 0.5f * x * (p2 - p0 + x * (2.0f * p0 - 5.0f * p1 + 4.0f * p2 - p3 + x * (3.0f * (p1 - p2) + p3 - p0)));
+}
+
+/* G / G_inf at (beta, t) from the table; beta in [0, kCos2TableBetaMax], t clamped to [0, kCos2TableTMax]. */
+NY_KERNEL_FN float cos2_gaussian_ratio(float beta, float t)
+{
+  const float fb = beta * ((float)kCos2TableBetaSteps / kCos2TableBetaMax);
+  const float ft = clampf(t, 0.0f, kCos2TableTMax) * ((float)kCos2TableTSteps / kCos2TableTMax);
+  const int ib = (int)fb < kCos2TableBetaSteps - 1 ? (int)fb : kCos2TableBetaSteps - 1;
+  const int it = (int)ft < kCos2TableTSteps - 1 ? (int)ft : kCos2TableTSteps - 1;
+  const float xb = fb - (float)ib, xt = ft - (float)it;
+  float row[4];
+  for (int k = 0; k < 4; k++) {
+    const int base = (ib + k) * kCos2TableStride + it; /* node (ib - 1 + k, it - 1) after the padding */
+    row[k] = catmull_rom(kCos2Table[base], kCos2Table[base + 1], kCos2Table[base + 2], kCos2Table[base + 3], xt);
+  }
+  return catmull_rom(row[0], row[1], row[2], row[3], xb);
+}
+
 /* G(mu, beta), see the file comment. Requires beta > 0. */
 NY_KERNEL_FN float cos2_gaussian_normalizer(float mu, float beta)
 {
   const float dist_to_bound = kHalfPi - fabsf(mu);
   if (dist_to_bound >= 6.0f * beta) {
-    return 0.5f * (1.0f + cosf(2.0f * mu) * expf(-2.0f * beta * beta));
+    return cos2_gaussian_untruncated(dist_to_bound, beta);
+  }
+  if (beta <= kCos2TableBetaMax) {
+    const float d = fmaxf(dist_to_bound, 0.0f);
+    return cos2_gaussian_untruncated(d, beta) * cos2_gaussian_ratio(beta, d / beta);
   }
   const float lo = fmaxf(-kHalfPi, mu - 9.0f * beta);
   const float hi = fminf(kHalfPi, mu + 9.0f * beta);
@@ -78,14 +125,14 @@ NY_KERNEL_FN float cos2_gaussian_normalizer(float mu, float beta)
   return cos2_gaussian_panel(mu, beta, lo, hi);
 }
 
-/* G(mu, beta) for a wide lobe (beta >= 5 degrees, e.g. a fiber's TT) near a bound: one 16-node panel over
- * [mu - 6 beta, mu + 6 beta] clipped to [-pi/2, pi/2] (the tails beyond 6 beta hold 2e-9). Against dense
+/* G(mu, beta) for a lobe wider than the table (a fiber's TT past 30 degrees) near a bound: one 16-node panel
+ * over [mu - 6 beta, mu + 6 beta] clipped to [-pi/2, pi/2] (the tails beyond 6 beta hold 2e-9). Against dense
  * quadrature the worst relative error over beta in [5, 40] degrees and mu in [-pi/2, pi/2] is 1e-5, at half
- * the cost of cos2_gaussian_normalizer; narrower lobes go to that. */
+ * the cost of the two-panel rule; lobes the table holds go to cos2_gaussian_normalizer. */
 NY_KERNEL_FN float cos2_gaussian_normalizer_wide(float mu, float beta)
 {
-  if (!(beta >= 5.0f * kPi / 180.0f) || kHalfPi - fabsf(mu) >= 6.0f * beta) {
-    return cos2_gaussian_normalizer(mu, beta); /* narrow, or the closed form holds */
+  if (beta <= kCos2TableBetaMax || kHalfPi - fabsf(mu) >= 6.0f * beta) {
+    return cos2_gaussian_normalizer(mu, beta); /* the table, or the closed form holds */
   }
   return cos2_gaussian_panel(mu, beta, fmaxf(-kHalfPi, mu - 6.0f * beta), fminf(kHalfPi, mu + 6.0f * beta));
 }

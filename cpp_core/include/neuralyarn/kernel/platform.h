@@ -4,7 +4,8 @@
 //
 // Everything under neuralyarn/kernel/ compiles unchanged in three places: the cpp_core library, the
 // tests, and (through cycles_patch/) the Cycles kernel. The rules that make that possible:
-//   * plain float math, no STL containers, no heap, no exceptions, no virtual calls, no globals;
+//   * plain float math, no STL containers, no heap, no exceptions, no virtual calls, no globals but
+//     constant tables (NY_CONSTANT);
 //   * every function is declared with NY_KERNEL_FN (one macro; Cycles maps it to ccl_device_inline);
 //   * vectors and colours are the tiny POD types below, converted at the boundary by the host code.
 //
@@ -44,6 +45,17 @@
 
 #ifndef NY_KERNEL_FN
 #  define NY_KERNEL_FN inline
+#endif
+
+/* A constant table at namespace scope (cos2_table.h), as Cycles' kernel/tables.h declares its own: Cycles'
+ * ccl_inline_constant (the constant address space on a GPU), inline constexpr on the host. Functions index
+ * it directly; no pointer to it is passed around. */
+#ifndef NY_CONSTANT
+#  if defined(ccl_inline_constant)
+#    define NY_CONSTANT ccl_inline_constant
+#  else
+#    define NY_CONSTANT inline constexpr
+#  endif
 #endif
 
 /* Marks a loop without a reduction (each iteration writes its own element) for SIMD: the networks' inner

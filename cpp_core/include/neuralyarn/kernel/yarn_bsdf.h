@@ -645,6 +645,26 @@ NY_KERNEL_FN float yarn_pdf_R(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE
   return sum / (float)l.n_R;
 }
 
+/* yarn_eval_R() and yarn_pdf_R() at once, bit for bit: each node's frame and outgoing angles (two atan2 and
+ * a square root per node) once instead of twice, as eval with pdf and sampling ask for both. */
+NY_KERNEL_FN Rgb yarn_eval_pdf_R(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE const YarnOutgoing &o_base,
+                                 NY_PRIVATE float *pdf_R)
+{
+  Rgb sum = make_rgb(0.0f);
+  float pdf = 0.0f;
+  for (int q = 0; q < l.n_R; q++) {
+    const YarnOutgoing o = yarn_r_node_outgoing(l, q, wo, o_base);
+    Rgb R, TT;
+    yarn_eval_R_parts(l, q, o, &R, &TT);
+    sum = sum + (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
+    float r, tt;
+    yarn_pdf_R_parts(l, q, o, &r, &tt);
+    pdf += (1.0f - l.q_TT) * r + l.q_TT * tt;
+  }
+  *pdf_R = pdf / (float)l.n_R;
+  return sum * (1.0f / (float)l.n_R);
+}
+
 /* The M proxy alone: kappa_M TN(theta~_o) vM(phi~_o) / cos theta~_o + (1 - kappa_M) / 4 pi. The fit
  * (model/proxy_fit.h) maximises the likelihood of exactly this function. */
 NY_KERNEL_FN float yarn_m_proxy_pdf(NY_PRIVATE const TruncatedNormal &tn_M, float kappa_vm, float kappa_M,
@@ -668,10 +688,16 @@ NY_KERNEL_FN float yarn_pdf_M_fiber(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVA
 
 /* The non-delta sampler's density at w_o (yarn frame; o: in the surface-fiber frame), conditional on not
  * choosing T. */
+NY_KERNEL_FN float yarn_pdf_fiber(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, float pdf_R,
+                                  NY_PRIVATE const YarnOutgoing &o)
+{
+  return p.kappa_R * pdf_R + (1.0f - p.kappa_R) * yarn_pdf_M_fiber(p, l, o);
+}
+
 NY_KERNEL_FN float yarn_pdf_fiber(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo,
                                   NY_PRIVATE const YarnOutgoing &o)
 {
-  return p.kappa_R * yarn_pdf_R(l, wo, o) + (1.0f - p.kappa_R) * yarn_pdf_M_fiber(p, l, o);
+  return yarn_pdf_fiber(p, l, yarn_pdf_R(l, wo, o), o);
 }
 
 /* Non-delta part: eval = (S_R + S_M) |cos theta_o|. */
@@ -702,8 +728,10 @@ NY_KERNEL_FN Rgb yarn_eval_pdf_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIV
     return make_rgb(0.0f);
   }
   const YarnOutgoing o = yarn_outgoing(yarn_to_surface_fiber(p.twist, wo));
-  *pdf = yarn_pdf_fiber(p, l, wo, o);
-  return yarn_eval_R(l, wo, o) + yarn_eval_M(p, l, wo);
+  float pdf_R;
+  const Rgb f_R = yarn_eval_pdf_R(l, wo, o, &pdf_R);
+  *pdf = yarn_pdf_fiber(p, l, pdf_R, o);
+  return f_R + yarn_eval_M(p, l, wo);
 }
 
 NY_KERNEL_FN Rgb yarn_eval(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, Vec3 wo, NY_PRIVATE float *pdf)
@@ -794,11 +822,13 @@ NY_KERNEL_FN bool yarn_sample_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVA
     s->wo = surface_fiber_to_yarn(p.twist, wo_f);
   }
   const YarnOutgoing o = yarn_outgoing(base ? wo_f : yarn_to_surface_fiber(p.twist, s->wo));
-  const float pdf = yarn_pdf_fiber(p, l, s->wo, o);
+  float pdf_R;
+  const Rgb f_R = yarn_eval_pdf_R(l, s->wo, o, &pdf_R);
+  const float pdf = yarn_pdf_fiber(p, l, pdf_R, o);
   if (!(pdf > 0.0f)) {
     return false;
   }
-  const Rgb f = yarn_eval_R(l, s->wo, o) + yarn_eval_M(p, l, s->wo);
+  const Rgb f = f_R + yarn_eval_M(p, l, s->wo);
   s->pdf = pdf;
   s->weight = f * (1.0f / (include_T ? (1.0f - l.p_T) * pdf : pdf));
   return true;
