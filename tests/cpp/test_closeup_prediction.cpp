@@ -22,6 +22,8 @@ using neuralyarn::rdm::MapResolution;
 using neuralyarn::rdm::RdmMaps;
 using neuralyarn::scenes::FarField;
 using neuralyarn::scenes::find_light_rig;
+using neuralyarn::scenes::Lobes;
+using neuralyarn::scenes::model_far_field;
 using neuralyarn::scenes::maps_far_field;
 using neuralyarn::scenes::PixelRegion;
 using neuralyarn::scenes::predict_closeup;
@@ -132,6 +134,47 @@ TEST(CloseupPrediction, MapsAreLookedUpInTheirBins)
   EXPECT_EQ(f.eval(wi, dir(100.0 * kDeg, -170.0 * kDeg)).g, code(2, 6, 3, 0));
   EXPECT_EQ(f.eval(wi, dir(5.0 * kDeg, 179.0 * kDeg)).b, code(2, 6, 0, 11));
   EXPECT_EQ(f.albedo(wi).r, 26.0);
+}
+
+TEST(CloseupPrediction, MapsSplitIntoTheirLobes)
+{
+  /* R = 1 and M = 2 in every bin: one lobe's far field holds its own map alone. */
+  RdmMaps maps;
+  maps.bins = MapResolution{4, 8, 6, 12};
+  const size_t n = maps.bins.incident() * maps.bins.outgoing() * 3;
+  maps.r.assign(n, 1.0f);
+  maps.m.assign(n, 2.0f);
+  maps.exit_energy.assign(maps.bins.incident() * 3, 0.5f);
+  const ny::Vec3 wi = ny::make_vec3(0.3f, 0.2f, 0.9327379f), wo = ny::make_vec3(-0.6f, 0.0f, 0.8f);
+  EXPECT_EQ(maps_far_field(maps, Lobes::kR).eval(wi, wo).g, 1.0);
+  EXPECT_EQ(maps_far_field(maps, Lobes::kM).eval(wi, wo).g, 2.0);
+  EXPECT_EQ(maps_far_field(maps, Lobes::kRM).eval(wi, wo).g, 3.0);
+  EXPECT_EQ(maps_far_field(maps, Lobes::kRM).albedo(wi).g, 0.5);
+  EXPECT_THROW(maps_far_field(maps, Lobes::kR).albedo(wi), std::runtime_error);
+}
+
+TEST(CloseupPrediction, ModelLobesAddUpToTheModel)
+{
+  /* `cycles-scene --predict-lobes R|M` (the fitting error lobe by lobe): the shipped fleece model under the
+   * front and grazing lights, where both lobes carry light. R and M each predict part of the region and
+   * together exactly what the whole model predicts (the integral is linear; float sums in another order). */
+  const neuralyarn::model::YarnModel m = neuralyarn::model::load_model(neuralyarn::model::builtin_model_path("fleece"));
+  const PixelRegion centre{160, 80, 40, 36, 80, 8};
+  for (const char *light : {"front", "grazing"}) {
+    const auto &rig = find_light_rig(light);
+    const Rgb3 r = predict_closeup(model_far_field(m, Lobes::kR), rig, centre);
+    const Rgb3 mm = predict_closeup(model_far_field(m, Lobes::kM), rig, centre);
+    const Rgb3 rm = predict_closeup(model_far_field(m, Lobes::kRM), rig, centre);
+    EXPECT_GT(r.g, 0.02 * rm.g) << light;
+    EXPECT_GT(mm.g, 0.02 * rm.g) << light;
+    EXPECT_NEAR((r.r + mm.r) / rm.r, 1.0, 1e-6) << light;
+    EXPECT_NEAR((r.g + mm.g) / rm.g, 1.0, 1e-6) << light;
+    EXPECT_NEAR((r.b + mm.b) / rm.b, 1.0, 1e-6) << light;
+  }
+  EXPECT_THROW(model_far_field(m, Lobes::kM).albedo(ny::make_vec3(0.0f, 0.0f, 1.0f)), std::runtime_error);
+  EXPECT_EQ(neuralyarn::scenes::parse_lobes("R"), Lobes::kR);
+  EXPECT_EQ(neuralyarn::scenes::parse_lobes("RM"), Lobes::kRM);
+  EXPECT_THROW(neuralyarn::scenes::parse_lobes("T"), std::runtime_error);
 }
 
 TEST(CloseupPrediction, RejectsSphereLightsAndRegionsOutsideTheImage)
