@@ -37,7 +37,6 @@ missing build.
 """
 from __future__ import annotations
 
-import argparse
 import datetime
 import json
 import math

@@ -76,8 +76,8 @@ NY_KERNEL_FN float sin_theta(Vec3 w) { return clampf(w.x, -1.0f, 1.0f); }
 /* cos(theta) >= 0, computed from the normal-plane components: accurate near the poles, where
  * sqrt(1 - x^2) would lose all digits. */
 NY_KERNEL_FN float cos_theta(Vec3 w) { return fminf(sqrtf(w.y * w.y + w.z * w.z), 1.0f); }
-NY_KERNEL_FN float theta_of(Vec3 w) { return atan2f(w.x, cos_theta(w)); }
-NY_KERNEL_FN float phi_of(Vec3 w) { return atan2f(w.y, w.z); }
+NY_KERNEL_FN float theta_of(Vec3 w) { return fast_atan2(w.x, cos_theta(w)); }
+NY_KERNEL_FN float phi_of(Vec3 w) { return fast_atan2(w.y, w.z); }
 
 NY_KERNEL_FN Vec3 direction_from_angles(float theta, float phi)
 {

@@ -164,6 +164,36 @@ NY_KERNEL_FN float wrap_angle(float a)
   return (w >= kPi) ? w - kTwoPi : w;
 }
 
+/* atan2(y, x) in [-pi, pi] without a library call: the closures take two per direction and lobe frame, and
+ * libm's atan2f was the largest single cost of a yarn render's shading (docs/benchmarks.md, D40). The
+ * quotient of the smaller by the larger magnitude is reduced to |t| <= tan(pi/8) (t = (a - 1)/(a + 1) above
+ * it, plus pi/4) and atan(t) is Cephes' atanf polynomial (relative error 1.9e-7); the octant is restored by
+ * pi/2 - r, pi - r and the sign of y. Worst error against double atan2 over the sphere's directions: under
+ * 3 float ulps of the result (tests/cpp/test_frames.cpp). atan2(0, 0) is 0; NaN in gives NaN. */
+NY_KERNEL_FN float fast_atan2(float y, float x)
+{
+  const float ax = fabsf(x), ay = fabsf(y);
+  const float mx = fmaxf(ax, ay), mn = fminf(ax, ay);
+  const float a = mx > 0.0f ? mn / mx : 0.0f;
+  const bool upper = a > 0.41421356f; /* tan(pi/8) */
+  const float t = upper ? (a - 1.0f) / (a + 1.0f) : a;
+  const float z = t * t;
+  float r = (((8.05374449538e-2f * z - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z - 3.33329491539e-1f) * z * t + t;
+  if (upper) {
+    r += 0.78539816f; /* pi/4 */
+  }
+  if (ay > ax) {
+    r = kHalfPi - r;
+  }
+  if (x < 0.0f) {
+    r = kPi - r;
+  }
+  if (!(x == x && y == y)) {
+    return x + y; /* NaN (fmaxf and fminf would have dropped it) */
+  }
+  return (y < 0.0f) ? -r : r;
+}
+
 /* True for a finite float (not NaN, not +-inf); written without std::isfinite so that it also works in
  * device compilers whose fast-math mode folds isfinite away. */
 NY_KERNEL_FN bool is_finite(float x) { return (x - x) == 0.0f; }

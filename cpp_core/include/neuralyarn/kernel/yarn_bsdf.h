@@ -304,7 +304,7 @@ NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(NY_GLOBAL const float *f)
 NY_KERNEL_FN void yarn_incident_bilinear(int nt, int np, Vec3 wi, NY_PRIVATE int idx[4], NY_PRIVATE float w[4])
 {
   const float ft = clampf(acosf(clampf(wi.z, -1.0f, 1.0f)) * (2.0f * kInvPi) * (float)nt - 0.5f, 0.0f, (float)(nt - 1));
-  float fp = (atan2f(wi.y, wi.x) + kPi) * kInvTwoPi * (float)np - 0.5f;
+  float fp = (fast_atan2(wi.y, wi.x) + kPi) * kInvTwoPi * (float)np - 0.5f;
   fp = fp < 0.0f ? fp + (float)np : fp;
   const int t0 = (int)ft < nt - 1 ? (int)ft : nt - 1, t1 = t0 + 1 < nt ? t0 + 1 : nt - 1;
   const int p0 = (int)fp < np - 1 ? (int)fp : np - 1, p1 = p0 + 1 < np ? p0 + 1 : 0;
