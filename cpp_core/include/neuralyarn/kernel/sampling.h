@@ -60,15 +60,24 @@ NY_KERNEL_FN TruncatedNormal make_truncated_normal(float mu, float sigma, float 
   tn.zb = (b - mu) / sigma;
   /* A tail beyond 9 sigma (mass < 1.2e-19) is below float resolution next to the smallest mass the
    * inverse CDF ever asks for (u >= 2^-32 times the mass): it is exactly 0 then, and erfc is skipped. */
-  tn.lower = tn.za < -9.0f ? 0.0f : normal_cdf(tn.za);
-  tn.upper = tn.zb > 9.0f ? 0.0f : normal_ccdf(tn.zb);
+  /* An interval on one side of the mean takes its mass as a difference of two tail probabilities, and the
+   * CDF level on the mean's side as 1 - its own tail (>= 1/2, where that loses nothing and the sampler
+   * reads the other one): two erfc calls instead of three (the TT azimuth's interval lies beyond its mean). */
   if (tn.za >= 0.0f) {
-    tn.mass = normal_ccdf(tn.za) - tn.upper;
+    const float tail_a = normal_ccdf(tn.za);
+    tn.lower = 1.0f - tail_a;
+    tn.upper = tn.zb > 9.0f ? 0.0f : normal_ccdf(tn.zb);
+    tn.mass = tail_a - tn.upper;
   }
   else if (tn.zb <= 0.0f) {
-    tn.mass = normal_cdf(tn.zb) - tn.lower;
+    const float tail_b = normal_cdf(tn.zb);
+    tn.upper = 1.0f - tail_b;
+    tn.lower = tn.za < -9.0f ? 0.0f : normal_cdf(tn.za);
+    tn.mass = tail_b - tn.lower;
   }
   else {
+    tn.lower = tn.za < -9.0f ? 0.0f : normal_cdf(tn.za);
+    tn.upper = tn.zb > 9.0f ? 0.0f : normal_ccdf(tn.zb);
     tn.mass = 1.0f - tn.lower - tn.upper;
   }
   return tn;
