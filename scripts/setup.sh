@@ -76,15 +76,16 @@ NY_BUILD_DIR="$BUILD" bash "$ROOT/scripts/build_cycles.sh"
 # --- 2c. Python environment for the add-on and the evaluation harness (.venv): the bpy wheel (Blender 4.5
 # as a module, Cycles with OSL; CPython 3.11 = Debian 12's python3), numpy, pytest, matplotlib; for
 # scripts/evaluate.py NVIDIA's FLIP (flip-evaluator), scikit-image (SSIM) and the OpenEXR bindings (3.3+:
-# the File API); Dask distributed for the add-on's frame farm (batch.py --frames). bpy pinned to the 4.5 LTS
+# the File API); Dask distributed for the add-on's frame farm (batch.py --frames); scipy for the kernel's cos²
+# table (scripts/make_cos2_table.py, checked by CTest). bpy pinned to the 4.5 LTS
 # series. ----
 VENV="$ROOT/.venv"
-PY_REQS=("bpy==4.5.*" "numpy" "pytest>=7" "matplotlib>=3.6" "flip-evaluator" "scikit-image" "OpenEXR>=3.3"
+PY_REQS=("bpy==4.5.*" "numpy" "scipy" "pytest>=7" "matplotlib>=3.6" "flip-evaluator" "scikit-image" "OpenEXR>=3.3"
          "dask[distributed]")
 if [[ ! -x "$VENV/bin/python" ]]; then
   /usr/bin/python3 -m venv "$VENV"
 fi
-if ! "$VENV/bin/python" -c "import bpy, numpy, pytest, matplotlib, flip_evaluator, skimage, OpenEXR, distributed; OpenEXR.File" >/dev/null 2>&1; then
+if ! "$VENV/bin/python" -c "import bpy, numpy, scipy.integrate, pytest, matplotlib, flip_evaluator, skimage, OpenEXR, distributed; OpenEXR.File" >/dev/null 2>&1; then
   echo "setup: installing ${PY_REQS[*]} into $VENV (the bpy wheel is ~350 MB)"
   "$VENV/bin/python" -m pip install -q --upgrade pip
   "$VENV/bin/python" -m pip install -q --progress-bar on "${PY_REQS[@]}"
