@@ -173,7 +173,8 @@ NY_KERNEL_FN float wrap_angle(float a)
 NY_KERNEL_FN float fast_atan2(float y, float x)
 {
   const float ax = fabsf(x), ay = fabsf(y);
-  const float mx = fmaxf(ax, ay), mn = fminf(ax, ay);
+  /* Comparisons, not fmaxf/fminf: GCC calls libm for those (NaN rules) unless math is finite-only. */
+  const float mx = ax > ay ? ax : ay, mn = ax > ay ? ay : ax;
   const float a = mx > 0.0f ? mn / mx : 0.0f;
   const bool upper = a > 0.41421356f; /* tan(pi/8) */
   const float t = upper ? (a - 1.0f) / (a + 1.0f) : a;
@@ -189,7 +190,7 @@ NY_KERNEL_FN float fast_atan2(float y, float x)
     r = kPi - r;
   }
   if (!(x == x && y == y)) {
-    return x + y; /* NaN (fmaxf and fminf would have dropped it) */
+    return x + y; /* NaN in, NaN out */
   }
   return (y < 0.0f) ? -r : r;
 }
