@@ -585,34 +585,6 @@ NY_KERNEL_FN YarnOutgoing yarn_r_node_outgoing(NY_PRIVATE const YarnLobes &l, in
   return l.n_R == 1 ? o_base : yarn_outgoing(yarn_to_r_node(l.node[q], wo));
 }
 
-/* S_R |cos theta_o| at w_o (yarn frame; o_base: w_o in the surface-fiber frame). */
-NY_KERNEL_FN Rgb yarn_eval_R(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE const YarnOutgoing &o_base)
-{
-  Rgb sum = make_rgb(0.0f);
-  for (int q = 0; q < l.n_R; q++) {
-    Rgb R, TT;
-    yarn_eval_R_parts(l, q, yarn_r_node_outgoing(l, q, wo, o_base), &R, &TT);
-    sum = sum + (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
-  }
-  return sum * (1.0f / (float)l.n_R);
-}
-
-NY_KERNEL_FN Rgb yarn_eval_R(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo)
-{
-  return yarn_eval_R(l, wo, yarn_outgoing(yarn_to_surface_fiber(p.twist, wo)));
-}
-
-NY_KERNEL_FN Rgb yarn_eval_M(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo)
-{
-  if (!l.valid) {
-    return make_rgb(0.0f);
-  }
-  const float in[6] = {l.we.x, l.we.y, l.we.z, wo.x, wo.y, wo.z};
-  float out[3];
-  mlp_forward_io<6, 3>(p.net_M, in, out);
-  return make_rgb(out[0], out[1], out[2]) * l.scale_M;
-}
-
 /* Smallest cos(theta~_o) used to turn a (theta, phi) density into solid angle (as fiber_bsdf.h). */
 constexpr float kYarnMinCosTheta = 1e-7f;
 
@@ -633,36 +605,63 @@ NY_KERNEL_FN void yarn_pdf_R_parts(NY_PRIVATE const YarnLobes &l, int q, NY_PRIV
   }
 }
 
-/* The R proposal's density at w_o: the mean over the nodes (each drawn with probability 1 / n_R). */
-NY_KERNEL_FN float yarn_pdf_R(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE const YarnOutgoing &o_base)
-{
-  float sum = 0.0f;
-  for (int q = 0; q < l.n_R; q++) {
-    float r, tt;
-    yarn_pdf_R_parts(l, q, yarn_r_node_outgoing(l, q, wo, o_base), &r, &tt);
-    sum += (1.0f - l.q_TT) * r + l.q_TT * tt;
-  }
-  return sum / (float)l.n_R;
-}
-
-/* yarn_eval_R() and yarn_pdf_R() at once, bit for bit: each node's frame and outgoing angles (two atan2 and
- * a square root per node) once instead of twice, as eval with pdf and sampling ask for both. */
-NY_KERNEL_FN Rgb yarn_eval_pdf_R(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE const YarnOutgoing &o_base,
-                                 NY_PRIVATE float *pdf_R)
+/* The R lobe at w_o (yarn frame; o_base: w_o in the surface-fiber frame), summed over the nodes with each
+ * node's frame and angles computed once: S_R |cos theta_o| into *f_R and the R proposal's density (each node
+ * drawn with probability 1 / n_R) into *pdf_R, either or both (a null pointer skips that part). */
+NY_KERNEL_FN void yarn_R_nodes(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE const YarnOutgoing &o_base,
+                               NY_PRIVATE Rgb *f_R, NY_PRIVATE float *pdf_R)
 {
   Rgb sum = make_rgb(0.0f);
   float pdf = 0.0f;
   for (int q = 0; q < l.n_R; q++) {
     const YarnOutgoing o = yarn_r_node_outgoing(l, q, wo, o_base);
-    Rgb R, TT;
-    yarn_eval_R_parts(l, q, o, &R, &TT);
-    sum = sum + (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
-    float r, tt;
-    yarn_pdf_R_parts(l, q, o, &r, &tt);
-    pdf += (1.0f - l.q_TT) * r + l.q_TT * tt;
+    if (f_R) {
+      Rgb R, TT;
+      yarn_eval_R_parts(l, q, o, &R, &TT);
+      sum = sum + (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
+    }
+    if (pdf_R) {
+      float r, tt;
+      yarn_pdf_R_parts(l, q, o, &r, &tt);
+      pdf += (1.0f - l.q_TT) * r + l.q_TT * tt;
+    }
   }
-  *pdf_R = pdf / (float)l.n_R;
-  return sum * (1.0f / (float)l.n_R);
+  if (f_R) {
+    *f_R = sum * (1.0f / (float)l.n_R);
+  }
+  if (pdf_R) {
+    *pdf_R = pdf / (float)l.n_R;
+  }
+}
+
+NY_KERNEL_FN Rgb yarn_eval_R(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE const YarnOutgoing &o_base)
+{
+  Rgb f;
+  yarn_R_nodes(l, wo, o_base, &f, nullptr);
+  return f;
+}
+
+NY_KERNEL_FN float yarn_pdf_R(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE const YarnOutgoing &o_base)
+{
+  float pdf;
+  yarn_R_nodes(l, wo, o_base, nullptr, &pdf);
+  return pdf;
+}
+
+NY_KERNEL_FN Rgb yarn_eval_R(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo)
+{
+  return yarn_eval_R(l, wo, yarn_outgoing(yarn_to_surface_fiber(p.twist, wo)));
+}
+
+NY_KERNEL_FN Rgb yarn_eval_M(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const YarnLobes &l, Vec3 wo)
+{
+  if (!l.valid) {
+    return make_rgb(0.0f);
+  }
+  const float in[6] = {l.we.x, l.we.y, l.we.z, wo.x, wo.y, wo.z};
+  float out[3];
+  mlp_forward_io<6, 3>(p.net_M, in, out);
+  return make_rgb(out[0], out[1], out[2]) * l.scale_M;
 }
 
 /* The M proxy alone: kappa_M TN(theta~_o) vM(phi~_o) / cos theta~_o + (1 - kappa_M) / 4 pi. The fit
@@ -728,8 +727,9 @@ NY_KERNEL_FN Rgb yarn_eval_pdf_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIV
     return make_rgb(0.0f);
   }
   const YarnOutgoing o = yarn_outgoing(yarn_to_surface_fiber(p.twist, wo));
+  Rgb f_R;
   float pdf_R;
-  const Rgb f_R = yarn_eval_pdf_R(l, wo, o, &pdf_R);
+  yarn_R_nodes(l, wo, o, &f_R, &pdf_R);
   *pdf = yarn_pdf_fiber(p, l, pdf_R, o);
   return f_R + yarn_eval_M(p, l, wo);
 }
@@ -822,8 +822,9 @@ NY_KERNEL_FN bool yarn_sample_lobes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVA
     s->wo = surface_fiber_to_yarn(p.twist, wo_f);
   }
   const YarnOutgoing o = yarn_outgoing(base ? wo_f : yarn_to_surface_fiber(p.twist, s->wo));
+  Rgb f_R;
   float pdf_R;
-  const Rgb f_R = yarn_eval_pdf_R(l, s->wo, o, &pdf_R);
+  yarn_R_nodes(l, s->wo, o, &f_R, &pdf_R);
   const float pdf = yarn_pdf_fiber(p, l, pdf_R, o);
   if (!(pdf > 0.0f)) {
     return false;
