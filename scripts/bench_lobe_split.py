@@ -17,6 +17,7 @@ import argparse
 import os
 
 from bench_split import predict, rel, worst
+from evaluate import PRESETS
 from images import LUMINANCE
 
 LIGHTS = ["front", "grazing", "back", "axis"]
@@ -29,7 +30,7 @@ def main() -> None:
     ap.add_argument("--before", required=True, help="directory of the models before (<preset>.json)")
     ap.add_argument("--after", default="models", help="directory of the models after (default: models)")
     ap.add_argument("--maps", default=os.path.join("build", "bench_lobes"), help="the two maps per preset")
-    ap.add_argument("--presets", nargs="+", default=["fleece", "silk", "polyester", "cotton", "gabardine"])
+    ap.add_argument("--presets", nargs="+", default=PRESETS, choices=PRESETS)
     args = ap.parse_args()
     print("| preset | light | R before | R after | M before | M after | R + M before | R + M after (worst channel) "
           "| maps A/B |")
