@@ -47,11 +47,14 @@ void add_network_options(CLI::App *cmd, const char *name, NetworkOptions *o)
   cmd->add_option_function<std::string>(
          p + "loss",
          [o](const std::string &s) {
-           o->loss = s == "log" ? train::Loss::kLogMse : s == "rel" ? train::Loss::kRelativeMse : train::Loss::kMse;
+           o->loss = s == "log"       ? train::Loss::kLogMse
+                     : s == "rel"     ? train::Loss::kRelativeMse
+                     : s == "poisson" ? train::Loss::kPoissonMse
+                                      : train::Loss::kMse;
          },
-         "Loss: mse (the paper's), log (MSE of log(y + eps)) or rel (relative MSE (y - t)^2 / (y^2 + eps), "
-         "targets scaled to mean 1)")
-      ->check(CLI::IsMember({"mse", "log", "rel"}));
+         "Loss: mse (the paper's), log (MSE of log(y + eps)), rel (relative MSE (y - t)^2 / (y^2 + eps)) or "
+         "poisson ((y - t)^2 / (y + eps)); targets scaled to mean 1")
+      ->check(CLI::IsMember({"mse", "log", "rel", "poisson"}));
   cmd->add_option(p + "log-eps", o->log_eps, "Offset of the log and relative losses")->check(finite_range(1e-9, 1.0))->capture_default_str();
 }
 
@@ -106,10 +109,11 @@ void print_lobes(const model::LobeFidelity &f)
   const bool nr = M.noise_removed;
   std::printf("lobes (4D)       energy-weighted relative L1 per (w_i, w_o) cell, %s;\n"
               "                 energy ratios model / maps per exit band (theta_o from the ply normal; axial: within\n"
-              "                 30 deg of the ply axis)\n",
+              "                 30 deg of the ply axis; forward: within 12 deg of -w_i, the maps' share of the energy\n"
+              "                 in brackets)\n",
               nr ? "model error with the maps' noise removed (raw L1 and noise floor in brackets)"
                  : "against one map, its noise included (--maps-b gives the noise floor)");
-  std::printf("  theta_i |   R L1%s |   M L1%s | R  0-30 30-60 60-90 | M  0-30 30-60 60-90 90-120 120-150 150-180 axial\n",
+  std::printf("  theta_i |   R L1%s |   M L1%s | R  0-30 30-60 60-90 | M  0-30 30-60 60-90 90-120 120-150 150-180 axial forward\n",
               nr ? " (raw, floor)" : "", nr ? " (raw, floor)" : "");
   for (size_t t = 0; t < M.l1.size(); t++) {
     std::printf("  %5.1f   | %5.1f %%", M.theta_i_deg[t], 100 * R.l1[t]);
@@ -124,7 +128,7 @@ void print_lobes(const model::LobeFidelity &f)
     for (int k = 0; k < model::kLobeBands; k++) {
       std::printf(" %5.2f", M.band_ratio[t][size_t(k)]);
     }
-    std::printf("\n");
+    std::printf(" (%2.0f %%)\n", 100 * M.band_share[t][model::kLobeForwardBand]);
   }
   std::printf("  worst L1 but the grazing bin: R %.1f %%, M %.1f %%; grazing bin: R %.1f %%, M %.1f %% (%.1f s)\n",
               100 * R.l1_max_but_grazing, 100 * M.l1_max_but_grazing, 100 * R.l1_grazing, 100 * M.l1_grazing,

@@ -13,6 +13,7 @@
 #include "neuralyarn/model/calibration.h"
 #include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/model/model.h"
+#include "neuralyarn/train/dataset.h"
 #include "neuralyarn/units.h"
 
 using namespace neuralyarn;
@@ -151,6 +152,38 @@ TEST(LobeFidelity, EnergyRatiosPerExitBand)
       share += c.band_share[size_t(ti)][size_t(k)];
     }
     EXPECT_NEAR(share, 1.0, 1e-9);
+  }
+}
+
+TEST(LobeFidelity, ForwardBandHoldsTheExitsAroundMinusWi)
+{
+  /* A model with 2/3 of the maps' energy in the bins whose centre is within 12 degrees of -w_i (the
+   * incident bin's centre) and the maps' own elsewhere: the forward band reads 2/3 at every theta_i, its
+   * share is that of those bins. With the band centred on +w_i instead (the mirror image through the
+   * ply), the ratio would be 1 and the test fails. */
+  auto forward = [](int ti, int pi, int to, int po) {
+    const Eigen::Vector3f wi = train::entry_direction(rdm::bin_center(ti, 0, 0.5 * kPi, kBins.theta_i),
+                                                      rdm::bin_center(pi, -kPi, kPi, kBins.phi_i));
+    const Eigen::Vector3f wo = train::entry_direction(rdm::bin_center(to, 0, kPi, kBins.theta_o),
+                                                      rdm::bin_center(po, -kPi, kPi, kBins.phi_o));
+    return -double(wi.dot(wo)) > std::cos(model::kLobeForwardDeg * kDeg);
+  };
+  auto two_thirds_forward = [&](int ti, int pi, int to, int po) { return forward(ti, pi, to, po) ? 2.0 / 3.0 : 1.0; };
+  const model::LobeGrid x = grid(two_thirds_forward, 0.0, 0), a = grid(one, 0.0, 0);
+  const model::LobeComparison c = model::compare_lobes(x, a);
+  for (int ti = 0; ti < kBins.theta_i; ti++) {
+    double in = 0, all = 0;
+    for (int pi = 0; pi < kBins.phi_i; pi++) {
+      for (int to = 0; to < kBins.theta_o; to++) {
+        for (int po = 0; po < kBins.phi_o; po++) {
+          all += truth(ti, pi, to, po);
+          in += forward(ti, pi, to, po) ? truth(ti, pi, to, po) : 0.0;
+        }
+      }
+    }
+    ASSERT_GT(in, 1e-3 * all) << "the synthetic lobe holds energy forward at theta_i bin " << ti;
+    EXPECT_NEAR(c.band_ratio[size_t(ti)][model::kLobeForwardBand], 2.0 / 3.0, 1e-9) << ti;
+    EXPECT_NEAR(c.band_share[size_t(ti)][model::kLobeForwardBand], in / all, 1e-9) << ti;
   }
 }
 

@@ -268,3 +268,37 @@ TEST(Mlp, AdamTrainsTheTShape)
   const float final_loss = m.loss_and_gradient(X, T, Loss::kMse, 0.0f, nullptr);
   EXPECT_LT(final_loss, initial / 50.0f) << "initial " << initial << " final " << final_loss;
 }
+
+/* The weighted losses weigh each error by what they say: with outputs fixed at y (a one-layer identity
+ * network, zero weights, biases y), the value is the mean of (y - t)^2 w with w = 1 / (y^2 + eps) for the
+ * relative and w = 1 / (y + eps) for the Poisson loss, and the gradient in a bias is the mean of
+ * 2 (y - t) w over its row (w held fixed: no gradient through the weight). */
+TEST(Mlp, WeightedLossesWeighTheirErrorsAsDocumented)
+{
+  const double y[3] = {0.5, 2.0, 8.0}, eps = 1e-3;
+  Mlp<double> m(MlpShape{{1, 3}, ny::kMlpHeadIdentity}, 1);
+  Mlp<double>::Vec p = Mlp<double>::Vec::Zero(m.num_params());
+  for (int k = 0; k < 3; k++) {
+    p(3 + k) = y[k]; /* W_0 (3 x 1), then b_0 */
+  }
+  m.set_params(p);
+  const int B = 4;
+  const Mlp<double>::Mat X = Mlp<double>::Mat::Zero(1, B);
+  Mlp<double>::Mat T(3, B);
+  T << 0.0, 1.0, 0.2, 0.7, 3.0, 0.0, 2.5, 1.0, 20.0, 0.0, 4.0, 9.0;
+  for (Loss loss : {Loss::kRelativeMse, Loss::kPoissonMse}) {
+    double value = 0.0, grad_b[3] = {0.0, 0.0, 0.0};
+    for (int k = 0; k < 3; k++) {
+      const double w = loss == Loss::kRelativeMse ? 1.0 / (y[k] * y[k] + eps) : 1.0 / (y[k] + eps);
+      for (int j = 0; j < B; j++) {
+        value += (y[k] - T(k, j)) * (y[k] - T(k, j)) * w / (3 * B);
+        grad_b[k] += 2.0 * (y[k] - T(k, j)) * w / (3 * B);
+      }
+    }
+    Mlp<double>::Vec g;
+    EXPECT_NEAR(m.loss_and_gradient(X, T, loss, eps, &g), value, 1e-12 * value) << int(loss);
+    for (int k = 0; k < 3; k++) {
+      EXPECT_NEAR(g(3 + k), grad_b[k], 1e-12 * std::abs(grad_b[k]) + 1e-15) << int(loss) << " bias " << k;
+    }
+  }
+}

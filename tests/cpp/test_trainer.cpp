@@ -136,8 +136,8 @@ TEST(Dataset, MultipleScatteringSamplesCarryTheirBinsValue)
 TEST(Trainer, RelativeLossIsUnbiasedForSparseNoisyTargets)
 {
   /* Monte Carlo bins of few paths: a target that is 0 nine times in ten and 10 otherwise (mean 1). The
-   * relative loss (weight from the prediction, not the target) converges to the mean; the log loss to
-   * far below it (its optimum is the geometric mean of t + eps, minus eps). */
+   * relative and Poisson losses (weights from the prediction, not the target) converge to the mean; the
+   * log loss to far below it (its optimum is the geometric mean of t + eps, minus eps). */
   const int n = 20000;
   train::Dataset d;
   d.X = train::Mlp<float>::Mat::Constant(1, n, 0.5f);
@@ -158,9 +158,11 @@ TEST(Trainer, RelativeLossIsUnbiasedForSparseNoisyTargets)
     const train::TrainResult r = train::train_network(train::MlpShape{{1, 4, 1}, ny::kMlpHeadExp}, d, d, o);
     return r.net.forward(d.X.leftCols(1))(0, 0);
   };
-  const float rel = fit(train::Loss::kRelativeMse), log = fit(train::Loss::kLogMse), mse = fit(train::Loss::kMse);
-  std::printf("mean 1: relative %.4f, log %.4f, mse %.4f\n", rel, log, mse);
+  const float rel = fit(train::Loss::kRelativeMse), log = fit(train::Loss::kLogMse), mse = fit(train::Loss::kMse),
+              poisson = fit(train::Loss::kPoissonMse);
+  std::printf("mean 1: relative %.4f, poisson %.4f, log %.4f, mse %.4f\n", rel, poisson, log, mse);
   EXPECT_NEAR(rel, 1.0f, 0.05f);
+  EXPECT_NEAR(poisson, 1.0f, 0.05f);
   EXPECT_NEAR(mse, 1.0f, 0.05f);
   EXPECT_LT(log, 0.1f);
 }

@@ -18,7 +18,13 @@ using nlohmann::json;
 namespace {
 const char *loss_name(train::Loss l)
 {
-  return l == train::Loss::kMse ? "mse" : l == train::Loss::kLogMse ? "log_mse" : "relative_mse";
+  switch (l) {
+    case train::Loss::kMse: return "mse";
+    case train::Loss::kLogMse: return "log_mse";
+    case train::Loss::kRelativeMse: return "relative_mse";
+    case train::Loss::kPoissonMse: return "poisson_mse";
+  }
+  return "?";
 }
 
 train::Dataset dataset_for(const char *name, const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation)

@@ -53,6 +53,14 @@ ny::Vec3 direction(double theta, double phi)
   return ny::make_vec3(w.x(), w.y(), w.z());
 }
 
+/* w_o of the outgoing bin centre within kLobeForwardDeg of -w_i, w_i the incident bin centre. */
+bool is_forward(int ti, int pi, int to, int po, const rdm::MapResolution &b)
+{
+  const ny::Vec3 wi = direction(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i), rdm::bin_center(pi, -kPi, kPi, b.phi_i));
+  const ny::Vec3 wo = direction(rdm::bin_center(to, 0.0, kPi, b.theta_o), rdm::bin_center(po, -kPi, kPi, b.phi_o));
+  return -double(ny::dot(wi, wo)) > std::cos(kLobeForwardDeg * kDeg);
+}
+
 void check_same_bins(const rdm::MapResolution &x, const rdm::MapResolution &y, const char *what)
 {
   if (!(x == y)) {
@@ -157,12 +165,16 @@ void add_to_lobe_grid(LobeGrid *g, int ti, int pi, int to, int po, const double 
   double *c = &g->cells[(group * g->cells_per_group() + g->outgoing_cell(to, po)) * 3];
   double *band = &g->bands[(group * kLobeBands + size_t(band_of(to, b.theta_o))) * 3];
   double *axial = &g->bands[(group * kLobeBands + kLobeAxialBand) * 3];
-  const bool ax = is_axial(to, po, b);
+  double *forward = &g->bands[(group * kLobeBands + kLobeForwardBand) * 3];
+  const bool ax = is_axial(to, po, b), fw = is_forward(ti, pi, to, po, b);
   for (int k = 0; k < 3; k++) {
     c[k] += w * value[k];
     band[k] += w * value[k];
     if (ax) {
       axial[k] += w * value[k];
+    }
+    if (fw) {
+      forward[k] += w * value[k];
     }
   }
 }
@@ -298,7 +310,7 @@ json LobeComparison::to_json() const
             {"band_ratio", band_json(band_ratio)},
             {"band_share", band_json(band_share)},
             {"bands", "theta_o 0-30, 30-60, 60-90, 90-120, 120-150, 150-180 deg from the ply normal; axial: "
-                      "within 30 deg of the ply axis"}};
+                      "within 30 deg of the ply axis; forward: within 12 deg of -w_i"}};
   if (noise_removed) {
     j["noise_floor"] = noise_floor;
   }

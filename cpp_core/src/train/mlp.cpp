@@ -225,8 +225,9 @@ template<class S> S Mlp<S>::loss_and_gradient(const Mat &X, const Mat &T, Loss l
     value = dY.squaredNorm() / n;
     dY *= S(2) / n;
   }
-  else if (loss == Loss::kRelativeMse) {
-    const Mat w = (Y.array().square() + eps).inverse().matrix();
+  else if (loss == Loss::kRelativeMse || loss == Loss::kPoissonMse) {
+    const Mat w = loss == Loss::kRelativeMse ? Mat((Y.array().square() + eps).inverse().matrix())
+                                             : Mat((Y.array() + eps).inverse().matrix());
     dY = Y - T;
     value = (dY.array().square() * w.array()).sum() / n;
     dY = (S(2) / n * dY.array() * w.array()).matrix();

@@ -24,8 +24,8 @@
 // high, by about floor^2 / (2 error) each, and the truth lies between them (tests/cpp/test_lobe_fidelity.cpp:
 // a 10 % error through a 1.4-3 % floor reads 9.3-9.8 % and 10.0-10.1 %). Without a second map, l1 = l1_raw.
 // Energy ratios model / maps per band of the exit angle theta_o from the ply normal (30-degree bands,
-// reflection 0-90, transmission 90-180) and near the ply axis (w_o within 30 degrees of +-x) say where
-// the energy goes wrong.
+// reflection 0-90, transmission 90-180), near the ply axis (w_o within 30 degrees of +-x) and near the
+// forward direction (w_o within 12 degrees of -w_i) say where the energy goes wrong.
 #pragma once
 
 #include <array>
@@ -48,9 +48,13 @@ struct LobePooling {
 
 enum class Lobe { kR, kM };
 
-/* Bands of the exit direction: theta_o from the ply normal in 30-degree steps, and "axial". */
-constexpr int kLobeBands = 7;
+/* Bands of the exit direction: theta_o from the ply normal in 30-degree steps, "axial" and "forward" (the
+ * last two overlap the others). Forward: within kLobeForwardDeg of -w_i, where grazing light that scatters
+ * on along the fibers it grazes leaves in a narrow peak (docs/decisions.md D41). */
+constexpr int kLobeBands = 8;
 constexpr int kLobeAxialBand = 6;
+constexpr int kLobeForwardBand = 7;
+constexpr double kLobeForwardDeg = 12.0;
 
 /* Pooled energies of one lobe on one grid: [theta_i][phi_i group][cell][rgb] and the bands
  * [theta_i][phi_i group][band][rgb]. */

@@ -38,6 +38,11 @@ enum class Loss {
    * but unbiased for noisy targets (the weight depends on the prediction, not on the target), so sparse
    * Monte Carlo bins do not pull the fit down (Mueller et al. 2021, neural radiance caching). */
   kRelativeMse,
+  /* mean of (y - t)^2 / (sg(y) + eps): least squares weighted by 1 / variance for Monte Carlo bins whose
+   * variance grows with their mean (sparse path counts), between the MSE (weight 1) and the relative MSE
+   * (weight 1 / y^2); unbiased for noisy targets like the relative MSE. With the exp head its gradient in
+   * the pre-activation is y - t, the Poisson deviance's. */
+  kPoissonMse,
 };
 
 template<class S> class Mlp {
