@@ -13,6 +13,7 @@
 #include "neuralyarn/model/bake.h"
 #include "neuralyarn/model/calibration.h"
 #include "neuralyarn/model/fidelity.h"
+#include "neuralyarn/model/forward_peak.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/model/r_shape.h"
 #include "neuralyarn/plots.h"
@@ -133,6 +134,37 @@ void print_lobes(const model::LobeFidelity &f)
   std::printf("  worst L1 but the grazing bin: R %.1f %%, M %.1f %%; grazing bin: R %.1f %%, M %.1f %% (%.1f s)\n",
               100 * R.l1_max_but_grazing, 100 * M.l1_max_but_grazing, 100 * R.l1_grazing, 100 * M.l1_grazing,
               f.seconds);
+}
+
+/* The maps' forward peak (model/forward_peak.h) per theta_i row: its share of the row's M energy, the median
+ * width 1 / sqrt(kappa) over the row's bins with a peak, and how much of the cone's excess it explains. */
+void print_forward_peaks(const model::ForwardPeakTable &t, const rdm::RdmMaps &maps)
+{
+  const std::vector<double> EM = maps.energy(maps.m);
+  auto lum = [](const double *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; };
+  std::printf("forward peak     the maps' M lobe within 12 deg of -w_i as a von Mises-Fisher lobe on the radiance around it\n"
+              "  theta_i | share of M | width (deg) | explained\n");
+  for (int ti = 0; ti < t.theta_bins; ti++) {
+    double w = 0.0, e = 0.0, explained = 0.0;
+    std::vector<double> widths;
+    for (int pi = 0; pi < t.phi_bins; pi++) {
+      const model::ForwardPeak &p = t.at(ti, pi);
+      w += lum(p.w.data());
+      e += lum(&EM[maps.incident_index(ti, pi) * 3]);
+      if (p.kappa > 0.0) {
+        widths.push_back(1.0 / std::sqrt(p.kappa) / kDeg);
+        explained += p.explained;
+      }
+    }
+    std::sort(widths.begin(), widths.end());
+    std::printf("  %5.1f   |   %5.1f %%  |", rdm::bin_center(ti, 0.0, 90.0, t.theta_bins), e > 0.0 ? 100 * w / e : 0.0);
+    if (widths.empty()) {
+      std::printf("      -      |     -\n");
+    }
+    else {
+      std::printf("    %5.2f    |  %5.2f\n", widths[widths.size() / 2], explained / double(widths.size()));
+    }
+  }
 }
 
 void print_fidelity(const model::FidelityReport &r)
@@ -273,6 +305,10 @@ class Commands : public ModelCommands {
     check_->add_option("--maps-b", maps_b_,
                        "An independent map of the same ply (another path seed): separates the lobes' model error "
                        "from the maps' noise");
+    check_->add_flag("--forward-peaks", forward_peaks_,
+                     "Fit the maps' forward peak of M per incident bin and report it per theta_i (docs/decisions.md D41)");
+    check_->add_option("--threads", threads_, "Worker threads (0: all cores); results do not depend on it")
+        ->capture_default_str();
     check_->add_option("--image", image_, "Comparison image (PNG)");
     check_->add_option("--theta-i", theta_i_, "Incident polar angle of the image, degrees")
         ->check(finite_range(0.0, 90.0))
@@ -432,6 +468,13 @@ class Commands : public ModelCommands {
     print_proxy(m);
     const model::FidelityReport r = model::check_model(m, maps, {}, maps_b_.empty() ? nullptr : &maps_b);
     print_fidelity(r);
+    if (forward_peaks_) {
+      /* Both maps together where there are two: twice the paths per bin. */
+      const rdm::RdmMaps both = maps_b_.empty() ? maps : rdm::mean_of_maps(maps, maps_b);
+      model::ForwardPeakOptions fo;
+      fo.threads = threads_;
+      print_forward_peaks(model::fit_forward_peaks(both, fo), both);
+    }
     if (!image_.empty()) {
       model::write_comparison_image(m, maps, theta_i_, phi_i_, image_);
       std::printf("wrote %s\n", image_.c_str());
@@ -564,6 +607,7 @@ class Commands : public ModelCommands {
   std::optional<double> max_furnace_;
   bool furnace_inside_ = false;
   bool furnace_bound_ = false;
+  bool forward_peaks_ = false;
   TrainModelOptions topt_;
   model::FallbackOptions fbopt_;
   rdm::GatherOptions gopt_;

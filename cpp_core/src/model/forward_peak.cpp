@@ -1,0 +1,241 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "neuralyarn/model/forward_peak.h"
+
+#include <cmath>
+#include <string>
+
+#include <Eigen/Core>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "neuralyarn/presets.h" /* ParameterError */
+#include "neuralyarn/units.h"
+
+namespace neuralyarn::model {
+
+namespace {
+
+constexpr double kLum[3] = {0.2126, 0.7152, 0.0722}; /* Rec. 709, as the evaluation harness */
+
+Eigen::Vector3d dir(double theta, double phi)
+{
+  return Eigen::Vector3d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+}
+
+/* Incident direction s of sub x sub inside bin (ti, pi), uniform in solid angle. */
+Eigen::Vector3d incident_sub(const rdm::MapResolution &b, int ti, int pi, int s, int sub)
+{
+  const double c0 = std::cos(0.5 * kPi * ti / b.theta_i), c1 = std::cos(0.5 * kPi * (ti + 1) / b.theta_i);
+  const double u = (s / sub + 0.5) / sub, v = (s % sub + 0.5) / sub;
+  return dir(std::acos(c0 + u * (c1 - c0)), -kPi + 2.0 * kPi * (pi + v) / b.phi_i);
+}
+
+Eigen::Vector3d incident_centre(const rdm::MapResolution &b, int ti, int pi)
+{
+  return dir(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i), rdm::bin_center(pi, -kPi, kPi, b.phi_i));
+}
+
+/* Outgoing direction s of sub x sub inside bin (to, po), uniform in solid angle. */
+Eigen::Vector3d outgoing_sub(const rdm::MapResolution &b, int to, int po, int s, int sub)
+{
+  const double c0 = std::cos(kPi * to / b.theta_o), c1 = std::cos(kPi * (to + 1) / b.theta_o);
+  const double u = (s / sub + 0.5) / sub, v = (s % sub + 0.5) / sub;
+  return dir(std::acos(c0 + u * (c1 - c0)), -kPi + 2.0 * kPi * (po + v) / b.phi_o);
+}
+
+void check_options(const ForwardPeakOptions &o)
+{
+  if (!(o.cone_deg > 0.0 && o.cone_deg < o.ring_deg && o.ring_deg <= 90.0)) {
+    throw ParameterError("forward peak", "needs 0 < cone < ring <= 90 degrees");
+  }
+  if (!(o.kappa_min > 0.0 && o.kappa_min < o.kappa_max && std::isfinite(o.kappa_max) && o.kappa_steps >= 2 &&
+        o.kappa_steps <= 1000))
+  {
+    throw ParameterError("forward peak", "needs 0 < kappa_min < kappa_max (finite) and 2..1000 steps");
+  }
+  if (!(o.sub >= 1 && o.sub <= 16)) {
+    throw ParameterError("forward peak", "needs 1..16 sub-directions per side");
+  }
+}
+
+}  // namespace
+
+double vmf_density(double cos_psi, double kappa)
+{
+  /* kappa e^{kappa (c - 1)} / (2 pi (1 - e^{-2 kappa})): no overflow for any kappa. */
+  return kappa * std::exp(kappa * (cos_psi - 1.0)) / (2.0 * kPi * -std::expm1(-2.0 * kappa));
+}
+
+double forward_lobe_in_bin(const rdm::MapResolution &b, int ti, int pi, int to, int po, double kappa, int sub)
+{
+  rdm::RdmMaps g;
+  g.bins = b;
+  const double dO = g.outgoing_solid_angle(to) / (sub * sub);
+  double sum = 0.0;
+  for (int si = 0; si < sub * sub; si++) {
+    const Eigen::Vector3d d = -incident_sub(b, ti, pi, si, sub);
+    for (int so = 0; so < sub * sub; so++) {
+      sum += vmf_density(d.dot(outgoing_sub(b, to, po, so, sub)), kappa) * dO;
+    }
+  }
+  return sum / (sub * sub);
+}
+
+ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOptions &o)
+{
+  check_options(o);
+  const rdm::MapResolution &b = maps.bins;
+  ForwardPeakTable table;
+  table.theta_bins = b.theta_i;
+  table.phi_bins = b.phi_i;
+  table.peaks.assign(size_t(b.theta_i) * size_t(b.phi_i), ForwardPeak{});
+  std::vector<double> kappas(size_t(o.kappa_steps));
+  for (int k = 0; k < o.kappa_steps; k++) {
+    kappas[size_t(k)] = o.kappa_min * std::pow(o.kappa_max / o.kappa_min, double(k) / (o.kappa_steps - 1));
+  }
+  /* The calibration's window: ~20 degrees of phi_i (single bins on coarse maps). */
+  const int half = std::max(0, int(std::lround((20.0 / (360.0 / b.phi_i) - 1.0) / 2.0)));
+  const double cos_cone = std::cos(o.cone_deg * kDeg), cos_ring = std::cos(o.ring_deg * kDeg);
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                            o.threads > 0 ? size_t(o.threads) : size_t(tbb::this_task_arena::max_concurrency()));
+  tbb::parallel_for(0, b.theta_i * b.phi_i, [&](int k) {
+    const int ti = k / b.phi_i, pi = k % b.phi_i;
+    /* The cone's cells of every incident bin of the window, with their excess over their own ring. */
+    struct Cell {
+      double e[3];
+      double dO;                  /* one sub-direction pair's share of the bin's solid angle */
+      std::vector<double> cos_psi; /* sub^2 incident x sub^2 outgoing directions: w_o . -w_i */
+    };
+    std::vector<Cell> cells;
+    for (int d = -half; d <= half; d++) {
+      const int q = ((pi + d) % b.phi_i + b.phi_i) % b.phi_i;
+      const Eigen::Vector3d fwd = -incident_centre(b, ti, q);
+      double ring_e[3] = {0.0, 0.0, 0.0}, ring_o = 0.0;
+      std::vector<std::array<int, 2>> cone;
+      for (int to = 0; to < b.theta_o; to++) {
+        const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), dO = maps.outgoing_solid_angle(to);
+        for (int po = 0; po < b.phi_o; po++) {
+          const double c = fwd.dot(dir(th, rdm::bin_center(po, -kPi, kPi, b.phi_o)));
+          if (c < cos_ring) {
+            continue;
+          }
+          if (c >= cos_cone) {
+            cone.push_back({to, po});
+            continue;
+          }
+          const float *v = &maps.m[maps.map_index(ti, q, to, po)];
+          for (int ch = 0; ch < 3; ch++) {
+            ring_e[ch] += double(v[ch]) * dO;
+          }
+          ring_o += dO;
+        }
+      }
+      std::vector<Eigen::Vector3d> minus_wi(size_t(o.sub * o.sub));
+      for (int si = 0; si < o.sub * o.sub; si++) {
+        minus_wi[size_t(si)] = -incident_sub(b, ti, q, si, o.sub);
+      }
+      for (const auto &tp : cone) {
+        const double dO = maps.outgoing_solid_angle(tp[0]);
+        Cell cell{{0.0, 0.0, 0.0}, dO / (o.sub * o.sub * o.sub * o.sub), {}};
+        for (int so = 0; so < o.sub * o.sub; so++) {
+          const Eigen::Vector3d wo = outgoing_sub(b, tp[0], tp[1], so, o.sub);
+          for (const Eigen::Vector3d &d : minus_wi) {
+            cell.cos_psi.push_back(d.dot(wo));
+          }
+        }
+        const float *v = &maps.m[maps.map_index(ti, q, tp[0], tp[1])];
+        for (int ch = 0; ch < 3; ch++) {
+          cell.e[ch] = (double(v[ch]) - (ring_o > 0.0 ? ring_e[ch] / ring_o : 0.0)) * dO;
+        }
+        cells.push_back(cell);
+      }
+    }
+    /* Least squares in w for a given kappa: w = sum e t / sum t^2 per channel, and the residual falls by
+     * (sum e t)^2 / sum t^2 (luminance), which the search maximises. */
+    struct Fit {
+      double et[3] = {0.0, 0.0, 0.0}, tt = 0.0, gain = -1.0;
+    };
+    /* forward_lobe_in_bin() on the cell's stored directions. */
+    auto lobe_in_cell = [](const Cell &c, double kappa) {
+      double sum = 0.0;
+      for (double cp : c.cos_psi) {
+        sum += std::exp(kappa * (cp - 1.0));
+      }
+      return sum * kappa / (2.0 * kPi * -std::expm1(-2.0 * kappa)) * c.dO;
+    };
+    auto fit = [&](double kappa) {
+      Fit f;
+      for (const Cell &c : cells) {
+        const double t = lobe_in_cell(c, kappa);
+        for (int ch = 0; ch < 3; ch++) {
+          f.et[ch] += c.e[ch] * t;
+        }
+        f.tt += t * t;
+      }
+      const double eL = kLum[0] * f.et[0] + kLum[1] * f.et[1] + kLum[2] * f.et[2];
+      f.gain = eL > 0.0 && f.tt > 0.0 ? eL * eL / f.tt : -1.0;
+      return f;
+    };
+    int best = -1;
+    double best_gain = 0.0;
+    for (size_t j = 0; j < kappas.size(); j++) {
+      const double g = fit(kappas[j]).gain;
+      if (g > best_gain) {
+        best_gain = g;
+        best = int(j);
+      }
+    }
+    ForwardPeak &peak = table.peaks[size_t(k)];
+    if (best < 0) {
+      return;
+    }
+    /* Golden-section search in log kappa between the grid's neighbours of the best. */
+    double lo = std::log(kappas[size_t(std::max(0, best - 1))]);
+    double hi = std::log(kappas[size_t(std::min(int(kappas.size()) - 1, best + 1))]);
+    const double r = 0.5 * (std::sqrt(5.0) - 1.0);
+    double x1 = hi - r * (hi - lo), x2 = lo + r * (hi - lo);
+    double g1 = fit(std::exp(x1)).gain, g2 = fit(std::exp(x2)).gain;
+    for (int it = 0; it < 16; it++) { /* the bracket shrinks to 0.62^16 = 5e-4 of its width */
+      if (g1 >= g2) {
+        hi = x2;
+        x2 = x1;
+        g2 = g1;
+        x1 = hi - r * (hi - lo);
+        g1 = fit(std::exp(x1)).gain;
+      }
+      else {
+        lo = x1;
+        x1 = x2;
+        g1 = g2;
+        x2 = lo + r * (hi - lo);
+        g2 = fit(std::exp(x2)).gain;
+      }
+    }
+    double kappa = std::exp(0.5 * (lo + hi));
+    Fit f = fit(kappa);
+    if (!(f.gain >= best_gain)) {
+      kappa = kappas[size_t(best)];
+      f = fit(kappa);
+    }
+    peak.kappa = kappa;
+    for (int ch = 0; ch < 3; ch++) {
+      /* One w for the window's bins, each of whose cells holds that bin's own excess. */
+      peak.w[size_t(ch)] = std::max(0.0, f.et[ch] / f.tt);
+    }
+    double l1 = 0.0, l1_res = 0.0;
+    const double wL = kLum[0] * peak.w[0] + kLum[1] * peak.w[1] + kLum[2] * peak.w[2];
+    for (const Cell &c : cells) {
+      const double eL = kLum[0] * c.e[0] + kLum[1] * c.e[1] + kLum[2] * c.e[2];
+      l1 += std::abs(eL);
+      l1_res += std::abs(eL - wL * lobe_in_cell(c, kappa));
+    }
+    peak.explained = l1 > 0.0 ? 1.0 - l1_res / l1 : 0.0;
+    if (!(peak.explained > 0.0)) {
+      peak = ForwardPeak{}; /* a lobe that explains nothing of the excess is noise */
+    }
+  });
+  return table;
+}
+
+}  // namespace neuralyarn::model
