@@ -141,7 +141,6 @@ void print_lobes(const model::LobeFidelity &f)
 void print_forward_peaks(const model::ForwardPeakTable &t, const rdm::RdmMaps &maps)
 {
   const std::vector<double> EM = maps.energy(maps.m);
-  auto lum = [](const double *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; };
   std::printf("forward peak     the maps' M lobe within 12 deg of -w_i as a von Mises-Fisher lobe on the radiance around it\n"
               "  theta_i | share of M | width (deg) | explained\n");
   for (int ti = 0; ti < t.theta_bins; ti++) {
@@ -149,8 +148,8 @@ void print_forward_peaks(const model::ForwardPeakTable &t, const rdm::RdmMaps &m
     std::vector<double> widths;
     for (int pi = 0; pi < t.phi_bins; pi++) {
       const model::ForwardPeak &p = t.at(ti, pi);
-      w += lum(p.w.data());
-      e += lum(&EM[maps.incident_index(ti, pi) * 3]);
+      w += model::luminance(p.w.data());
+      e += model::luminance(&EM[maps.incident_index(ti, pi) * 3]);
       if (p.kappa > 0.0) {
         widths.push_back(1.0 / std::sqrt(p.kappa) / kDeg);
         explained += p.explained;

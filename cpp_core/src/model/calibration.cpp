@@ -152,6 +152,11 @@ ny::Rgb m_lobe_energy(const ny::YarnBsdfParams &p, const ny::YarnLobes &l)
   return ny::make_rgb(float(e[0]), float(e[1]), float(e[2]));
 }
 
+int calibration_window_half(int phi_bins)
+{
+  return std::max(0, int(std::lround((20.0 / (360.0 / phi_bins) - 1.0) / 2.0)));
+}
+
 EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &maps, int threads, int bound_sub)
 {
   const rdm::MapResolution &b = maps.bins;
@@ -163,10 +168,7 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
     return train::entry_vec3(rdm::bin_center(k / b.phi_i, 0.0, 0.5 * kPi, b.theta_i),
                              rdm::bin_center(k % b.phi_i, -kPi, kPi, b.phi_i));
   };
-  /* Sums over a window of about 20 degrees in phi_i (same theta_i): at the paper's 90 phi_i bins, 5 bins,
-   * which divides the maps' per-bin noise (docs/benchmarks.md) by sqrt(5) and keeps the structure
-   * at 20-degree scale; coarse maps (bins of 10 degrees or more) use single bins. */
-  const int half = std::max(0, int(std::lround((20.0 / (360.0 / b.phi_i) - 1.0) / 2.0)));
+  const int half = calibration_window_half(b.phi_i);
   const int window = 2 * half + 1;
   auto window_sum = [&](const std::vector<double> &v, int stride, int k, int c) {
     const int ti = k / b.phi_i, pi = k % b.phi_i;

@@ -9,6 +9,8 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include "neuralyarn/model/calibration.h"
+#include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/presets.h" /* ParameterError */
 #include "neuralyarn/units.h"
 
@@ -16,19 +18,16 @@ namespace neuralyarn::model {
 
 namespace {
 
-constexpr double kLum[3] = {0.2126, 0.7152, 0.0722}; /* Rec. 709, as the evaluation harness */
-
 Eigen::Vector3d dir(double theta, double phi)
 {
   return Eigen::Vector3d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
 }
 
-/* Incident direction s of sub x sub inside bin (ti, pi), uniform in solid angle. */
+/* lobe_fidelity.h's incident_sub_direction(), the directions the measure integrates the model over. */
 Eigen::Vector3d incident_sub(const rdm::MapResolution &b, int ti, int pi, int s, int sub)
 {
-  const double c0 = std::cos(0.5 * kPi * ti / b.theta_i), c1 = std::cos(0.5 * kPi * (ti + 1) / b.theta_i);
-  const double u = (s / sub + 0.5) / sub, v = (s % sub + 0.5) / sub;
-  return dir(std::acos(c0 + u * (c1 - c0)), -kPi + 2.0 * kPi * (pi + v) / b.phi_i);
+  const ny::Vec3 w = incident_sub_direction(b, ti, pi, s, sub);
+  return Eigen::Vector3d(w.x, w.y, w.z);
 }
 
 Eigen::Vector3d incident_centre(const rdm::MapResolution &b, int ti, int pi)
@@ -60,6 +59,8 @@ void check_options(const ForwardPeakOptions &o)
 }
 
 }  // namespace
+
+double luminance(const double rgb[3]) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
 
 double vmf_density(double cos_psi, double kappa)
 {
@@ -94,8 +95,14 @@ ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOp
   for (int k = 0; k < o.kappa_steps; k++) {
     kappas[size_t(k)] = o.kappa_min * std::pow(o.kappa_max / o.kappa_min, double(k) / (o.kappa_steps - 1));
   }
-  /* The calibration's window: ~20 degrees of phi_i (single bins on coarse maps). */
-  const int half = std::max(0, int(std::lround((20.0 / (360.0 / b.phi_i) - 1.0) / 2.0)));
+  const int half = calibration_window_half(b.phi_i);
+  /* The outgoing bins' centre directions, which every incident bin's cone and ring are chosen from. */
+  std::vector<Eigen::Vector3d> centres;
+  for (int to = 0; to < b.theta_o; to++) {
+    for (int po = 0; po < b.phi_o; po++) {
+      centres.push_back(dir(rdm::bin_center(to, 0.0, kPi, b.theta_o), rdm::bin_center(po, -kPi, kPi, b.phi_o)));
+    }
+  }
   const double cos_cone = std::cos(o.cone_deg * kDeg), cos_ring = std::cos(o.ring_deg * kDeg);
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                             o.threads > 0 ? size_t(o.threads) : size_t(tbb::this_task_arena::max_concurrency()));
@@ -114,9 +121,9 @@ ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOp
       double ring_e[3] = {0.0, 0.0, 0.0}, ring_o = 0.0;
       std::vector<std::array<int, 2>> cone;
       for (int to = 0; to < b.theta_o; to++) {
-        const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), dO = maps.outgoing_solid_angle(to);
+        const double dO = maps.outgoing_solid_angle(to);
         for (int po = 0; po < b.phi_o; po++) {
-          const double c = fwd.dot(dir(th, rdm::bin_center(po, -kPi, kPi, b.phi_o)));
+          const double c = fwd.dot(centres[size_t(to) * size_t(b.phi_o) + size_t(po)]);
           if (c < cos_ring) {
             continue;
           }
@@ -156,13 +163,13 @@ ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOp
     struct Fit {
       double et[3] = {0.0, 0.0, 0.0}, tt = 0.0, gain = -1.0;
     };
-    /* forward_lobe_in_bin() on the cell's stored directions. */
+    /* forward_lobe_in_bin() on the cell's stored directions: vMF(c) = vMF(1) e^{kappa (c - 1)}. */
     auto lobe_in_cell = [](const Cell &c, double kappa) {
       double sum = 0.0;
       for (double cp : c.cos_psi) {
         sum += std::exp(kappa * (cp - 1.0));
       }
-      return sum * kappa / (2.0 * kPi * -std::expm1(-2.0 * kappa)) * c.dO;
+      return sum * vmf_density(1.0, kappa) * c.dO;
     };
     auto fit = [&](double kappa) {
       Fit f;
@@ -173,7 +180,7 @@ ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOp
         }
         f.tt += t * t;
       }
-      const double eL = kLum[0] * f.et[0] + kLum[1] * f.et[1] + kLum[2] * f.et[2];
+      const double eL = luminance(f.et);
       f.gain = eL > 0.0 && f.tt > 0.0 ? eL * eL / f.tt : -1.0;
       return f;
     };
@@ -224,9 +231,9 @@ ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOp
       peak.w[size_t(ch)] = std::max(0.0, f.et[ch] / f.tt);
     }
     double l1 = 0.0, l1_res = 0.0;
-    const double wL = kLum[0] * peak.w[0] + kLum[1] * peak.w[1] + kLum[2] * peak.w[2];
+    const double wL = luminance(peak.w.data());
     for (const Cell &c : cells) {
-      const double eL = kLum[0] * c.e[0] + kLum[1] * c.e[1] + kLum[2] * c.e[2];
+      const double eL = luminance(c.e);
       l1 += std::abs(eL);
       l1_res += std::abs(eL - wL * lobe_in_cell(c, kappa));
     }

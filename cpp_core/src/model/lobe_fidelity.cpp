@@ -30,11 +30,10 @@ int cell_of(int i, int n, int cells) { return int((int64_t(i) * cells) / n); }
 /* Band of an outgoing bin: theta_o from the normal in 30-degree steps (0..5). */
 int band_of(int to, int n_theta_o) { return std::min(5, int((to + 0.5) / n_theta_o * 6.0)); }
 
-/* w_o of the bin centre within 30 degrees of the ply axis (+-x). */
-bool is_axial(int to, int po, const rdm::MapResolution &b)
+/* The unit vector of polar angle theta and azimuth phi in the entry frame, in double. */
+std::array<double, 3> unit(double theta, double phi)
 {
-  const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), ph = rdm::bin_center(po, -kPi, kPi, b.phi_o);
-  return std::abs(std::sin(th) * std::cos(ph)) > std::cos(30.0 * kDeg);
+  return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
 }
 
 /* Number of incident bins in each phi_i group. */
@@ -51,14 +50,6 @@ ny::Vec3 direction(double theta, double phi)
 {
   const Eigen::Vector3f w = train::entry_direction(theta, phi);
   return ny::make_vec3(w.x(), w.y(), w.z());
-}
-
-/* w_o of the outgoing bin centre within kLobeForwardDeg of -w_i, w_i the incident bin centre. */
-bool is_forward(int ti, int pi, int to, int po, const rdm::MapResolution &b)
-{
-  const ny::Vec3 wi = direction(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i), rdm::bin_center(pi, -kPi, kPi, b.phi_i));
-  const ny::Vec3 wo = direction(rdm::bin_center(to, 0.0, kPi, b.theta_o), rdm::bin_center(po, -kPi, kPi, b.phi_o));
-  return -double(ny::dot(wi, wo)) > std::cos(kLobeForwardDeg * kDeg);
 }
 
 void check_same_bins(const rdm::MapResolution &x, const rdm::MapResolution &y, const char *what)
@@ -155,6 +146,16 @@ LobeGrid make_lobe_grid(const rdm::MapResolution &bins, const LobePooling &pooli
   g.phi_o_cells = cells_for(360.0, bins.phi_o, pooling.cell_deg);
   g.cells.assign(g.groups() * g.cells_per_group() * 3, 0.0);
   g.bands.assign(g.groups() * kLobeBands * 3, 0.0);
+  for (int ti = 0; ti < bins.theta_i; ti++) {
+    for (int pi = 0; pi < bins.phi_i; pi++) {
+      g.incident_dirs.push_back(unit(rdm::bin_center(ti, 0.0, 0.5 * kPi, bins.theta_i), rdm::bin_center(pi, -kPi, kPi, bins.phi_i)));
+    }
+  }
+  for (int to = 0; to < bins.theta_o; to++) {
+    for (int po = 0; po < bins.phi_o; po++) {
+      g.outgoing_dirs.push_back(unit(rdm::bin_center(to, 0.0, kPi, bins.theta_o), rdm::bin_center(po, -kPi, kPi, bins.phi_o)));
+    }
+  }
   return g;
 }
 
@@ -166,7 +167,13 @@ void add_to_lobe_grid(LobeGrid *g, int ti, int pi, int to, int po, const double 
   double *band = &g->bands[(group * kLobeBands + size_t(band_of(to, b.theta_o))) * 3];
   double *axial = &g->bands[(group * kLobeBands + kLobeAxialBand) * 3];
   double *forward = &g->bands[(group * kLobeBands + kLobeForwardBand) * 3];
-  const bool ax = is_axial(to, po, b), fw = is_forward(ti, pi, to, po, b);
+  /* Axial: w_o of the bin centre within 30 degrees of the ply axis (+-x); forward: within kLobeForwardDeg
+   * of -w_i, w_i the incident bin centre. */
+  static const double cos_axial = std::cos(30.0 * kDeg), cos_forward = std::cos(kLobeForwardDeg * kDeg);
+  const std::array<double, 3> &wi = g->incident_dirs[size_t(ti) * size_t(b.phi_i) + size_t(pi)];
+  const std::array<double, 3> &wo = g->outgoing_dirs[size_t(to) * size_t(b.phi_o) + size_t(po)];
+  const bool ax = std::abs(wo[0]) > cos_axial;
+  const bool fw = -(wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2]) > cos_forward;
   for (int k = 0; k < 3; k++) {
     c[k] += w * value[k];
     band[k] += w * value[k];

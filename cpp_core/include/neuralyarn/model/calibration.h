@@ -60,6 +60,11 @@ FurnaceMax white_furnace_max(const ny::YarnBsdfParams &p, const std::vector<ny::
 /* Directions per cell side at which bound_between_centres() evaluates the furnace. */
 constexpr int kBoundSub = 4;
 
+/* Incident bins on each side of a bin in the calibration's window over phi_i (same theta_i): about 20 degrees
+ * in all, 5 of the paper's 90 bins, which divides the maps' per-bin noise by sqrt(5) and keeps the structure
+ * at 20-degree scale; a single bin on maps of 10 degrees or coarser. */
+int calibration_window_half(int phi_bins);
+
 /* The table for `model` (its networks; its current table is ignored) on `maps` (same preset), at the maps'
  * incident resolution, bounded between its centres by bound_between_centres() at bound_sub (0: not, only
  * for tests of the centres themselves). */

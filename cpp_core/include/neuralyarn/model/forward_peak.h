@@ -53,6 +53,9 @@ struct ForwardPeakTable {
   const ForwardPeak &at(int ti, int pi) const { return peaks[size_t(ti) * size_t(phi_bins) + size_t(pi)]; }
 };
 
+/* Rec. 709 luminance of an RGB triple, as the evaluation harness weighs channels. */
+double luminance(const double rgb[3]);
+
 /* The von Mises-Fisher density on the sphere at cos psi from its mode, concentration kappa > 0. */
 double vmf_density(double cos_psi, double kappa);
 

@@ -62,6 +62,9 @@ struct LobeGrid {
   rdm::MapResolution bins;
   int phi_i_groups = 0, theta_o_cells = 0, phi_o_cells = 0;
   std::vector<double> cells, bands;
+  /* The map bins' centre directions in the entry frame, which the bands test (derived from `bins` once, not
+   * per map bin): [theta_i][phi_i] and [theta_o][phi_o]. */
+  std::vector<std::array<double, 3>> incident_dirs, outgoing_dirs;
   size_t groups() const { return size_t(bins.theta_i) * size_t(phi_i_groups); }
   size_t cells_per_group() const { return size_t(theta_o_cells) * size_t(phi_o_cells); }
   /* The cell of outgoing map bin (to, po) within a group. */
