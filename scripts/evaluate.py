@@ -11,7 +11,8 @@ Renders every (scene, method, preset, light, spp, seed) with the patched standal
 (build/cycles/bin/cycles) and measures it against a reference: explicit fibers at --ref-spp, twice per
 (scene, preset, light) — reference A is the reference, B against A is the noise floor. Each is the mean of
 --ref-rotations renders of the ply turned about its axis (B's angles halfway between A's, other seeds), so
-that it holds the mean over the cross-section's orientation, as the maps do (D20).
+that it holds the mean over the cross-section's orientation, as the maps do (D20), and each render draws its
+own fiber cross-section (--ref-layouts each, D42), so that A and B are independent draws of the yarn.
 References are cached in DIR/refs and reused when the scene files, the sample count and the Cycles binary are
 the same.
 
@@ -116,6 +117,10 @@ BASELINE_FIT = {"spp": 64, "renders": 8, "tolerance": 0.005}
 FALLBACK_RENDER = os.path.join(ROOT, "scripts", "fallback_render.py")
 # Cycles integrator seeds: the runs use 1..--seeds, the references two seeds of their own.
 REFERENCE_SEEDS = {"A": 1001, "B": 1002}
+# Whether each render a reference averages has its own fiber cross-section ("each", the default) or all share
+# the one the maps are gathered on ("one", the references before D42). With one, A and B show the same fibers
+# and the noise floor (B against A) leaves out the fibers' own texture, which no far-field model renders.
+REFERENCE_LAYOUTS = ("each", "one")
 # A reference is the mean of renders of the explicit ply turned about its axis to evenly spaced angles (A at
 # k 360/K, B halfway between, each with seed base + 2k and 1/K of the samples): the camera of the close-up sees
 # about a third of a twist period or less (silk is untwisted), so one render shows one orientation of the
@@ -183,6 +188,10 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
     ap.add_argument("--ref-rotations", type=int,
                     help="orientations of the explicit ply about its axis that a reference averages, sharing "
                          "its samples (default 8)")
+    ap.add_argument("--ref-layouts", choices=REFERENCE_LAYOUTS, default="each",
+                    help="each: every render a reference averages has its own fiber cross-section, so that A and B "
+                         "are independent draws of the yarn (default); one: all on the maps' cross-section (before "
+                         "D42)")
     ap.add_argument("--width", type=int, help="image width (default 160)")
     ap.add_argument("--height", type=int, help="image height (default 80)")
     ap.add_argument("--distances", nargs="+",
@@ -319,11 +328,12 @@ def scene_ext(method: str) -> str:
 
 
 def scene_path(a, scene: str, method: str, preset: str, light: str, seed: int, rotation: float = 0.0,
-               distance: float | None = CLOSEUP_DISTANCE) -> str:
+               distance: float | None = CLOSEUP_DISTANCE, packing_seed: int | None = None) -> str:
     """Where write_scene writes the scene of one render (scene_ext)."""
     turned = f"_rot{rotation:g}" if rotation else ""
-    return os.path.join(a.out, "scenes",
-                        f"{stem((scene, preset, light, distance))}_{method}_seed{seed}{turned}.{scene_ext(method)}")
+    layout = f"_packing{packing_seed}" if packing_seed is not None else ""
+    return os.path.join(a.out, "scenes", f"{stem((scene, preset, light, distance))}_{method}_seed{seed}{turned}"
+                                         f"{layout}.{scene_ext(method)}")
 
 
 def for_scene(a, scene: str):
@@ -380,10 +390,12 @@ def straight_yarn_file(out: str, length: float) -> str:
 
 
 def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, rotation: float = 0.0,
-                colour: list[float] | None = None, distance: float = CLOSEUP_DISTANCE) -> str:
+                colour: list[float] | None = None, distance: float = CLOSEUP_DISTANCE,
+                packing_seed: int | None = None) -> str:
     """The scene file of one render (`neuralyarn cycles-scene`: the close-up, or with `--plies` the garment);
-    `rotation` turns the explicit ply (each ply) about its axis (degrees); a baseline method needs its `colour`."""
-    path = scene_path(a, scene, method, preset, light, seed, rotation, distance)
+    `rotation` turns the explicit ply (each ply) about its axis (degrees), `packing_seed` draws its fiber
+    cross-section (default: cycles-scene's, the maps'); a baseline method needs its `colour`."""
+    path = scene_path(a, scene, method, preset, light, seed, rotation, distance, packing_seed)
     args = [*yarn_args(a.yarns, preset), "--lights", light, "--seed", str(seed), "--width", str(a.width),
             "--height", str(a.height), "--out", path]
     if scene == "garment":
@@ -398,6 +410,8 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
             args += ["--camera-distance", f"{distance:g}"]
     if rotation:
         args += ["--ply-rotation", f"{rotation:g}"]
+    if packing_seed is not None:
+        args += ["--packing-seed", str(packing_seed)]
     if method == "native" or method in FALLBACKS:
         args += ["--model", model_path(a.yarns, preset)]
     elif method == "yarns":
@@ -603,11 +617,16 @@ class Progress:
         return f"[{self.done}/{self.total}] {what}"
 
 
-def reference_parts(which: str, k_count: int) -> list[tuple[int, float]]:
-    """(Cycles seed, ply rotation in degrees) of the k_count renders that reference `which` (A or B) averages:
-    A at k 360/K, B halfway between, each with seed base + 2k."""
+def reference_parts(which: str, k_count: int, layouts: str = "each") -> list[tuple[int, float, int | None]]:
+    """(Cycles seed, ply rotation in degrees, packing seed) of the k_count renders that reference `which` (A or
+    B) averages: A at k 360/K, B halfway between, each with seed base + 2k; with layouts "each" the fiber
+    cross-section's packing seed is that seed too (every render its own cross-section, none shared between A
+    and B), with "one" None (cycles-scene's default, the cross-section the maps are gathered on)."""
+    if layouts not in REFERENCE_LAYOUTS:
+        raise ValueError(f"layouts must be one of {', '.join(REFERENCE_LAYOUTS)}, got '{layouts}'")
     offset = 0.0 if which == "A" else 0.5
-    return [(REFERENCE_SEEDS[which] + 2 * k, (k + offset) * 360.0 / k_count) for k in range(k_count)]
+    return [(REFERENCE_SEEDS[which] + 2 * k, (k + offset) * 360.0 / k_count,
+             REFERENCE_SEEDS[which] + 2 * k if layouts == "each" else None) for k in range(k_count)]
 
 
 def reference(a, scene: str, preset: str, light: str, which: str, what: str,
@@ -616,13 +635,14 @@ def reference(a, scene: str, preset: str, light: str, which: str, what: str,
     explicit ply turned about its axis (REFERENCE_SEEDS), or reused from DIR/refs when the scene files and the
     samples are the same."""
     k_count, spp = a.ref_rotations, a.ref_spp // a.ref_rotations
-    parts = reference_parts(which, k_count)
-    xmls = [write_scene(a, scene, REFERENCE_METHOD, preset, light, seed, rot, distance=distance) for seed, rot in parts]
+    parts = reference_parts(which, k_count, a.ref_layouts)
+    xmls = [write_scene(a, scene, REFERENCE_METHOD, preset, light, seed, rot, distance=distance, packing_seed=packing)
+            for seed, rot, packing in parts]
     name = f"{stem((scene, preset, light, distance))}_{which}"
     exr = os.path.join(a.out, "refs", name + ".exr")
     meta_path = os.path.join(a.out, "refs", name + ".json")
     key = {"scene_sha256": hashlib.sha256("".join(sha256(x) for x in xmls).encode()).hexdigest(),
-           "spp": a.ref_spp, "rotations": k_count, "width": a.width, "height": a.height,
+           "spp": a.ref_spp, "rotations": k_count, "layouts": a.ref_layouts, "width": a.width, "height": a.height,
            # the renderer too: a rebuilt Cycles may sample the fibers differently (decisions D31)
            "cycles_sha256": cycles_sha256()}
     if os.path.isfile(exr) and os.path.isfile(meta_path):
@@ -632,7 +652,7 @@ def reference(a, scene: str, preset: str, light: str, which: str, what: str,
             log(f"{what}: cached")
             return {**meta, "image": os.path.relpath(exr, a.out), "cached": True}
     total, seconds, peak = None, 0.0, 0.0
-    for k, ((seed, rot), xml) in enumerate(zip(parts, xmls)):
+    for k, ((seed, rot, _), xml) in enumerate(zip(parts, xmls)):
         part = os.path.join(a.out, "refs", f"{name}_part.exr")
         cost = render(a, xml, spp, part, f"{what} [{k + 1}/{k_count}: {rot:g} deg, {spp} spp]")
         img = read_exr(part)
@@ -641,7 +661,8 @@ def reference(a, scene: str, preset: str, light: str, which: str, what: str,
         peak = max(peak, cost["peak_rss_mb"] or 0.0)
         os.remove(part)
     write_exr(exr, total / k_count)
-    meta = {**key, "seeds": [s for s, _ in parts], "rotations_deg": [r for _, r in parts], "seconds": seconds,
+    meta = {**key, "seeds": [s for s, _, _ in parts], "rotations_deg": [r for _, r, _ in parts],
+            "packing_seeds": [p for _, _, p in parts], "seconds": seconds,
             "peak_rss_mb": peak or None}
     with open(meta_path, "w") as f:
         json.dump(meta, f, indent=1)
@@ -773,13 +794,15 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                 failed[which] = f"reference {which} failed: {e}"
                 failures += 1
                 log(f"{what}: FAILED, {e}")
-        references.append({**group, "spp": a.ref_spp, "rotations": a.ref_rotations, "seeds": REFERENCE_SEEDS,
+        references.append({**group, "spp": a.ref_spp, "rotations": a.ref_rotations, "layouts": a.ref_layouts,
+                           "seeds": REFERENCE_SEEDS,
                            "failed": "; ".join(failed.values()) or False,
                            **{f"image_{w}": r["image"] for w, r in refs.items()},
                            **{f"seconds_{w}": r["seconds"] for w, r in refs.items()}})
         ref_failed = failed.get("A")  # the runs need reference A only, the noise floor both
         ref_img, region, region_name = None, None, None
-        ref_scene = scene_path(a, scene, REFERENCE_METHOD, preset, light, REFERENCE_SEEDS["A"], distance=distance)
+        seed, rot, packing = reference_parts("A", a.ref_rotations, a.ref_layouts)[0]
+        ref_scene = scene_path(a, scene, REFERENCE_METHOD, preset, light, seed, rot, distance, packing)
         if os.path.isfile(ref_scene):  # (reference() writes it even when it cannot render)
             cam_distance, fov = camera(ref_scene)
             if distance is None:  # the garment's or a patch's own camera
@@ -876,7 +899,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         "git": git_revision(),
         "machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "system": platform.platform()},
         "settings": {"width": a.width, "height": a.height, "ref_spp": a.ref_spp, "distances": a.distances,
-                     "ref_rotations": a.ref_rotations, "spp": a.spp, "seeds": a.seeds,
+                     "ref_rotations": a.ref_rotations, "ref_layouts": a.ref_layouts, "spp": a.spp, "seeds": a.seeds,
                      "threads": a.threads, "timeout_s": a.timeout, "reference_method": REFERENCE_METHOD,
                      "reference_seeds": REFERENCE_SEEDS, "flip_ppd": FLIP_PPD, "relmse_eps": RELMSE_EPS,
                      "relmse_discard": RELMSE_DISCARD, "quick": a.quick},
@@ -945,7 +968,8 @@ def contact_sheet(out: str, results: dict) -> str:
 def summary(results: dict) -> str:
     s = results["settings"]
     lines = [f"# Evaluation: {s['width']}x{s['height']}, reference explicit fibers at {s['ref_spp']} spp "
-             f"over {s.get('ref_rotations', 1)} orientations",
+             f"over {s.get('ref_rotations', 1)} orientations"
+             f"{', each its own fiber cross-section' if s.get('ref_layouts') == 'each' else ''}",
              "",
              f"`{' '.join(results['command'])}`; {results['date']}; git {results['git']['revision']}"
              f"{' (dirty)' if results['git']['dirty'] else ''}; {results['machine']['cpu']}, "

@@ -179,7 +179,7 @@ def reference(a, s: dict, progress) -> np.ndarray:
                 return read_exr(exr)
     k, spp = a.ref_rotations, max(1, a.ref_spp // a.ref_rotations)
     total = None
-    for i, (seed, rotation) in enumerate(ev.reference_parts("A", k)):
+    for i, (seed, rotation, _) in enumerate(ev.reference_parts("A", k, "one")):
         xml = write_scene(a, s, "explicit", seed, rotation)
         part = exr + ".part.exr"
         render_spec(a, s, xml, spp, part, progress(f"reference {key_of(s)} [{i + 1}/{k}]"))

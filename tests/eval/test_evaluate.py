@@ -214,6 +214,36 @@ def test_region_share_tells_a_rim_lit_ply():
     assert region_share(np.zeros((80, 160, 3)), region, ply) is None  # nothing lit: no share, no division by zero
 
 
+def test_references_draw_their_own_fiber_cross_sections(tmp_path):
+    """With --ref-layouts each (the default, D42) every render that references A and B average has its own
+    fiber cross-section, none shared between A and B, so that B against A (the noise floor) holds how much two
+    draws of the yarn differ; with `one` they all use cycles-scene's default, the maps' cross-section. The
+    packing seed reaches the geometry: two seeds write two scenes, the same seed the same scene."""
+    import sys
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    from evaluate import reference_parts, write_scene
+
+    a, b = reference_parts("A", 8), reference_parts("B", 8)
+    packing = [p for _, _, p in a + b]
+    assert None not in packing and len(set(packing)) == 16
+    assert [s for s, _, _ in a] == [p for _, _, p in a]  # each render's seeds are its Cycles seed
+    assert all(p is None for _, _, p in reference_parts("A", 8, "one") + reference_parts("B", 8, "one"))
+    with pytest.raises(ValueError, match="layouts must be one of each, one"):
+        reference_parts("A", 8, "many")
+
+    import types
+    args = types.SimpleNamespace(out=str(tmp_path), yarns={}, baselines=[], width=32, height=16)
+    os.makedirs(tmp_path / "scenes")
+    def scene(packing_seed):
+        path = write_scene(args, "closeup", "explicit", "fleece", "grazing", 1, 0.0, packing_seed=packing_seed)
+        with open(path, "rb") as f:
+            return path, f.read()
+    (p1, s1), (p2, s2), (p0, s0) = scene(a[0][2]), scene(a[1][2]), scene(None)
+    assert len({p1, p2, p0}) == 3  # one file per cross-section: a cached reference never mixes them
+    assert s1 != s2 and s1 != s0
+    assert scene(a[0][2])[1] == s1
+
+
 BUILD = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
 
 
