@@ -257,6 +257,10 @@ class Commands : public ModelCommands {
     bake_->add_option("--paths", paths_, "Paths to gather (1e7, 40M, ...)")->capture_default_str();
     bake_->add_option("--seed", gopt_.seed, "Seed of the paths")->capture_default_str();
     bake_->add_option("--packing-seed", gopt_.packing_seed, "Seed of the fiber cross-section")->capture_default_str();
+    bake_->add_option("--layouts", gopt_.layouts,
+                      "Spread the paths over this many fiber cross-sections (packing seeds --packing-seed, +1, "
+                      "...): the model of their mean (ply level)")
+        ->capture_default_str();
     bake_->add_option("--bins", bins_, "Map resolution")->capture_default_str();
     bake_->add_option("--maps-out", maps_out_, "Also keep the gathered maps (.nyrdm)");
     bake_->add_option("--image", image_, "Comparison image (PNG): maps next to the model");

@@ -69,7 +69,7 @@ int run_fiber(const std::string &preset_name, const std::string &params_file, do
 
 
 int run_gather(const std::string &preset_name, const std::string &params_file, const std::string &paths_text,
-               uint64_t seed, uint64_t packing_seed, int threads, const std::string &bins_text, bool no_symmetrize, bool variance,
+               uint64_t seed, uint64_t packing_seed, int layouts, int threads, const std::string &bins_text, bool no_symmetrize, bool variance,
                bool quiet, const LevelOptions &level, const std::string &out)
 {
   const FiberPreset preset = resolve_preset(preset_name, params_file);
@@ -77,6 +77,7 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
   opt.paths = parse_count(paths_text);
   opt.seed = seed;
   opt.packing_seed = packing_seed;
+  opt.layouts = layouts;
   opt.threads = threads;
   opt.bins = rdm::parse_resolution(bins_text);
   opt.symmetrize = !no_symmetrize;
@@ -85,9 +86,10 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
   check_writable(out);
   if (!quiet) {
     print_preset(preset);
-    std::printf("gathering %llu paths, seed %llu, bins %dx%dx%dx%d%s\n", (unsigned long long)opt.paths,
-                (unsigned long long)seed, opt.bins.theta_i, opt.bins.phi_i, opt.bins.theta_o, opt.bins.phi_o,
-                opt.symmetrize ? ", symmetrised" : "");
+    std::printf("gathering %llu paths, seed %llu, bins %dx%dx%dx%d%s, %d cross-section%s\n",
+                (unsigned long long)opt.paths, (unsigned long long)seed, opt.bins.theta_i, opt.bins.phi_i,
+                opt.bins.theta_o, opt.bins.phi_o, opt.symmetrize ? ", symmetrised" : "", opt.layouts,
+                opt.layouts == 1 ? "" : "s");
     std::fflush(stdout);
   }
   ProgressBar bar(!quiet);
@@ -185,7 +187,7 @@ struct GatherCommand {
   CLI::App *cmd;
   std::string preset = "fleece", params, paths = "1e6", bins = "22x90x45x90", out;
   uint64_t seed = 1, packing_seed = 1;
-  int threads = 0;
+  int layouts = 1, threads = 0;
   bool no_sym = false, variance = false, quiet = false;
   LevelOptions level;
 
@@ -196,6 +198,10 @@ struct GatherCommand {
     cmd->add_option("--paths", paths, "Number of paths (1e7, 10M, ...)")->capture_default_str();
     cmd->add_option("--seed", seed, "Seed of the paths")->capture_default_str();
     cmd->add_option("--packing-seed", packing_seed, "Seed of the fiber cross-section")->capture_default_str();
+    cmd->add_option("--layouts", layouts,
+                    "Spread the paths over this many fiber cross-sections (packing seeds --packing-seed, +1, ...): "
+                    "the maps hold their mean (ply level)")
+        ->capture_default_str();
     cmd->add_option("--threads", threads, "Worker threads (0: all cores); the result does not depend on it")
         ->capture_default_str();
     cmd->add_option("--bins", bins, "Map resolution theta_i x phi_i x theta_o x phi_o")->capture_default_str();
@@ -207,7 +213,7 @@ struct GatherCommand {
   }
   int run() const
   {
-    return run_gather(preset, params, paths, seed, packing_seed, threads, bins, no_sym, variance, quiet, level, out);
+    return run_gather(preset, params, paths, seed, packing_seed, layouts, threads, bins, no_sym, variance, quiet, level, out);
   }
 };
 

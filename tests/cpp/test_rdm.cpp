@@ -868,6 +868,72 @@ TEST(Gather, IndependentHalvesAgreeWithinNoise)
   EXPECT_NEAR(ratios[ratios.size() / 2], 1.0 / std::sqrt(2.0), 0.05);
 }
 
+/* Several cross-sections (D42): the maps spread their paths evenly over the packings packing_seed,
+ * packing_seed + 1, ..., so they estimate the mean of the single cross-sections' maps. P_T, the fraction of
+ * light that passes unscattered, is the most precise number a map holds and depends on where the fibers lie:
+ * one cross-section's P_T is told apart from another's, while the two-layout maps agree with their mean. */
+TEST(Gather, SeveralCrossSectionsHoldTheirMean)
+{
+  const FiberPreset p = find_preset("polyester");
+  const rdm::MapResolution bins{4, 8, 6, 8};
+  const uint64_t n = 2 * 4 * 8 * 6000;
+  auto run = [&](uint64_t packing_seed, int layouts, uint64_t paths, uint64_t seed) {
+    rdm::GatherOptions o = small_options(paths, bins, true, true);
+    o.packing_seed = packing_seed;
+    o.layouts = layouts;
+    o.seed = seed;
+    return rdm::gather(p, o);
+  };
+  const rdm::RdmMaps one = run(5, 1, n, 21), other = run(6, 1, n, 22), both = run(5, 2, 2 * n, 23);
+  EXPECT_EQ(both.layouts, 2);
+  EXPECT_EQ(both.packing_seed, 5u);
+  ZTest mean_z, apart_z;
+  for (size_t i = 0; i < both.p_t.size(); i++) {
+    const double mean = 0.5 * (double(one.p_t[i]) + other.p_t[i]);
+    const double se_mean = 0.5 * std::hypot(double(one.p_t_se[i]), double(other.p_t_se[i]));
+    if (se_mean > 0 && both.p_t_se[i] > 0) {
+      mean_z.add(both.p_t[i], mean, std::hypot(double(both.p_t_se[i]), se_mean));
+      apart_z.add(one.p_t[i], other.p_t[i], std::hypot(double(one.p_t_se[i]), double(other.p_t_se[i])));
+    }
+  }
+  for (ZTest *z : {&mean_z, &apart_z}) { /* symmetrised incident bins come in identical pairs */
+    z->chi2 *= 0.5;
+    z->n /= 2;
+  }
+  EXPECT_GE(mean_z.n, 6);
+  EXPECT_GT(mean_z.p_value(), 1e-4) << mean_z.report();
+  EXPECT_LT(apart_z.p_value(), 1e-6) << "two cross-sections should differ: " << apart_z.report();
+  /* The M map too: the mean within its noise. */
+  ZTest m_z;
+  for (size_t i = 0; i < both.m.size(); i++) {
+    const double se_mean = 0.5 * std::hypot(double(one.m_se[i]), double(other.m_se[i]));
+    if (se_mean > 0 && both.m_se[i] > 0) {
+      m_z.add(both.m[i], 0.5 * (double(one.m[i]) + other.m[i]), std::hypot(double(both.m_se[i]), se_mean));
+    }
+  }
+  ZTest halved = m_z; /* symmetrised bins come in identical pairs */
+  halved.chi2 *= 0.5;
+  halved.n /= 2;
+  EXPECT_GT(halved.n, 300);
+  EXPECT_GT(halved.p_value(), 1e-4) << m_z.report();
+  /* Bit-identical at any thread count with several cross-sections as with one. */
+  rdm::GatherOptions o = small_options(30000, {3, 8, 6, 8}, true, false);
+  o.layouts = 3;
+  o.threads = 1;
+  const rdm::RdmMaps t1 = rdm::gather(p, o);
+  o.threads = 3;
+  const rdm::RdmMaps t3 = rdm::gather(p, o);
+  EXPECT_EQ(t1.m, t3.m);
+  EXPECT_EQ(t1.r, t3.r);
+  EXPECT_EQ(t1.p_t, t3.p_t);
+  /* Averaging maps of other cross-sections would mix two yarns' draws: refused. */
+  rdm::RdmMaps a = t1, b = t3;
+  b.seed = a.seed + 1;
+  EXPECT_NO_THROW(rdm::mean_of_maps(a, b));
+  b.layouts = 2;
+  EXPECT_THROW(rdm::mean_of_maps(a, b), ParameterError);
+}
+
 TEST(Gather, RejectsBadOptions)
 {
   rdm::GatherOptions o;
@@ -878,6 +944,8 @@ TEST(Gather, RejectsBadOptions)
   EXPECT_THROW(rdm::validate(o), ParameterError); /* symmetrisation needs even phi bins */
   o.symmetrize = false;
   EXPECT_NO_THROW(rdm::validate(o));
+  o.layouts = 0;
+  EXPECT_THROW(rdm::validate(o), ParameterError);
   FiberPreset p = find_preset("fleece");
   p.rho = 0.95;
   EXPECT_THROW(rdm::gather(p, small_options(100, {2, 4, 4, 4}, true, false)), ParameterError);
@@ -921,7 +989,9 @@ template<class F> std::string error_of(F f)
 
 TEST(MapFile, RoundTripAndCorruption)
 {
-  const rdm::RdmMaps maps = rdm::gather(find_preset("silk"), small_options(20000, {3, 4, 4, 6}, true, true));
+  rdm::GatherOptions o = small_options(20000, {3, 4, 4, 6}, true, true);
+  o.layouts = 2;
+  const rdm::RdmMaps maps = rdm::gather(find_preset("silk"), o);
   const std::string path = temp_path("silk.nyrdm");
   rdm::save_maps(maps, path);
   const rdm::RdmMaps back = rdm::load_maps(path);
@@ -935,6 +1005,7 @@ TEST(MapFile, RoundTripAndCorruption)
   EXPECT_EQ(back.preset.name, "silk");
   EXPECT_EQ(back.preset.beta_R_deg, maps.preset.beta_R_deg);
   EXPECT_EQ(back.paths, 20000u);
+  EXPECT_EQ(back.layouts, 2);
   /* The file stores the histogram up to its last non-empty bin. */
   std::vector<uint64_t> trimmed = maps.stats.events_histogram;
   while (!trimmed.empty() && trimmed.back() == 0) {

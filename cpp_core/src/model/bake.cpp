@@ -128,6 +128,7 @@ json maps_provenance(const rdm::RdmMaps &maps)
   return {{"paths", maps.paths},
           {"seed", maps.seed},
           {"packing_seed", maps.packing_seed},
+          {"layouts", maps.layouts},
           {"symmetrized", maps.symmetrized},
           {"bins", std::to_string(b.theta_i) + "x" + std::to_string(b.phi_i) + "x" + std::to_string(b.theta_o) + "x" +
                        std::to_string(b.phi_o)}};

@@ -2,6 +2,7 @@
 #include "neuralyarn/rdm/gather.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -161,9 +162,10 @@ double percentile(const std::vector<uint64_t> &hist, double q, double bin_width)
   return double(hist.size() - 1) * bin_width;
 }
 
-/* The walks' medium and its mirror image: the ply's own tracer (called directly) or any FiberMedium. */
+/* The walks' medium and its mirror image: the ply's own tracers (called directly), one pair per
+ * cross-section, or any FiberMedium. */
 struct Geometry {
-  const PlyTracer *ply[2] = {nullptr, nullptr};
+  std::vector<std::array<const PlyTracer *, 2>> plies;
   const FiberMedium *medium[2] = {nullptr, nullptr};
   std::vector<double> cos_theta_edge; /* cos of the theta_i bin edges */
 };
@@ -383,7 +385,8 @@ void score(const Medium &tracer, const GatherOptions &opt, const Entry &e, const
 }
 
 /* Path k: incident bin k mod (bins), alternating between the medium and its mirror image per sweep over
- * the bins; its own random stream. */
+ * the bins (and, for several cross-sections, to the next one every second sweep: accumulate()); its own
+ * random stream. */
 template <class Medium>
 void trace_path(const Medium *const media[2], const std::vector<double> &cos_theta_edge, const FiberLobeSampler &sampler,
                 const GatherOptions &opt, uint64_t k, Accumulators &acc, LocalStats &ls)
@@ -448,7 +451,7 @@ RdmMaps mean_of_maps(const RdmMaps &a, const RdmMaps &b)
   if (!(a.bins == b.bins)) {
     throw ParameterError("maps", "maps of different resolutions cannot be averaged");
   }
-  if (preset_to_json(a.preset) != preset_to_json(b.preset) || a.packing_seed != b.packing_seed ||
+  if (preset_to_json(a.preset) != preset_to_json(b.preset) || a.packing_seed != b.packing_seed || a.layouts != b.layouts ||
       a.symmetrized != b.symmetrized || a.structure.plies != b.structure.plies ||
       a.structure.ply_twist != b.structure.ply_twist) {
     throw ParameterError("maps", "maps of different plies or yarns (preset, packing seed, structure or symmetrisation) "
@@ -529,6 +532,9 @@ void validate(const GatherOptions &o)
   if (o.paths < 1 || o.paths > uint64_t(1e12)) {
     throw ParameterError("paths", "--paths must be in [1, 1e12], got " + std::to_string(o.paths));
   }
+  if (o.layouts < 1 || o.layouts > 1024) {
+    throw ParameterError("layouts", "--layouts must be in [1, 1024] cross-sections, got " + std::to_string(o.layouts));
+  }
   if (o.threads < 0 || o.threads > 1024) {
     throw ParameterError("threads", "--threads must be in [0, 1024] (0: all cores), got " + std::to_string(o.threads));
   }
@@ -590,8 +596,10 @@ double accumulate(const FiberPreset &preset, const GatherOptions &opt, const Geo
       const uint64_t k0 = chunk * kChunk, k1 = std::min(opt.paths, k0 + kChunk);
       ls.records.reserve(k1 - k0);
       for (uint64_t k = k0; k < k1; k++) {
-        if (geo.ply[0]) {
-          trace_path(geo.ply, geo.cos_theta_edge, sampler, opt, k, acc, ls);
+        if (!geo.plies.empty()) {
+          /* Every cross-section gets the same paths per incident bin, each with its mirror image. */
+          const uint64_t pair = (k / b.incident() / 2) % geo.plies.size();
+          trace_path(geo.plies[pair].data(), geo.cos_theta_edge, sampler, opt, k, acc, ls);
         }
         else {
           trace_path(geo.medium, geo.cos_theta_edge, sampler, opt, k, acc, ls);
@@ -765,9 +773,11 @@ RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &stru
   maps.structure = structure;
   maps.seed = opt.seed;
   maps.packing_seed = opt.packing_seed;
+  maps.layouts = opt.layouts;
   maps.paths = opt.paths;
-  maps.fiber_radius = geo.ply[0] ? geo.ply[0]->fiber_radius() : geo.medium[0]->fiber_radius();
-  maps.slab_length = geo.ply[0] ? geo.ply[0]->slab_length() : 2.0 * geo.medium[0]->half_length();
+  /* The cross-sections share the fiber radius and the slab (both the preset's, not the packing's). */
+  maps.fiber_radius = !geo.plies.empty() ? geo.plies[0][0]->fiber_radius() : geo.medium[0]->fiber_radius();
+  maps.slab_length = !geo.plies.empty() ? geo.plies[0][0]->slab_length() : 2.0 * geo.medium[0]->half_length();
   maps.sagitta = opt.tracer.sagitta;
   finalize(acc, opt, arena, maps);
   summarize(shared, opt, maps.stats);
@@ -788,12 +798,14 @@ RdmMaps gather(const FiberPreset &preset, const GatherOptions &opt)
   pp.rho = preset.rho;
   pp.alpha = preset.alpha;
   pp.R = 1.0;
-  const geometry::PlyCrossSection cs = geometry::pack_cross_section(pp, opt.packing_seed);
-  const PlyTracer plain(geometry::Ply(pp, cs), opt.tracer);
-  const PlyTracer mirror(geometry::Ply(pp, geometry::mirrored(cs)), opt.tracer);
+  std::vector<std::unique_ptr<PlyTracer>> tracers;
   Geometry geo;
-  geo.ply[0] = &plain;
-  geo.ply[1] = &mirror;
+  for (int j = 0; j < opt.layouts; j++) {
+    const geometry::PlyCrossSection cs = geometry::pack_cross_section(pp, opt.packing_seed + uint64_t(j));
+    tracers.push_back(std::make_unique<PlyTracer>(geometry::Ply(pp, cs), opt.tracer));
+    tracers.push_back(std::make_unique<PlyTracer>(geometry::Ply(pp, geometry::mirrored(cs)), opt.tracer));
+    geo.plies.push_back({tracers[tracers.size() - 2].get(), tracers.back().get()});
+  }
   return gather_in(preset, geometry::YarnStructure{}, opt, geo, t_start);
 }
 
@@ -802,6 +814,10 @@ RdmMaps gather_through(const FiberPreset &preset, const geometry::YarnStructure 
 {
   validate(preset);
   validate(opt);
+  if (opt.layouts != 1) {
+    throw ParameterError("layouts", "the yarn level gathers through one yarn: several cross-sections are a ply-level "
+                                    "option");
+  }
   Geometry geo;
   geo.medium[0] = &medium;
   geo.medium[1] = &mirror;

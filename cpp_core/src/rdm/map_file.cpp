@@ -154,7 +154,7 @@ void save_maps(const RdmMaps &maps, const std::string &path)
   h["created"] = utc_now();
   h["preset"] = preset_to_json(maps.preset);
   h["geometry"] = {{"R", 1.0}, {"fiber_radius", maps.fiber_radius}, {"slab_length", maps.slab_length},
-                   {"chord_sagitta_fiber_radii", maps.sagitta}, {"packing_seed", maps.packing_seed},
+                   {"chord_sagitta_fiber_radii", maps.sagitta}, {"packing_seed", maps.packing_seed}, {"layouts", maps.layouts},
                    {"mirror_pair", true}};
   h["gather"] = {{"paths", maps.paths}, {"seed", maps.seed}, {"symmetrized", maps.symmetrized},
                  {"incident_sampling", "stratified: equal paths per incident bin, uniform solid angle within"}};
@@ -264,6 +264,10 @@ void read_description(const std::string &path, const json &h, uint32_t version, 
   maps.paths = h.at("gather").at("paths").get<uint64_t>();
   maps.symmetrized = h.at("gather").at("symmetrized").get<bool>();
   maps.packing_seed = h.at("geometry").at("packing_seed").get<uint64_t>();
+  maps.layouts = h.at("geometry").value("layouts", 1); /* files before D42: one cross-section */
+  if (maps.layouts < 1) {
+    fail(path, "geometry.layouts must be at least 1 cross-section");
+  }
   maps.fiber_radius = h.at("geometry").at("fiber_radius").get<double>();
   maps.slab_length = h.at("geometry").at("slab_length").get<double>();
   maps.sagitta = h.at("geometry").at("chord_sagitta_fiber_radii").get<double>();

@@ -49,6 +49,10 @@ struct GatherOptions {
   uint64_t paths = 10'000'000;
   uint64_t seed = 1;       /* seeds every path                                                   */
   uint64_t packing_seed = 1; /* seeds the fiber cross-section (the geometry)                    */
+  /* Cross-sections the paths are spread over, seeded packing_seed, packing_seed + 1, ...: one cross-section
+   * is one draw of the ply, and its far field differs from another's (D42); the maps of several hold
+   * their mean. Ply level only. */
+  int layouts = 1;
   int threads = 0;         /* 0: all cores                                                       */
   MapResolution bins;
   bool symmetrize = true;  /* average each bin with its image under the 180-degree rotation      */
@@ -90,6 +94,7 @@ struct RdmMaps {
   FiberPreset preset;
   geometry::YarnStructure structure; /* the level: a ply (plies = 1) or a K-ply yarn */
   uint64_t seed = 0, packing_seed = 0, paths = 0;
+  int layouts = 1; /* cross-sections, seeded packing_seed, packing_seed + 1, ... (GatherOptions) */
   bool symmetrized = false;
   double fiber_radius = 0.0, slab_length = 0.0, sagitta = 0.0; /* ply radius R = 1 */
   /* The R lobe's surface-fiber twist: the preset's alpha for a ply, the yarn's surface twist for a yarn. */
