@@ -454,8 +454,8 @@ RdmMaps mean_of_maps(const RdmMaps &a, const RdmMaps &b)
   if (preset_to_json(a.preset) != preset_to_json(b.preset) || a.packing_seed != b.packing_seed || a.layouts != b.layouts ||
       a.symmetrized != b.symmetrized || a.structure.plies != b.structure.plies ||
       a.structure.ply_twist != b.structure.ply_twist) {
-    throw ParameterError("maps", "maps of different plies or yarns (preset, packing seed, structure or symmetrisation) "
-                                 "cannot be averaged");
+    throw ParameterError("maps", "maps of different plies or yarns (preset, packing seed, cross-sections, structure or "
+                                 "symmetrisation) cannot be averaged");
   }
   if (a.seed == b.seed) {
     throw ParameterError("maps", "maps of the same path seed are not independent");
