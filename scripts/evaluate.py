@@ -629,6 +629,12 @@ def reference_parts(which: str, k_count: int, layouts: str = "each") -> list[tup
              REFERENCE_SEEDS[which] + 2 * k if layouts == "each" else None) for k in range(k_count)]
 
 
+def reference_scene(a, scene: str, preset: str, light: str, distance: float | None = CLOSEUP_DISTANCE) -> str:
+    """The scene file of reference A's first render (its camera is the scene's camera)."""
+    seed, rot, packing = reference_parts("A", a.ref_rotations, a.ref_layouts)[0]
+    return scene_path(a, scene, REFERENCE_METHOD, preset, light, seed, rot, distance, packing)
+
+
 def reference(a, scene: str, preset: str, light: str, which: str, what: str,
               distance: float = CLOSEUP_DISTANCE) -> dict:
     """Reference `which` (A or B) of (scene, preset, light): the mean of a.ref_rotations renders of the
@@ -690,7 +696,7 @@ def fit_baseline(a, scene: str, preset: str, method: str, env_ref: dict, what: s
         return {**table[name]["fit"], "cached": True}
     ref = read_exr(os.path.join(a.out, env_ref["image"]))
     # The camera of the reference's own scene (reference() wrote it).
-    xml = scene_path(a, scene, REFERENCE_METHOD, preset, "environment", REFERENCE_SEEDS["A"])
+    xml = reference_scene(a, scene, preset, "environment")
     region = central_region(*camera(xml), a.width, a.height)
     target = ref[region].mean(axis=(0, 1))
     colour = np.clip(target, 1e-3, 1.0)  # the environment is white: the mean is an albedo
@@ -801,8 +807,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
                            **{f"seconds_{w}": r["seconds"] for w, r in refs.items()}})
         ref_failed = failed.get("A")  # the runs need reference A only, the noise floor both
         ref_img, region, region_name = None, None, None
-        seed, rot, packing = reference_parts("A", a.ref_rotations, a.ref_layouts)[0]
-        ref_scene = scene_path(a, scene, REFERENCE_METHOD, preset, light, seed, rot, distance, packing)
+        ref_scene = reference_scene(a, scene, preset, light, distance)
         if os.path.isfile(ref_scene):  # (reference() writes it even when it cannot render)
             cam_distance, fov = camera(ref_scene)
             if distance is None:  # the garment's or a patch's own camera

@@ -127,7 +127,7 @@ def test_a_yarn_beyond_the_presets(tmp_path):
     res = json.load(open(tmp_path / "results.json"))
     assert res["yarns"]["my_wool"]["params"] == params
     assert [(x["preset"], x["method"]) for x in res["runs"]] == [("my_wool", "native")]
-    scene = open(tmp_path / "scenes" / "closeup_my_wool_grazing_explicit_seed1001.xml").read()
+    scene = open(tmp_path / "scenes" / "closeup_my_wool_grazing_explicit_seed1001_packing1001.xml").read()
     assert "my_wool" in scene.splitlines()[1]  # the explicit ply of the parameter file, not a preset
     bad = evaluate("--quick", "--out", str(tmp_path), "--yarn", "fleece=a.json,b.json")
     assert bad.returncode == 1 and "--yarn" in bad.stderr
