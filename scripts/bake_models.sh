@@ -18,7 +18,8 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD="${NY_BUILD_DIR:-$ROOT/build}"
 LEVEL="${NY_LEVEL:-ply}"
 case "$LEVEL" in
-  ply) PATHS="${NY_BAKE_PATHS:-4e7}"; CHECK_PATHS="${NY_CHECK_PATHS:-2e7}"; SUFFIX=""; LEVEL_ARGS=() ;;
+  # A ply's paths spread over 32 fiber cross-sections: the model of the yarn, not of one draw of it (D42).
+  ply) PATHS="${NY_BAKE_PATHS:-4e7}"; CHECK_PATHS="${NY_CHECK_PATHS:-2e7}"; SUFFIX=""; LEVEL_ARGS=(--layouts 32) ;;
   # The yarn's walks cost 3-9x the ply's (Embree on an explicit yarn, docs/benchmarks.md): half the paths.
   yarn) PATHS="${NY_BAKE_PATHS:-2e7}"; CHECK_PATHS="${NY_CHECK_PATHS:-1e7}"; SUFFIX="_yarn"
         LEVEL_ARGS=(--level yarn --plies 3 --ply-twist 0.5) ;;

@@ -13,22 +13,25 @@ BUILD="${NY_BUILD_DIR:-$ROOT/build}"
 CLI="$BUILD/cpp_core/neuralyarn"
 MODELS="${NY_MODELS:-$ROOT/models}"
 PATHS="${NY_PATHS:-2e7}"
+# The bake's cross-sections (scripts/bake_models.sh, D42): the maps are independent draws of the same ply.
+LAYOUTS="${NY_LAYOUTS:-32}"
 OUT="$BUILD/bench_lobes"
 [ -x "$CLI" ] || { echo "bench_lobes.sh: $CLI not built; run scripts/setup.sh --no-run first" >&2; exit 1; }
 PRESETS=("$@")
 [ ${#PRESETS[@]} -gt 0 ] || mapfile -t PRESETS < <("$CLI" presets | cut -d" " -f1)  # the core's preset list
 mkdir -p "$OUT"
-echo "# models: $MODELS; maps: $PATHS paths, seeds 3001 and 3002, paper resolution; $(nproc) cores: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
+echo "# models: $MODELS; maps: $PATHS paths, seeds 3001 and 3002, $LAYOUTS cross-sections, paper resolution; $(nproc) cores: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
 echo "# L1: energy-weighted relative L1 per 12-degree (w_i, w_o) cell with the maps' noise removed, in %;"
 echo "# 'mean' over the theta_i bins, 'worst' over all but the grazing one, then the grazing bin;"
 echo "# band ratios model/maps at theta_i = 2 deg: R exits 0-30 deg from the normal, M exits 150-180 deg"
 echo "# preset | R L1 mean | R L1 worst | R L1 grazing | M L1 mean | M L1 worst | M L1 grazing | noise floor R / M (mean) | R 0-30 | M 150-180"
 for p in "${PRESETS[@]}"; do
   for s in 3001 3002; do
-    [ -f "$OUT/${p}_$s.nyrdm" ] || "$CLI" gather --preset "$p" --paths "$PATHS" --seed "$s" --quiet \
-      --out "$OUT/${p}_$s.nyrdm" > /dev/null
+    [ -f "$OUT/${p}_${s}_L$LAYOUTS.nyrdm" ] || "$CLI" gather --preset "$p" --paths "$PATHS" --seed "$s" \
+      --layouts "$LAYOUTS" --quiet --out "$OUT/${p}_${s}_L$LAYOUTS.nyrdm" > /dev/null
   done
-  "$CLI" check "$MODELS/$p.json" --maps "$OUT/${p}_3001.nyrdm" --maps-b "$OUT/${p}_3002.nyrdm" > "$OUT/$p.txt"
+  "$CLI" check "$MODELS/$p.json" --maps "$OUT/${p}_3001_L$LAYOUTS.nyrdm" --maps-b "$OUT/${p}_3002_L$LAYOUTS.nyrdm" \
+    > "$OUT/$p.txt"
   # Rows of the lobe table: "theta | R l1 % (raw, floor) | M l1 % (raw, floor) | R bands | M bands".
   awk -v p="$p" -F'|' '
     /^  +[0-9.]+ +\|/ {

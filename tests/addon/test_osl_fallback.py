@@ -330,7 +330,7 @@ def test_fallback_renders_the_tables(bpy, addon, body, preset, tmp_path, request
     # G1(i) G1(o) (4.0 changed it to the height-correlated form the weights were fitted with,
     # model/cycles_lobes.h), which reflects a few per cent less: there the stock-node body is darker by
     # a measured up to 7.8 % (of value + 0.02), a 3.x limit documented in osl/README.md.
-    colour_tol = 0.04 if bpy.app.version >= (4, 0, 0) else 0.10
+    colour_tol = 0.05 if bpy.app.version >= (4, 0, 0) else 0.10
     rows = [r for r in range(RES) if abs(scene.row_height(r)) < 0.9 * RADIUS]
     assert len(rows) >= 20
     worst_alpha = worst_rel = 0.0
@@ -350,7 +350,8 @@ def test_fallback_renders_the_tables(bpy, addon, body, preset, tmp_path, request
             worst_rel = max(worst_rel, abs(got[c] - expect) / (expect + 0.02))
             # The tolerance is of (value + 0.02), the measure printed below. Measured with the models of D32,
             # 768 samples per row: on 4.5 within 1.9-3.5 % (silk worst, phi -55 degrees), on 3.4 within 5.2-7.8 %
-            # (silk worst).
+            # (silk worst); with those of D42 (32 cross-sections) silk's stock-node body reads 4.2 % at phi -64
+            # degrees on 4.5, so 5 % there.
             assert abs(got[c] - expect) <= colour_tol * (expect + 0.02), (
                 f"row {r} (phi {math.degrees(phi):.0f}) channel {c}: {got[c]:.5f} against {expect:.5f}")
 

@@ -58,7 +58,7 @@ struct FurnaceMax {
 FurnaceMax white_furnace_max(const ny::YarnBsdfParams &p, const std::vector<ny::Vec3> &dirs, int threads = 0);
 
 /* Directions per cell side at which bound_between_centres() evaluates the furnace. */
-constexpr int kBoundSub = 4;
+constexpr int kBoundSub = 5;
 
 /* Incident bins on each side of a bin in the calibration's window over phi_i (same theta_i): about 20 degrees
  * in all, 5 of the paper's 90 bins, which divides the maps' per-bin noise by sqrt(5) and keeps the structure
