@@ -6,8 +6,8 @@
 For each preset and distant light (front, grazing, back, axis), over the central region of the 160 x 80
 close-up (evaluate.py's: columns 40-119, rows 34-45), the model's image mean predicted without a renderer
 (bench_split.predict with `--predict-lobes R|M|RM`) against the mean of two independent maps' predictions
-(MAPS/<preset>_3001_L32.nyrdm and _3002_L32.nyrdm, the maps of scripts/bench_lobes.sh; --layouts names
-another cross-section count): Rec. 709 luminance, relative;
+(MAPS/<preset>_3001_L<K>.nyrdm and _3002_L<K>.nyrdm, the maps of scripts/bench_lobes.sh over the --after
+model's K cross-sections): Rec. 709 luminance, relative;
 the worst channel of the whole (R + M) after the change; the maps' own A/B difference. "—" where the maps hold
 no light of that lobe. Which lobe a fitting error is in, and what a change of the models did to it; D36
 showed Cycles renders the prediction within 0.1 %. A benchmark: prints a Markdown table; never a test.
@@ -15,6 +15,7 @@ showed Cycles renders the prediction within 0.1 %. A benchmark: prints a Markdow
 from __future__ import annotations
 
 import argparse
+import json
 import os
 
 from bench_split import predict, rel, worst
@@ -31,14 +32,15 @@ def main() -> None:
     ap.add_argument("--before", required=True, help="directory of the models before (<preset>.json)")
     ap.add_argument("--after", default="models", help="directory of the models after (default: models)")
     ap.add_argument("--maps", default=os.path.join("build", "bench_lobes"), help="the two maps per preset")
-    ap.add_argument("--layouts", type=int, default=32, help="the maps' cross-sections (scripts/bench_lobes.sh's)")
     ap.add_argument("--presets", nargs="+", default=PRESETS, choices=PRESETS)
     args = ap.parse_args()
     print("| preset | light | R before | R after | M before | M after | R + M before | R + M after (worst channel) "
           "| maps A/B |")
     print("|---|---|---|---|---|---|---|---|---|")
     for preset in args.presets:
-        maps = [os.path.join(args.maps, f"{preset}_{seed}_L{args.layouts}.nyrdm") for seed in (3001, 3002)]
+        with open(os.path.join(args.after, f"{preset}.json")) as f:
+            layouts = json.load(f)["provenance"]["maps"].get("layouts", 1)
+        maps = [os.path.join(args.maps, f"{preset}_{seed}_L{layouts}.nyrdm") for seed in (3001, 3002)]
         res = {(tag, lobes): predict(preset, LIGHTS, SIZE, REGION, maps, {}, os.path.join(d, f"{preset}.json"), lobes)
                for tag, d in (("before", args.before), ("after", args.after)) for lobes in ("R", "M", "RM")}
         for light in LIGHTS:

@@ -13,19 +13,20 @@ BUILD="${NY_BUILD_DIR:-$ROOT/build}"
 CLI="$BUILD/cpp_core/neuralyarn"
 MODELS="${NY_MODELS:-$ROOT/models}"
 PATHS="${NY_PATHS:-2e7}"
-# The bake's cross-sections (scripts/bake_models.sh, D42): the maps are independent draws of the same ply.
-LAYOUTS="${NY_LAYOUTS:-32}"
 OUT="$BUILD/bench_lobes"
 [ -x "$CLI" ] || { echo "bench_lobes.sh: $CLI not built; run scripts/setup.sh --no-run first" >&2; exit 1; }
 PRESETS=("$@")
 [ ${#PRESETS[@]} -gt 0 ] || mapfile -t PRESETS < <("$CLI" presets | cut -d" " -f1)  # the core's preset list
 mkdir -p "$OUT"
-echo "# models: $MODELS; maps: $PATHS paths, seeds 3001 and 3002, $LAYOUTS cross-sections, paper resolution; $(nproc) cores: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
+model_layouts() { python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["provenance"]["maps"].get("layouts", 1))' "$1"; }
+echo "# models: $MODELS; maps: $PATHS paths, seeds 3001 and 3002, each model's own cross-sections, paper resolution; $(nproc) cores: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
 echo "# L1: energy-weighted relative L1 per 12-degree (w_i, w_o) cell with the maps' noise removed, in %;"
 echo "# 'mean' over the theta_i bins, 'worst' over all but the grazing one, then the grazing bin;"
 echo "# band ratios model/maps at theta_i = 2 deg: R exits 0-30 deg from the normal, M exits 150-180 deg"
 echo "# preset | R L1 mean | R L1 worst | R L1 grazing | M L1 mean | M L1 worst | M L1 grazing | noise floor R / M (mean) | R 0-30 | M 150-180"
 for p in "${PRESETS[@]}"; do
+  # The model's own cross-sections (its provenance; D42): the maps are independent draws of the ply it was baked on.
+  LAYOUTS=$(model_layouts "$MODELS/$p.json")
   for s in 3001 3002; do
     [ -f "$OUT/${p}_${s}_L$LAYOUTS.nyrdm" ] || "$CLI" gather --preset "$p" --paths "$PATHS" --seed "$s" \
       --layouts "$LAYOUTS" --quiet --out "$OUT/${p}_${s}_L$LAYOUTS.nyrdm" > /dev/null
