@@ -6,25 +6,17 @@
 #include <memory>
 #include <stdexcept>
 
-#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
 #include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/model/mlp_lanes.h"
 #include "neuralyarn/train/dataset.h"
+#include "neuralyarn/thread_limit.h"
 #include "neuralyarn/units.h"
 
 namespace neuralyarn::model {
 
 namespace {
-
-/* At most `threads` workers while it lives (0: all cores). */
-std::unique_ptr<tbb::global_control> thread_limit(int threads)
-{
-  return threads > 0 ? std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                             size_t(threads))
-                     : nullptr;
-}
 
 /* map / network, or 1 where there is nothing to calibrate. Energies below 1e-5 are Monte Carlo noise in
  * the map (a bin of 20 000 paths resolves about 1e-4). */
@@ -162,8 +154,7 @@ EnergyCalibration calibrate_energy(const YarnModel &model, const rdm::RdmMaps &m
   const rdm::MapResolution &b = maps.bins;
   const std::vector<double> ER = maps.energy(maps.r), EM = maps.energy(maps.m);
   const int n = int(b.incident());
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
-                            threads > 0 ? size_t(threads) : tbb::this_task_arena::max_concurrency());
+  const auto limit = thread_limit(threads);
   auto incident = [&](int k) {
     return train::entry_vec3(rdm::bin_center(k / b.phi_i, 0.0, 0.5 * kPi, b.theta_i),
                              rdm::bin_center(k % b.phi_i, -kPi, kPi, b.phi_i));

@@ -8,13 +8,13 @@
 #include <cstring>
 
 #include <Eigen/Dense>
-#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/calibration.h"
 #include "neuralyarn/model/cycles_lobes.h"
 #include "neuralyarn/model/model.h"
+#include "neuralyarn/thread_limit.h"
 #include "neuralyarn/units.h"
 
 namespace neuralyarn::model {
@@ -381,8 +381,7 @@ FallbackTables compute_fallback(const YarnModel &model, const FallbackOptions &o
   f.lobes = fallback_lobes(f);
   const size_t K = f.lobes.size();
   f.W.assign(n * K * 3, 0.0f);
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
-                            o.threads > 0 ? size_t(o.threads) : tbb::this_task_arena::max_concurrency());
+  const auto limit = thread_limit(o.threads);
   const ExitGrid grid(o.quad_theta, o.quad_phi);
   tbb::parallel_for(0, int(n), [&](int k) {
     const int i = k / f.phi_bins, j = k % f.phi_bins;

@@ -5,13 +5,12 @@
 #include <string>
 
 #include <Eigen/Core>
-#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include "neuralyarn/model/calibration.h"
 #include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/presets.h" /* ParameterError */
+#include "neuralyarn/thread_limit.h"
 #include "neuralyarn/units.h"
 
 namespace neuralyarn::model {
@@ -104,8 +103,7 @@ ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOp
     }
   }
   const double cos_cone = std::cos(o.cone_deg * kDeg), cos_ring = std::cos(o.ring_deg * kDeg);
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
-                            o.threads > 0 ? size_t(o.threads) : size_t(tbb::this_task_arena::max_concurrency()));
+  const auto limit = thread_limit(o.threads);
   tbb::parallel_for(0, b.theta_i * b.phi_i, [&](int k) {
     const int ti = k / b.phi_i, pi = k % b.phi_i;
     /* The cone's cells of every incident bin of the window, with their excess over their own ring. */
