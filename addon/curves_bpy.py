@@ -12,6 +12,7 @@ import numpy as np
 
 import bpy
 
+from . import viewport_display
 from .geometry import GeometryError, YarnCurve, validate
 
 
@@ -103,8 +104,9 @@ def _new_curves_data_by_conversion(name: str, sizes: list[int], positions: np.nd
 
 
 def create_curves_object(context, name: str, curves: list[YarnCurve], *, material=None, location=None):
-    """A new Curves object holding `curves`, linked to the active collection and selected. Raises
-    GeometryError (nothing is created) for invalid curves."""
+    """A new Curves object holding `curves`, linked to the active collection and selected, drawn in the
+    viewport through every point (viewport_display). Raises GeometryError (nothing is created) for invalid
+    curves."""
     if not curves:
         raise GeometryError(f"{name}: no curves to create")
     validate(curves, source=name)
@@ -118,6 +120,11 @@ def create_curves_object(context, name: str, curves: list[YarnCurve], *, materia
         obj = bpy.data.objects.new(name, data)
     except Exception:
         bpy.data.hair_curves.remove(data)
+        raise
+    try:
+        viewport_display.add_to(obj)
+    except Exception:
+        remove_curves_object(obj)
         raise
     if location is not None:
         obj.location = location

@@ -32,7 +32,8 @@ done
 # python3-venv for the add-on's test environment; Debian's Blender 3.4.1 (Cycles without OSL), the
 # oldest Blender the add-on supports, which its tests run, and numpy for it (the add-on needs it; the
 # package does not depend on it); GNU time (/usr/bin/time) for the renders' peak memory (scripts/evaluate.sh,
-# bench_*.sh); clang-14 for the kernel headers' device-mode compile check (its address spaces, tests/device).
+# bench_*.sh); clang-14 for the kernel headers' device-mode compile check (its address spaces, tests/device);
+# xvfb for the add-on's viewport tests (Workbench and Blender's interface need a display).
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git ccache
   libembree-dev libopenimageio-dev openimageio-tools libopenexr-dev libtbb-dev libeigen3-dev
@@ -41,6 +42,7 @@ PACKAGES=(
   fonts-dejavu-core
   python3-venv blender python3-numpy time
   clang-14
+  xvfb xauth
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
