@@ -13,7 +13,8 @@ pieces of PIECE_POINTS points that share their end points, which the viewport th
 Cycles would render the pieces' ends (a kink, slits on the outside of thick bends), so while a 3D viewport
 shows Rendered shading with Cycles the modifiers are off (sync(), on every change of a viewport's shading or
 a scene's engine): that viewport then renders what F12 renders, and Solid views beside it draw zigzags until
-it leaves Rendered shading."""
+it leaves Rendered shading. Objects of more than DISPLAY_POINTS points are drawn through every n-th point
+(the modifier's "Point Step"), a lighter display of heavy garments."""
 
 from __future__ import annotations
 
@@ -24,14 +25,18 @@ GROUP = ".NeuralYarn viewport pieces"
 #: Points per piece: the 2^3 points the viewport draws a curve with at the default subdivision (0), so that
 #: each drawn point is near a control point.
 PIECE_POINTS = 8
+#: Points an object may have before its display draws every n-th (the modifier's "Point Step", chosen when
+#: the object is made; the artist can change it on the modifier).
+DISPLAY_POINTS = 1_000_000
+STEP = "Point Step"
 _RADIUS = "ny_display_radius"
 _SOURCE = "ny_display_source"
 
 
 def _socket(sockets, name: str, kind: str):
-    """The socket called `name` of type `kind` (3.4's attribute nodes carry one per data type)."""
+    """The socket called `name` of type `kind` (3.4's attribute and switch nodes carry one per data type)."""
     for s in sockets:
-        if s.name == name and s.type == kind:
+        if s.name == name and s.type == kind and getattr(s, "enabled", True):
             return s
     raise LookupError(f"no {kind} socket '{name}'")
 
@@ -40,10 +45,15 @@ def _new_group():
     ng = bpy.data.node_groups.new(GROUP, "GeometryNodeTree")
     if hasattr(ng, "interface"):  # Blender 4.0+
         ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+        step = ng.interface.new_socket(STEP, in_out="INPUT", socket_type="NodeSocketInt")
         ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
     else:
         ng.inputs.new("NodeSocketGeometry", "Geometry")
+        step = ng.inputs.new("NodeSocketInt", STEP)
         ng.outputs.new("NodeSocketGeometry", "Geometry")
+    step.default_value, step.min_value, step.max_value = 1, 1, 1000
+    step.description = ("Draw every n-th point of each curve (and its last) in the viewport: lighter display of "
+                        "heavy garments; renders take every point")
     nodes, link = ng.nodes, ng.links.new
 
     def node(kind, **props):
@@ -58,6 +68,18 @@ def _new_group():
     poly = node("GeometryNodeCurveSplineType", spline_type="POLY")
     store = node("GeometryNodeStoreNamedAttribute", data_type="FLOAT", domain="POINT")
     store.inputs["Name"].default_value = _RADIUS
+    # A point step above 1 resamples each curve to every step-th point's count (evenly along it).
+    count = node("GeometryNodeSplineLength")
+    minus_one = node("ShaderNodeMath", operation="SUBTRACT")
+    minus_one.inputs[1].default_value = 1.0
+    per_step = node("ShaderNodeMath", operation="DIVIDE")
+    ceil = node("ShaderNodeMath", operation="CEIL")
+    plus_one = node("ShaderNodeMath", operation="ADD")
+    plus_one.inputs[1].default_value = 1.0
+    resample = node("GeometryNodeResampleCurve", mode="COUNT")
+    stepped = node("ShaderNodeMath", operation="GREATER_THAN")
+    stepped.inputs[1].default_value = 1.0
+    switch = node("GeometryNodeSwitch", input_type="GEOMETRY")
     to_mesh = node("GeometryNodeCurveToMesh")
     # Every PIECE_POINTS-th edge is split from its neighbours (a two-point piece of its own): the curves
     # fall apart into pieces of at most PIECE_POINTS points.
@@ -89,7 +111,18 @@ def _new_group():
     link(group_in.outputs[0], poly.inputs["Curve"])
     link(poly.outputs[0], store.inputs["Geometry"])
     link(node("GeometryNodeInputRadius").outputs[0], _socket(store.inputs, "Value", "VALUE"))
-    link(store.outputs[0], to_mesh.inputs["Curve"])
+    link(_socket(count.outputs, "Point Count", "INT"), minus_one.inputs[0])
+    link(minus_one.outputs[0], per_step.inputs[0])
+    link(group_in.outputs[1], per_step.inputs[1])
+    link(per_step.outputs[0], ceil.inputs[0])
+    link(ceil.outputs[0], plus_one.inputs[0])
+    link(store.outputs[0], resample.inputs["Curve"])
+    link(plus_one.outputs[0], resample.inputs["Count"])
+    link(group_in.outputs[1], stepped.inputs[0])
+    link(stepped.outputs[0], _socket(switch.inputs, "Switch", "BOOLEAN"))
+    link(store.outputs[0], _socket(switch.inputs, "False", "GEOMETRY"))
+    link(resample.outputs[0], _socket(switch.inputs, "True", "GEOMETRY"))
+    link(_socket(switch.outputs, "Output", "GEOMETRY"), to_mesh.inputs["Curve"])
     link(index.outputs[0], modulo.inputs[0])
     link(modulo.outputs[0], is_cut.inputs[0])
     link(to_mesh.outputs[0], split.inputs["Mesh"])
@@ -99,7 +132,7 @@ def _new_group():
     link(_socket(stored.outputs, "Attribute", "VALUE"), set_radius.inputs["Radius"])
     link(group_in.outputs[0], mark.inputs["Geometry"])
     link(set_radius.outputs[0], join.inputs[0])
-    link(mark.outputs[0], join.inputs[0])  # first: its materials are the result's
+    link(mark.outputs[0], join.inputs[0])  # linked last, joined first (3.4 and 4.5): its materials are kept
     link(join.outputs[0], delete.inputs["Geometry"])
     link(_socket(marked.outputs, "Attribute", "BOOLEAN"), delete.inputs["Selection"])
     link(delete.outputs[0], removes[0].inputs["Geometry"])
@@ -114,6 +147,23 @@ def node_group():
     return ng if ng is not None and ng.bl_idname == "GeometryNodeTree" else _new_group()
 
 
+def point_step(points: int) -> int:
+    """The display's point step for an object of `points` points: 1 (every point) up to DISPLAY_POINTS."""
+    return max(1, -(-points // DISPLAY_POINTS))
+
+
+def _input_identifier(ng, name: str) -> str:
+    """How a modifier names the group input `name` (its identifier: "Input_2" in 3.x, "Socket_1" in 4.x)."""
+    items = ng.interface.items_tree if hasattr(ng, "interface") else ng.inputs
+    return next(i.identifier for i in items if getattr(i, "in_out", "INPUT") == "INPUT" and i.name == name)
+
+
+def display_step(obj) -> int:
+    """The point step an object's display modifier draws with."""
+    modifier = obj.modifiers[MODIFIER]
+    return int(modifier[_input_identifier(modifier.node_group, STEP)])
+
+
 def add_to(obj) -> None:
     """Gives a Curves object the viewport-only display modifier (once)."""
     if obj.modifiers.get(MODIFIER) is not None:
@@ -123,6 +173,7 @@ def add_to(obj) -> None:
     try:
         modifier = obj.modifiers.new(MODIFIER, "NODES")
         modifier.node_group = node_group()
+        modifier[_input_identifier(modifier.node_group, STEP)] = point_step(len(obj.data.points))
         modifier.show_render = False
         modifier.show_viewport = True
     except Exception:

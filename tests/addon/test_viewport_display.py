@@ -180,3 +180,26 @@ def test_the_display_modifier_is_made_once_and_kept_in_the_file(bpy, addon, empt
     for o in (o for o in bpy.data.objects if o.type == "CURVES"):
         m = o.modifiers[addon.viewport_display.MODIFIER]
         assert m.node_group is not None and m.node_group.name == addon.viewport_display.GROUP
+
+
+def test_heavy_objects_are_drawn_with_every_nth_point(bpy, addon, empty, monkeypatch):
+    """Issue 20's heavy garments: past DISPLAY_POINTS points an object's display draws every n-th point
+    (n chosen when it is made, shown on the modifier); renders still take every point. Here with a limit
+    of 200 points for a 771-point knit: step 4, a quarter of the points drawn, radius and material kept."""
+    vd = addon.viewport_display
+    assert [vd.point_step(n) for n in (1, vd.DISPLAY_POINTS, vd.DISPLAY_POINTS + 1, 3_585_780)] == [1, 1, 2, 4]
+    monkeypatch.setattr(vd, "DISPLAY_POINTS", 200)
+    bpy.ops.neural_yarn.add_knit(rows=3, stitches=4, preset="fleece")
+    knit = bpy.context.active_object
+    n = len(knit.data.points)
+    assert n == 771 and vd.display_step(knit) == 4
+    shown = knit.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    rows = len(knit.data.curves)
+    kept = sum(-(-(k - 1) // 4) + 1 for k in (n // rows,) * rows)  # every 4th point of each row, and its last
+    pieces = len(shown.curves)
+    assert len(shown.points) - pieces == kept - rows  # the pieces share their end points: one per cut
+    assert [m.name for m in shown.materials] == ["Neural Yarn fleece"]
+    radius = np.empty(len(shown.points), dtype=np.float32)
+    shown.attributes["radius"].data.foreach_get("value", radius)
+    assert np.allclose(radius, 0.001, rtol=1e-5)
+    assert not knit.modifiers[vd.MODIFIER].show_render
