@@ -4,9 +4,9 @@
 A Blender extension (blender_manifest.toml, 4.2+) that also loads as a legacy add-on (bl_info, 3.4+).
 Modules: geometry/ (importers and generators, no bpy), model_io (model files, no bpy), fallback/ (the
 fallback's tables, lobes and OSL shader, no bpy), resources (shipped files), curves_bpy (Curves objects),
-fallback_nodes + nodes (the Neural Yarn BSDF node), scene_setup (camera, lights, render settings), operators,
-ui, batch (command-line renders), scene_description (scene description files, no bpy) + scene_bpy (their
-Blender builder: the evaluation's scenes in Blender).
+viewport_display (how the viewport draws them), fallback_nodes + nodes (the Neural Yarn BSDF node),
+scene_setup (camera, lights, render settings), operators, ui, batch (command-line renders), scene_description
+(scene description files, no bpy) + scene_bpy (their Blender builder: the evaluation's scenes in Blender).
 """
 
 bl_info = {

@@ -161,6 +161,78 @@ def test_the_pieces_keep_the_material_and_leave_cycles_viewports_alone(bpy, addo
     assert modifier.show_viewport
 
 
+def _evaluated(bpy, obj):
+    data = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    n = len(data.points)
+    pos = np.empty(n * 3, dtype=np.float32)
+    data.position_data.foreach_get("vector", pos)
+    radius = np.empty(n, dtype=np.float32)
+    data.attributes["radius"].data.foreach_get("value", radius)
+    offsets = np.empty(len(data.curves) + 1, dtype=np.int32)
+    data.curve_offset_data.foreach_get("value", offsets)
+    return data, pos.reshape(n, 3), radius, offsets
+
+
+def _helix_yarns(addon, n_curves=2, n=101):
+    """Curves with a radius that grows along each one, so that a radius on the wrong point shows."""
+    out = []
+    for c in range(n_curves):
+        t = np.linspace(0.0, 6.0 * np.pi, n)
+        pts = np.stack([np.cos(t), np.sin(t) + 3.0 * c, 0.2 * t], axis=1)
+        out.append(addon.geometry.YarnCurve(pts, np.linspace(0.01, 0.05, n) * (1 + c)))
+    return out
+
+
+def test_the_pieces_are_the_curves_cut_with_their_radii(bpy, addon, empty):
+    """At step 1 the display holds the original points and radii, cut into pieces of up to 8 points and the
+    one-segment links between them, every piece running along its curve."""
+    yarns = _helix_yarns(addon)
+    obj = addon.curves_bpy.create_curves_object(bpy.context, "helices", yarns)
+    data, pos, radius, offsets = _evaluated(bpy, obj)
+    sizes = np.diff(offsets)
+    assert sizes.max() == 8 and sizes.min() >= 2 and (sizes == 8).sum() >= 2 * (100 // 8) - 2
+    originals = np.concatenate([y.points for y in yarns])
+    orig_radius = np.concatenate([y.radius for y in yarns])
+    nearest = np.argmin(((pos[:, None, :] - originals[None, :, :]) ** 2).sum(-1), axis=1)
+    assert np.allclose(pos, originals[nearest], atol=1e-5)  # every displayed point is an original one
+    assert np.allclose(radius, orig_radius[nearest], rtol=1e-5)  # with its own radius
+    assert set(nearest.tolist()) == set(range(len(originals)))  # and every original point is displayed
+    for a, b in zip(offsets[:-1], offsets[1:]):
+        assert abs(int(nearest[b - 1]) - int(nearest[a])) == b - a - 1  # consecutive points of one curve
+
+
+def test_each_piece_keeps_its_curves_material(bpy, addon, empty):
+    """A yarn object of two materials (material_index per curve): each piece draws in its curve's."""
+    obj = addon.curves_bpy.create_curves_object(bpy.context, "two", _helix_yarns(addon))
+    for name in ("A", "B"):
+        obj.data.materials.append(bpy.data.materials.new(name))
+    attr = obj.data.attributes.get("material_index") or obj.data.attributes.new("material_index", "INT", "CURVE")
+    attr.data.foreach_set("value", np.array([0, 1], dtype=np.int32))
+    obj.data.update_tag()
+    data, pos, _, offsets = _evaluated(bpy, obj)
+    assert [m.name for m in data.materials] == ["A", "B"]
+    index = np.empty(len(data.curves), dtype=np.int32)
+    data.attributes["material_index"].data.foreach_get("value", index)
+    first_point = pos[offsets[:-1]]
+    expected = (first_point[:, 1] > 1.5).astype(np.int32)  # the second helix is 3 units along y
+    assert np.array_equal(index, expected)
+
+
+def test_a_display_group_of_another_version_is_replaced(bpy, addon, empty):
+    """A file whose display group has another version (or none of this one's inputs) still takes new yarn
+    objects, which get this version's group; loading the file moves the old objects to it."""
+    vd = addon.viewport_display
+    bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="NONE")
+    old_obj = bpy.context.active_object
+    old = vd.display_modifier(old_obj).node_group
+    old[vd._STAMP] = vd.VERSION - 1  # as a file saved with the group before this version
+    assert bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="NONE") == {"FINISHED"}
+    new = vd.display_modifier(bpy.context.active_object).node_group
+    assert new is not old and new.get(vd._STAMP) == vd.VERSION
+    vd.upgrade()
+    assert vd.display_modifier(old_obj).node_group is new and old.users == 0
+
+
 def test_the_display_modifier_is_made_once_and_kept_in_the_file(bpy, addon, empty, tmp_path):
     """Every yarn object gets the modifier, all share one node group, and a saved file keeps them."""
     bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="NONE")
@@ -174,32 +246,36 @@ def test_the_display_modifier_is_made_once_and_kept_in_the_file(bpy, addon, empt
         assert [m.name for m in mods] == [addon.viewport_display.MODIFIER]
     assert [g.name for g in bpy.data.node_groups if g.bl_idname == "GeometryNodeTree"] == \
         [addon.viewport_display.GROUP]
+    objs[0].modifiers[0].name = "renamed"  # found by its group, not its name
+    addon.viewport_display.sync([("RENDERED", "CYCLES")])
+    assert not objs[0].modifiers[0].show_viewport
     path = str(tmp_path / "display.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
     bpy.ops.wm.open_mainfile(filepath=path)
     for o in (o for o in bpy.data.objects if o.type == "CURVES"):
-        m = o.modifiers[addon.viewport_display.MODIFIER]
-        assert m.node_group is not None and m.node_group.name == addon.viewport_display.GROUP
+        m = addon.viewport_display.display_modifier(o)
+        assert m is not None and m.node_group.name == addon.viewport_display.GROUP
+        assert m.show_viewport  # load_post: no viewport renders here, so the display is on again
 
 
-def test_heavy_objects_are_drawn_with_every_nth_point(bpy, addon, empty, monkeypatch):
-    """Issue 20's heavy garments: past DISPLAY_POINTS points an object's display draws every n-th point
-    (n chosen when it is made, shown on the modifier); renders still take every point. Here with a limit
-    of 200 points for a 771-point knit: step 4, a quarter of the points drawn, radius and material kept."""
+def test_heavy_objects_are_drawn_with_fewer_points(bpy, addon, empty, monkeypatch):
+    """Issue 20's heavy garments: past DISPLAY_POINTS points an object's display resamples each curve to 1/n
+    of its points (n chosen when it is made, shown on the modifier); renders still take every point. Here
+    with a limit of 60 points for two 101-point helices: step 4, each curve drawn with 26 points, every one
+    on the curve's polyline, with the radius between its neighbours'."""
     vd = addon.viewport_display
     assert [vd.point_step(n) for n in (1, vd.DISPLAY_POINTS, vd.DISPLAY_POINTS + 1, 3_585_780)] == [1, 1, 2, 4]
-    monkeypatch.setattr(vd, "DISPLAY_POINTS", 200)
-    bpy.ops.neural_yarn.add_knit(rows=3, stitches=4, preset="fleece")
-    knit = bpy.context.active_object
-    n = len(knit.data.points)
-    assert n == 771 and vd.display_step(knit) == 4
-    shown = knit.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
-    rows = len(knit.data.curves)
-    kept = sum(-(-(k - 1) // 4) + 1 for k in (n // rows,) * rows)  # every 4th point of each row, and its last
-    pieces = len(shown.curves)
-    assert len(shown.points) - pieces == kept - rows  # the pieces share their end points: one per cut
-    assert [m.name for m in shown.materials] == ["Neural Yarn fleece"]
-    radius = np.empty(len(shown.points), dtype=np.float32)
-    shown.attributes["radius"].data.foreach_get("value", radius)
-    assert np.allclose(radius, 0.001, rtol=1e-5)
-    assert not knit.modifiers[vd.MODIFIER].show_render
+    monkeypatch.setattr(vd, "DISPLAY_POINTS", 60)
+    yarns = _helix_yarns(addon)
+    obj = addon.curves_bpy.create_curves_object(bpy.context, "helices", yarns)
+    assert vd.display_step(obj) == 4
+    data, pos, radius, offsets = _evaluated(bpy, obj)
+    assert len(np.unique(pos.round(6), axis=0)) == 2 * 26  # 26 points per curve (pieces repeat their ends)
+    for y, c in zip(yarns, range(2)):
+        mine = (pos[:, 1] > 1.5) == bool(c)
+        d = np.linalg.norm(pos[mine][:, None, :] - y.points[None, :, :], axis=-1)
+        assert d.min(axis=1).max() < 0.2  # on the curve (points 0.19 apart)
+        r_lo, r_hi = y.radius.min(), y.radius.max()
+        assert (radius[mine] >= r_lo * 0.999).all() and (radius[mine] <= r_hi * 1.001).all()
+        assert np.corrcoef(pos[mine][:, 2], radius[mine])[0, 1] > 0.99  # growing along the helix as it rises
+    assert not vd.display_modifier(obj).show_render

@@ -43,7 +43,7 @@ def step():
         knit = bpy.data.objects.get("knit")
         if knit is None:
             window, _ = view3d()
-            with bpy.context.temp_override(window=window) if hasattr(bpy.context, "temp_override") else _noop():
+            with bpy.context.temp_override(window=window):
                 bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="NONE")
             bpy.context.view_layer.objects.active.name = "knit"
             window.scene.render.engine = "CYCLES"
@@ -68,14 +68,6 @@ def step():
         return 0.2
     except Exception as e:  # noqa: BLE001 - any failure ends the test with its message
         finish(f"{type(e).__name__}: {e}", 1)
-
-
-class _noop:
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *a):
-        return False
 
 
 bpy.app.timers.register(step, first_interval=0.5)
