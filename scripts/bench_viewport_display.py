@@ -13,7 +13,6 @@ never a test. Ends with os._exit (the bpy wheel can hang at exit).
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import sys
 import tempfile
@@ -24,23 +23,15 @@ import bpy
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
 
 
-def load_addon():
-    addon_dir = os.path.join(ROOT, "addon")
-    spec = importlib.util.spec_from_file_location("neural_yarn", os.path.join(addon_dir, "__init__.py"),
-                                                  submodule_search_locations=[addon_dir])
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["neural_yarn"] = module
-    spec.loader.exec_module(module)
-    module.register()
-    return module
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--rows", type=int, default=60)
     ap.add_argument("--stitches", type=int, default=60)
     args = ap.parse_args()
-    addon = load_addon()
+    sys.path.insert(0, os.path.join(ROOT, "addon"))
+    import batch  # the add-on's own loader
+
+    addon = batch.addon_module()
     vd = addon.viewport_display
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.neural_yarn.add_knit(rows=args.rows, stitches=args.stitches, preset="fleece")

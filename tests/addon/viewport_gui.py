@@ -6,19 +6,15 @@ the yarns' display modifiers off through the message bus, and back to Solid turn
 
 Prints "viewport_gui: ok" and exits 0, or names the failed step and exits 1.
 """
-import importlib.util
 import os
 import sys
 
 import bpy
 
-ADDON = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, os.pardir, "addon")
-spec = importlib.util.spec_from_file_location("neural_yarn", os.path.join(ADDON, "__init__.py"),
-                                              submodule_search_locations=[ADDON])
-addon = importlib.util.module_from_spec(spec)
-sys.modules["neural_yarn"] = addon
-spec.loader.exec_module(addon)
-addon.register()
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, os.pardir, "addon"))
+import batch  # noqa: E402  (the add-on's own loader)
+
+addon = batch.addon_module()
 
 
 def view3d():
