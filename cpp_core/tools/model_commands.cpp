@@ -111,10 +111,11 @@ void print_lobes(const model::LobeFidelity &f)
   std::printf("lobes (4D)       energy-weighted relative L1 per (w_i, w_o) cell, %s;\n"
               "                 energy ratios model / maps per exit band (theta_o from the ply normal; axial: within\n"
               "                 30 deg of the ply axis; forward: within 12 deg of -w_i, the maps' share of the energy\n"
-              "                 in brackets)\n",
+              "                 in brackets; through: w_i and w_o within 15 deg of the plane normal to the ply axis,\n"
+              "                 w_o on the far side: a light behind the ply, seen from the front)\n",
               nr ? "model error with the maps' noise removed (raw L1 and noise floor in brackets)"
                  : "against one map, its noise included (--maps-b gives the noise floor)");
-  std::printf("  theta_i |   R L1%s |   M L1%s | R  0-30 30-60 60-90 | M  0-30 30-60 60-90 90-120 120-150 150-180 axial forward\n",
+  std::printf("  theta_i |   R L1%s |   M L1%s | R  0-30 30-60 60-90 | M  0-30 30-60 60-90 90-120 120-150 150-180 axial forward through\n",
               nr ? " (raw, floor)" : "", nr ? " (raw, floor)" : "");
   for (size_t t = 0; t < M.l1.size(); t++) {
     std::printf("  %5.1f   | %5.1f %%", M.theta_i_deg[t], 100 * R.l1[t]);
@@ -126,10 +127,11 @@ void print_lobes(const model::LobeFidelity &f)
       std::printf(" (%4.1f, %4.1f)", 100 * M.l1_raw[t], 100 * M.noise_floor[t]);
     }
     std::printf(" |   %4.2f  %4.2f  %4.2f |  ", R.band_ratio[t][0], R.band_ratio[t][1], R.band_ratio[t][2]);
-    for (int k = 0; k < model::kLobeBands; k++) {
+    for (int k = 0; k <= model::kLobeForwardBand; k++) {
       std::printf(" %5.2f", M.band_ratio[t][size_t(k)]);
     }
-    std::printf(" (%2.0f %%)\n", 100 * M.band_share[t][model::kLobeForwardBand]);
+    std::printf(" (%2.0f %%)  %5.2f\n", 100 * M.band_share[t][model::kLobeForwardBand],
+                M.band_ratio[t][model::kLobeThroughBand]);
   }
   std::printf("  worst L1 but the grazing bin: R %.1f %%, M %.1f %%; grazing bin: R %.1f %%, M %.1f %% (%.1f s)\n",
               100 * R.l1_max_but_grazing, 100 * M.l1_max_but_grazing, 100 * R.l1_grazing, 100 * M.l1_grazing,

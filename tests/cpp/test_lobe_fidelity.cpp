@@ -187,6 +187,43 @@ TEST(LobeFidelity, ForwardBandHoldsTheExitsAroundMinusWi)
   }
 }
 
+TEST(LobeFidelity, ThroughBandHoldsWhatALightBehindThePlyShows)
+{
+  /* A model with 3/2 of the maps' energy where w_i and w_o lie within 15 degrees of the plane normal to the
+   * ply axis and w_o leaves on the far side: the through band reads 3/2 wherever it holds energy (incident
+   * bins near the plane), 0 where it holds none, and its share is that of those bins. With the far side
+   * taken as w_o.z > 0 (the near side) the ratio would be 1 and the test fails. */
+  auto through = [](int ti, int pi, int to, int po) {
+    const Eigen::Vector3f wi = train::entry_direction(rdm::bin_center(ti, 0, 0.5 * kPi, kBins.theta_i),
+                                                      rdm::bin_center(pi, -kPi, kPi, kBins.phi_i));
+    const Eigen::Vector3f wo = train::entry_direction(rdm::bin_center(to, 0, kPi, kBins.theta_o),
+                                                      rdm::bin_center(po, -kPi, kPi, kBins.phi_o));
+    const double s = std::sin(model::kLobeThroughDeg * kDeg);
+    return std::abs(wi.x()) < s && std::abs(wo.x()) < s && wo.z() < 0.0f;
+  };
+  auto more_through = [&](int ti, int pi, int to, int po) { return through(ti, pi, to, po) ? 1.5 : 1.0; };
+  const model::LobeGrid x = grid(more_through, 0.0, 0), a = grid(one, 0.0, 0);
+  const model::LobeComparison c = model::compare_lobes(x, a);
+  int rows_with_energy = 0;
+  for (int ti = 0; ti < kBins.theta_i; ti++) {
+    double in = 0, all = 0;
+    for (int pi = 0; pi < kBins.phi_i; pi++) {
+      for (int to = 0; to < kBins.theta_o; to++) {
+        for (int po = 0; po < kBins.phi_o; po++) {
+          all += truth(ti, pi, to, po);
+          in += through(ti, pi, to, po) ? truth(ti, pi, to, po) : 0.0;
+        }
+      }
+    }
+    if (in > 0) {
+      rows_with_energy++;
+      EXPECT_NEAR(c.band_ratio[size_t(ti)][model::kLobeThroughBand], 1.5, 1e-9) << ti;
+    }
+    EXPECT_NEAR(c.band_share[size_t(ti)][model::kLobeThroughBand], in / all, 1e-9) << ti;
+  }
+  EXPECT_EQ(rows_with_energy, kBins.theta_i);  // every theta_i has incident bins near the plane
+}
+
 TEST(LobeFidelity, ModelGridsHoldTheLobesEnergies)
 {
   for (const char *name : {"silk", "fleece"}) {

@@ -167,13 +167,17 @@ void add_to_lobe_grid(LobeGrid *g, int ti, int pi, int to, int po, const double 
   double *band = &g->bands[(group * kLobeBands + size_t(band_of(to, b.theta_o))) * 3];
   double *axial = &g->bands[(group * kLobeBands + kLobeAxialBand) * 3];
   double *forward = &g->bands[(group * kLobeBands + kLobeForwardBand) * 3];
+  double *through = &g->bands[(group * kLobeBands + kLobeThroughBand) * 3];
   /* Axial: w_o of the bin centre within 30 degrees of the ply axis (+-x); forward: within kLobeForwardDeg
-   * of -w_i, w_i the incident bin centre. */
-  static const double cos_axial = std::cos(30.0 * kDeg), cos_forward = std::cos(kLobeForwardDeg * kDeg);
+   * of -w_i, w_i the incident bin centre; through: both within kLobeThroughDeg of the plane x = 0, w_o below
+   * the entry point's horizon. */
+  static const double cos_axial = std::cos(30.0 * kDeg), cos_forward = std::cos(kLobeForwardDeg * kDeg),
+                      sin_through = std::sin(kLobeThroughDeg * kDeg);
   const std::array<double, 3> &wi = g->incident_dirs[size_t(ti) * size_t(b.phi_i) + size_t(pi)];
   const std::array<double, 3> &wo = g->outgoing_dirs[size_t(to) * size_t(b.phi_o) + size_t(po)];
   const bool ax = std::abs(wo[0]) > cos_axial;
   const bool fw = -(wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2]) > cos_forward;
+  const bool th = std::abs(wi[0]) < sin_through && std::abs(wo[0]) < sin_through && wo[2] < 0.0;
   for (int k = 0; k < 3; k++) {
     c[k] += w * value[k];
     band[k] += w * value[k];
@@ -182,6 +186,9 @@ void add_to_lobe_grid(LobeGrid *g, int ti, int pi, int to, int po, const double 
     }
     if (fw) {
       forward[k] += w * value[k];
+    }
+    if (th) {
+      through[k] += w * value[k];
     }
   }
 }
@@ -317,7 +324,8 @@ json LobeComparison::to_json() const
             {"band_ratio", band_json(band_ratio)},
             {"band_share", band_json(band_share)},
             {"bands", "theta_o 0-30, 30-60, 60-90, 90-120, 120-150, 150-180 deg from the ply normal; axial: "
-                      "within 30 deg of the ply axis; forward: within 12 deg of -w_i"}};
+                      "within 30 deg of the ply axis; forward: within 12 deg of -w_i; through: w_i and w_o within 15 deg "
+                      "of the plane normal to the ply axis, w_o on the far side"}};
   if (noise_removed) {
     j["noise_floor"] = noise_floor;
   }

@@ -48,13 +48,17 @@ struct LobePooling {
 
 enum class Lobe { kR, kM };
 
-/* Bands of the exit direction: theta_o from the ply normal in 30-degree steps, "axial" and "forward" (the
- * last two overlap the others). Forward: within kLobeForwardDeg of -w_i, where grazing light that scatters
- * on along the fibers it grazes leaves in a narrow peak (docs/decisions.md D41). */
-constexpr int kLobeBands = 8;
+/* Bands of the exit direction: theta_o from the ply normal in 30-degree steps, "axial", "forward" and
+ * "through" (the last three overlap the others). Forward: within kLobeForwardDeg of -w_i, where grazing light
+ * that scatters on along the fibers it grazes leaves in a narrow peak (docs/decisions.md D41). Through: w_i
+ * and w_o both within kLobeThroughDeg of the plane normal to the ply axis, w_o on the far side of the ply
+ * (w_o.z < 0): what a camera facing the ply sees of a light behind it. */
+constexpr int kLobeBands = 9;
 constexpr int kLobeAxialBand = 6;
 constexpr int kLobeForwardBand = 7;
+constexpr int kLobeThroughBand = 8;
 constexpr double kLobeForwardDeg = 12.0;
+constexpr double kLobeThroughDeg = 15.0;
 
 /* Pooled energies of one lobe on one grid: [theta_i][phi_i group][cell][rgb] and the bands
  * [theta_i][phi_i group][band][rgb]. */
