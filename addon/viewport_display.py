@@ -8,14 +8,14 @@ the default subdivision it is drawn through 8 of them: the knit shows as a zigza
 point, so only the viewport is wrong.
 
 The add-on's Curves objects therefore get a Geometry Nodes modifier that is on in the viewport and off for
-renders (F12, batch renders and animation renders use the curves as they are): it cuts every curve into
-pieces of up to PIECE_POINTS points, linked by one-segment pieces between them, which the viewport then draws
-through each point.
-Cycles would render the pieces' ends (a kink, slits on the outside of thick bends), so while a 3D viewport
-shows Rendered shading with Cycles the modifiers are off (sync(): on a change of a viewport's shading, an
-engine, a window's workspace or scene, after undo and redo, and every second for areas closed or opened): that viewport then renders what F12 renders, and Solid views beside it draw zigzags until
-it leaves Rendered shading. Objects of more than DISPLAY_POINTS points are drawn with 1/n of their points,
-each curve resampled evenly (the modifier's "Point Step" n), a lighter display of heavy garments."""
+renders (F12, batch renders and animation renders use the curves as they are): it cuts every curve into pieces
+of up to PIECE_POINTS points, linked by one-segment pieces between them, which the viewport then draws through
+each point. Cycles would render the pieces' ends (a kink, slits on the outside of thick bends), so while a 3D
+viewport shows Rendered shading with Cycles the modifiers are off (sync(): on a change of a viewport's
+shading, an engine, a window's workspace or scene, after undo and redo, and every second for areas closed or
+opened): that viewport then renders what F12 renders, and Solid views beside it draw zigzags until it leaves
+Rendered shading. Objects of more than DISPLAY_POINTS points are drawn with 1/n of their points, each curve
+resampled evenly (the modifier's "Point Step" n), a lighter display of heavy garments."""
 
 from __future__ import annotations
 
@@ -38,6 +38,8 @@ STEP = "Point Step"
 _RADIUS = "ny_display_radius"
 _SOURCE = "ny_display_source"
 _MATERIAL = "ny_display_material"
+#: Socket types of the attribute nodes' data types.
+_KIND = {"FLOAT": "VALUE", "INT": "INT", "BOOLEAN": "BOOLEAN"}
 
 
 def _socket(sockets, name: str, kind: str):
@@ -71,10 +73,15 @@ def _new_group():
         return n
 
     def store(geometry, name, data_type, domain, value):
+        """`value`: a socket, or a constant."""
         n = node("GeometryNodeStoreNamedAttribute", data_type=data_type, domain=domain)
         n.inputs["Name"].default_value = name
         link(geometry, n.inputs["Geometry"])
-        link(value, _socket(n.inputs, "Value", _KIND[data_type]))
+        target = _socket(n.inputs, "Value", _KIND[data_type])
+        if isinstance(value, (bool, int, float)):
+            target.default_value = value
+        else:
+            link(value, target)
         return n.outputs[0]
 
     def named(name, data_type):
@@ -128,7 +135,7 @@ def _new_group():
     first = node("GeometryNodeDeleteGeometry", domain="CURVE")
     link(curves, first.inputs["Geometry"])
     link(math("GREATER_THAN", index, 0.5), first.inputs["Selection"])
-    marked = store(first.outputs[0], _SOURCE, "BOOLEAN", "CURVE", math("ADD", 1.0, 0.0))
+    marked = store(first.outputs[0], _SOURCE, "BOOLEAN", "CURVE", True)
     join = node("GeometryNodeJoinGeometry")
     link(pieces, join.inputs[0])
     link(marked, join.inputs[0])  # linked last, joined first (3.4 and 4.5): its materials are kept
@@ -145,17 +152,19 @@ def _new_group():
     return ng
 
 
-_KIND = {"FLOAT": "VALUE", "INT": "INT", "BOOLEAN": "BOOLEAN"}
-
-
 def _is_current(ng) -> bool:
     return (ng is not None and ng.bl_idname == "GeometryNodeTree" and ng.library is None
             and ng.get(_STAMP) == VERSION)
 
 
+def _current_group():
+    """The file's display node group of this version, or None."""
+    return next((ng for ng in bpy.data.node_groups if _is_current(ng)), None)
+
+
 def node_group():
     """The add-on's display node group of this version, made once per file."""
-    return next((ng for ng in bpy.data.node_groups if _is_current(ng)), None) or _new_group()
+    return _current_group() or _new_group()
 
 
 def display_modifier(obj):
@@ -189,16 +198,22 @@ def display_step(obj) -> int:
         return 1
 
 
+def set_display_step(obj, step: int) -> None:
+    """Draw the object's curves with 1/step of their points (its display modifier's "Point Step")."""
+    modifier = display_modifier(obj)
+    modifier[_input_identifier(modifier.node_group, STEP)] = step
+
+
 def _use_current_group(obj, modifier) -> None:
     modifier.node_group = node_group()
-    modifier[_input_identifier(modifier.node_group, STEP)] = point_step(len(obj.data.points))
+    set_display_step(obj, point_step(len(obj.data.points)))
 
 
 def add_to(obj) -> None:
     """Gives a Curves object the viewport-only display modifier (once)."""
     if display_modifier(obj) is not None:
         return
-    had_group = any(_is_current(ng) for ng in bpy.data.node_groups)
+    had_group = _current_group() is not None
     modifier = None
     try:
         modifier = obj.modifiers.new(MODIFIER, "NODES")
@@ -208,7 +223,7 @@ def add_to(obj) -> None:
     except Exception:
         if modifier is not None:
             obj.modifiers.remove(modifier)
-        group = next((ng for ng in bpy.data.node_groups if _is_current(ng)), None)
+        group = _current_group()
         if not had_group and group is not None and group.users == 0:
             bpy.data.node_groups.remove(group)
         raise

@@ -44,8 +44,7 @@ def main() -> None:
     scene.render.engine = "BLENDER_WORKBENCH"
     scene.render.hair_type = "STRIP"
     scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 1280, 720, 100
-    modifier = obj.modifiers[vd.MODIFIER]
-    key = vd._input_identifier(modifier.node_group, vd.STEP)
+    modifier = vd.display_modifier(obj)
     auto = vd.display_step(obj)
     print(f"bench_viewport_display: {args.rows} x {args.stitches} stitches, 3 plies: {len(obj.data.points)} "
           f"points in {len(obj.data.curves)} curves (Twist Plies {plies_s:.1f} s); Blender {bpy.app.version_string}")
@@ -55,7 +54,7 @@ def main() -> None:
         scene.render.filepath = os.path.join(tmp, "w.png")
         for label, step, on in (("whole curves (no modifier)", 1, False), ("pieces, step 1", 1, True),
                                 (f"pieces, step {auto} (the add-on's)", auto, True)):
-            modifier[key] = step
+            vd.set_display_step(obj, step)
             modifier.show_viewport = on
             obj.update_tag()
             t = time.perf_counter()

@@ -57,6 +57,13 @@ def needs_osl(has_osl, bpy):
         pytest.skip(f"Blender {bpy.app.version_string} has no OSL in Cycles")
 
 
+@pytest.fixture
+def empty(bpy, addon):
+    """An empty factory scene with the add-on registered."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return bpy.context.scene
+
+
 @pytest.fixture(scope="session")
 def addon(bpy):
     """The add-on, loaded from addon/ as the package `neural_yarn` and registered (as Blender would)."""

@@ -30,13 +30,6 @@ RES = 64
 # helpers
 
 
-@pytest.fixture
-def empty(bpy, addon):
-    """An empty factory scene with the add-on registered."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    return bpy.context.scene
-
-
 def snapshot(bpy) -> dict:
     """Everything an operator could leave behind."""
     return {

@@ -20,12 +20,6 @@ np = pytest.importorskip("numpy")
 WIDTH, HEIGHT = 320, 180
 
 
-@pytest.fixture
-def empty(bpy, addon):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    return bpy.context.scene
-
-
 @pytest.fixture(scope="module")
 def display():
     if not os.environ.get("DISPLAY"):
@@ -35,13 +29,14 @@ def display():
 
 
 def _render(bpy, scene, path) -> np.ndarray:
+    """F12 with the scene's settings: its RGBA pixels, row 0 at the top (as the camera projection below)."""
     scene.render.filepath = str(path)
     bpy.ops.render.render(write_still=True)
     img = bpy.data.images.load(str(path))
     px = np.empty(len(img.pixels), dtype=np.float32)
     img.pixels.foreach_get(px)
     bpy.data.images.remove(img)
-    return px.reshape(HEIGHT, WIDTH, 4)[::-1]  # row 0 at the top, as the camera projection below
+    return px.reshape(scene.render.resolution_y, scene.render.resolution_x, 4)[::-1]
 
 
 def _projected_points(bpy, scene, obj) -> np.ndarray:
@@ -123,19 +118,11 @@ def test_renders_use_the_curves_as_they_are(bpy, addon, empty, tmp_path):
     scene.cycles.device = "CPU"
     scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 64, 40, 100
     scene.render.image_settings.file_format = "OPEN_EXR"
-    images = []
-    for name in ("with", "without"):
-        scene.render.filepath = str(tmp_path / f"{name}.exr")
-        bpy.ops.render.render(write_still=True)
-        img = bpy.data.images.load(scene.render.filepath)
-        px = np.empty(len(img.pixels), dtype=np.float32)
-        img.pixels.foreach_get(px)
-        bpy.data.images.remove(img)
-        images.append(px)
-        if name == "with":
-            knit.modifiers.remove(knit.modifiers[addon.viewport_display.MODIFIER])
-    assert images[0].max() > 0
-    assert np.array_equal(images[0], images[1])
+    with_modifier = _render(bpy, scene, tmp_path / "with.exr")
+    knit.modifiers.remove(knit.modifiers[addon.viewport_display.MODIFIER])
+    without = _render(bpy, scene, tmp_path / "without.exr")
+    assert with_modifier.max() > 0
+    assert np.array_equal(with_modifier, without)
 
 
 def test_the_pieces_keep_the_material_and_leave_cycles_viewports_alone(bpy, addon, empty):
@@ -148,7 +135,7 @@ def test_the_pieces_keep_the_material_and_leave_cycles_viewports_alone(bpy, addo
     modifier = knit.modifiers[addon.viewport_display.MODIFIER]
 
     def evaluated():
-        return knit.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+        return _evaluated(bpy, knit)[0]
 
     shown = evaluated()
     assert [m.name for m in shown.materials] == [m.name for m in knit.data.materials] == ["Neural Yarn fleece"]

@@ -155,6 +155,8 @@ TEST(LobeFidelity, EnergyRatiosPerExitBand)
   }
 }
 
+namespace {
+
 /* The incident and outgoing directions of map bin centres. */
 Eigen::Vector3f incident(int ti, int pi)
 {
@@ -187,6 +189,8 @@ void expect_band_reads(InBand in_band, double factor, int band)
     EXPECT_NEAR(c.band_share[size_t(ti)][size_t(band)], in / all, 1e-9) << ti;
   }
 }
+
+}  // namespace
 
 TEST(LobeFidelity, ForwardBandHoldsTheExitsAroundMinusWi)
 {
