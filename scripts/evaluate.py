@@ -17,7 +17,7 @@ References are cached in DIR/refs and reused when the scene files, the sample co
 the same.
 
 Scenes: `garment` (on request; --garment-stitches, default 40 x 40: a plain-knit sleeve of 3-ply yarn,
-scripts/garment.py, seen whole at 320 x 240, the point lights moved out with the camera; its central region is
+scripts/garment.py, seen whole at 320 x 240 or --garment-size, the point lights moved out with the camera; its central region is
 the middle half of the frame, all fabric; explicit fibers only up to ~50 M curve keys, a 10 x 10 piece for
 fleece, larger pieces are refused and recorded as failed), `knit` and `twill` (on request: a 4 x 4 plain knit
 and a 6 x 6 twill of 3-ply yarns, scripts/garment.py patch_plies, as examples/make_examples.py draws them, seen
@@ -29,7 +29,9 @@ same close-up of one straight 3-ply yarn (scripts/garment.py straight_yarn_plies
 camera distances are in ply radii, the yarn is 2.33 of them thick). Methods: `explicit` (the fibers
 themselves, the reference's method, at the test's samples), `native` (`--model models/<preset>.json`:
 one thick curve with the neural_yarn_bsdf closure), on request `yarns` (the yarn level, D27: on the yarn and
-the garment, each yarn one thick curve with `--model models/<preset>_yarn.json`), `osl` and `nodes`: the add-on's
+the garment, each yarn one thick curve with `--model models/<preset>_yarn.json`), `surface` (the surface level,
+D44: on the garment only, the sleeve's mid-surface with stock closures fitted once a run by `neuralyarn surface`
+from the yarn-level model on a flat 14 x 14 knit, DIR/scenes/surface_<preset>.json), `osl` and `nodes`: the add-on's
 stock-Blender fallbacks on the native method's scene, rendered by the bpy wheel's Cycles
 (the scene's description, `cycles-scene --out X.json`, built by the add-on's builder: scripts/fallback_render.py,
 with the scene's own model), and the baselines an artist would
@@ -84,8 +86,8 @@ import types
 import numpy as np
 
 from evaluate_charts import (CLOSEUP_DISTANCE, REFERENCE_METHOD, error_distance_charts, error_time_charts, label,
-                             group_of, speed_summary, stem, summary_table)
-from garment import PATCHES, garment_plies, patch_plies, straight_yarn_plies, yarn_radius
+                             group_of, level_summary, speed_summary, stem, summary_table)
+from garment import PATCHES, flat_knit_plies, garment_plies, patch_plies, straight_yarn_plies, yarn_radius
 from images import LUMINANCE, display, display_ssim, exposure_of, read_exr, write_exr
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
@@ -107,7 +109,7 @@ DEFAULT_SCENES = ["closeup"]
 #: helix turn (the examples' patches use as many), the frame's margin around the tube, references of one
 #: orientation (its plies already show the cross-section turned by the golden angle from ply to ply).
 GARMENT = {"width": 320, "height": 240, "segments_per_turn": 12, "margin": 1.08, "ref_rotations": 1}
-METHODS = ["explicit", "native", "yarns", "osl", "nodes"]  # + the baselines of the CLI (cli_table)
+METHODS = ["explicit", "native", "yarns", "surface", "osl", "nodes"]  # + the baselines of the CLI (cli_table)
 DEFAULT_METHODS = ["explicit", "native"]
 #: Methods rendered by Blender (the bpy wheel) from the native method's scene.
 FALLBACKS = ("osl", "nodes")
@@ -175,6 +177,10 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
     ap.add_argument("--scenes", nargs="+", help=f"scenes ({', '.join(SCENES)}; default {', '.join(DEFAULT_SCENES)})")
     ap.add_argument("--garment-stitches", type=int, default=40,
                     help="the garment's stitches around and rows (default 40: 40 x 40)")
+    ap.add_argument("--garment-size", type=int, nargs=2, metavar=("W", "H"),
+                    default=[GARMENT["width"], GARMENT["height"]],
+                    help=f"the garment's image size (default {GARMENT['width']} {GARMENT['height']}; smaller: "
+                         "the yarns below a pixel, where the surface level is meant)")
     ap.add_argument("--methods", nargs="+",
                     help=f"methods ({', '.join(METHODS)}; default {', '.join(DEFAULT_METHODS)})")
     ap.add_argument("--presets", nargs="+", help=f"presets ({', '.join(PRESETS)}; default all)")
@@ -206,6 +212,8 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
     a.scenes = names(a.scenes) or DEFAULT_SCENES
     if not 1 <= a.garment_stitches <= 400:
         raise Usage(f"--garment-stitches must be in [1, 400], got {a.garment_stitches}")
+    if not all(8 <= v <= 8192 for v in a.garment_size):
+        raise Usage(f"--garment-size must be two sizes in [8, 8192], got {a.garment_size[0]} {a.garment_size[1]}")
     a.methods = names(a.methods) or DEFAULT_METHODS
     a.presets = names(a.presets) or base["presets"]
     a.lights = names(a.lights) or base["lights"] or list(rigs)
@@ -264,6 +272,15 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
         for p in a.presets:
             if not os.path.isfile(yarn_model_path(p)):
                 raise Usage(f"method yarns: model '{yarn_model_path(p)}' is missing "
+                            "(NY_LEVEL=yarn scripts/bake_models.sh makes it)")
+    if "surface" in a.methods:
+        if a.yarns:
+            raise Usage("method surface renders the presets only (it is fitted from their yarn-level models)")
+        if any(sc != "garment" for sc in a.scenes):
+            raise Usage("method surface draws a cloth surface: scene garment only")
+        for p in a.presets:
+            if not os.path.isfile(yarn_model_path(p)):
+                raise Usage(f"method surface: model '{yarn_model_path(p)}' is missing "
                             "(NY_LEVEL=yarn scripts/bake_models.sh makes it)")
     return a
 
@@ -342,7 +359,7 @@ def for_scene(a, scene: str):
     """The settings as one scene renders with them (the garment's own image size, a patch's square one, and
     their references of one orientation)."""
     if scene == "garment":
-        return types.SimpleNamespace(**{**vars(a), "width": GARMENT["width"], "height": GARMENT["height"],
+        return types.SimpleNamespace(**{**vars(a), "width": a.garment_size[0], "height": a.garment_size[1],
                                         "ref_rotations": GARMENT["ref_rotations"]})
     if scene in PATCHES:
         return types.SimpleNamespace(**{**vars(a), "height": a.width, "ref_rotations": 1})
@@ -368,18 +385,38 @@ def framed_plies_args(path: str, plies: dict, distance: float) -> tuple[str, ...
 
 
 def garment_scene_args(a) -> list[str]:
-    return list(_garment_scene_args(a.out, a.garment_stitches))
+    return list(_garment_scene_args(a.out, a.garment_stitches, a.width / a.height))
 
 
 @functools.lru_cache(maxsize=None)
-def _garment_scene_args(out: str, n: int) -> tuple[str, ...]:
+def _garment_scene_args(out: str, n: int, aspect: float) -> tuple[str, ...]:
     """cycles-scene's arguments for the garment: its plies file (DIR/scenes/garment_SxS.json, written once a
-    run), the camera that frames the whole tube, the point lights moved out with it."""
+    run), the camera that frames the whole tube in an image of that aspect, the point lights moved out with it."""
     g = garment_plies(n, n)
     t = math.tan(0.5 * CLOSEUP_FOV)  # the shorter side's: the height here
-    aspect = GARMENT["width"] / GARMENT["height"]
     d = GARMENT["margin"] * max(0.5 * g["height"] / t, 0.5 * g["width"] / (t * aspect))
     return framed_plies_args(os.path.join(out, "scenes", f"garment_{n}x{n}.json"), g, d)
+
+
+#: The surface level's fit (D44): the flat knit it walks through (the garment's pattern, wide enough that few
+#: paths leave near its edge) and the paths (over both faces and 8 view bins).
+SURFACE_FIT = {"rows": 14, "stitches": 14, "paths": "8e6", "seed": 1}
+
+
+@functools.lru_cache(maxsize=None)
+def surface_file(out: str, preset: str) -> str:
+    """The surface level's BSDF of a preset's knit (DIR/scenes/surface_<preset>.json, fitted once a run by
+    `neuralyarn surface` from the preset's yarn-level model on the flat knit)."""
+    flat = os.path.join(out, "scenes", "flat_knit.json")
+    if not os.path.isfile(flat):
+        with open(flat, "w") as f:
+            json.dump(flat_knit_plies(SURFACE_FIT["rows"], SURFACE_FIT["stitches"]), f, separators=(",", ":"))
+    path = os.path.join(out, "scenes", f"surface_{preset}.json")
+    t0 = time.monotonic()
+    run_cli(["surface", "--plies", flat, "--model", yarn_model_path(preset), "--paths", SURFACE_FIT["paths"],
+             "--seed", str(SURFACE_FIT["seed"]), "--quiet", "--out", path])
+    log(f"surface level of {preset}: fitted in {time.monotonic() - t0:.1f} s")
+    return path
 
 
 @functools.lru_cache(maxsize=None)
@@ -418,6 +455,8 @@ def write_scene(a, scene: str, method: str, preset: str, light: str, seed: int, 
         args += ["--model", model_path(a.yarns, preset)]
     elif method == "yarns":
         args += ["--level", "yarns", "--model", yarn_model_path(preset)]
+    elif method == "surface":
+        args += ["--level", "surface", "--surface", surface_file(a.out, preset)]
     elif method in a.baselines:
         args += ["--baseline", method, "--baseline-colour", *(f"{c:.6f}" for c in colour)]
     cycles_scene(args)
@@ -922,6 +961,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         "runs": runs,
     }
     results["summary"] = speed_summary(results)
+    results["summary_over_plies"] = level_summary(results)
     return results, failures
 
 
@@ -1030,6 +1070,9 @@ def summary(results: dict) -> str:
                          f"{b['failed'] or ''} |")
     if results.get("summary"):
         lines += ["", "Speed against explicit fibers (scripts/evaluate_charts.py):", "", summary_table(results).rstrip()]
+    if results.get("summary_over_plies"):
+        lines += ["", "Speed of the levels of detail against the ply level (native):", "",
+                  summary_table(results, "summary_over_plies", "native").rstrip()]
     return "\n".join(lines) + "\n"
 
 

@@ -141,21 +141,23 @@ def memory_above_baseline(results: dict, group: tuple, method: str) -> float | N
     return float(np.median([r["peak_rss_mb"] - r["baseline_rss_mb"] for r in rs]))
 
 
-def speed_summary(results: dict) -> dict:
-    """results.json's `summary`: per scene (and distance: `closeup d48`), per method other than explicit fibers, `speedup_equal_flip` and
-    `speedup_equal_spp` (the median over groups, and every group's value), and `memory_ratio`."""
+def speed_summary(results: dict, reference: str = REFERENCE_METHOD) -> dict:
+    """results.json's `summary`: per scene (and distance: `closeup d48`), per method other than `reference` (explicit
+    fibers; the levels of detail are also measured against the ply level, `native`: `summary_over_plies`),
+    `speedup_equal_flip` and `speedup_equal_spp` (the median over groups, and every group's value), and
+    `memory_ratio`."""
     cs = curves(results)
     # The artist's stock closures the run fitted (evaluate.py), against which the neural model is compared.
     baseline_methods = {b["method"] for b in results.get("baselines", [])}
     summary: dict = {}
     for group, methods in sorted(cs.items()):
         scene = label(group)
-        ref = methods.get(REFERENCE_METHOD)
+        ref = methods.get(reference)
         if not ref:
             continue
-        ref_mem = memory_above_baseline(results, group, REFERENCE_METHOD)
+        ref_mem = memory_above_baseline(results, group, reference)
         for method, curve in methods.items():
-            if method == REFERENCE_METHOD:
+            if method == reference:
                 continue
             entry = summary.setdefault(scene, {}).setdefault(method, {"groups": []})
             eq = equal_flip_speedup(curve, ref)
@@ -181,10 +183,22 @@ def speed_summary(results: dict) -> dict:
     return summary
 
 
-def summary_table(results: dict) -> str:
+#: The levels of detail (D27, D44) are also measured against the ply level.
+LEVELS_OVER = ("native", ("yarns", "surface"))
+
+
+def level_summary(results: dict) -> dict | None:
+    """`summary_over_plies`: speed_summary against the ply level (`native`) when a run has it and a coarser level."""
+    methods = {r["method"] for r in results["runs"]}
+    if LEVELS_OVER[0] not in methods or not methods & set(LEVELS_OVER[1]):
+        return None
+    return speed_summary(results, LEVELS_OVER[0])
+
+
+def summary_table(results: dict, key: str = "summary", reference: str = REFERENCE_METHOD) -> str:
     """Markdown: per group and method, the equal-FLIP level, both times and the speed-ups; then per scene."""
-    summ = results.get("summary") or {}
-    lines = ["| scene | preset | light | method | equal FLIP | explicit s | method s | speed-up at equal FLIP "
+    summ = results.get(key) or {}
+    lines = [f"| scene | preset | light | method | equal FLIP | {reference} s | method s | speed-up at equal FLIP "
              "| speed-up at equal spp | memory ratio | FLIP / best baseline's at equal time (worst) |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     mark = {"lower": "≥ ", "upper": "≤ ", "unknown": "~ ", None: ""}
@@ -355,11 +369,14 @@ def main(argv: list[str]) -> int:
     with open(os.path.join(argv[0], "results.json")) as f:
         results = json.load(f)
     results["summary"] = speed_summary(results)
+    results["summary_over_plies"] = level_summary(results)
     with open(os.path.join(argv[0], "results.json"), "w") as f:
         json.dump(results, f, indent=1)
     for p in error_time_charts(argv[0], results) + error_distance_charts(argv[0], results):
         print(f"wrote {p}", file=sys.stderr)
     print(summary_table(results), end="")
+    if results["summary_over_plies"]:
+        print("\nAgainst the ply level (native):\n\n" + summary_table(results, "summary_over_plies", "native"), end="")
     return 0
 
 

@@ -58,7 +58,47 @@ def garment_plies(rows: int, stitches: int) -> dict:
     height = max(p[:, 1].max() for p in pts) - min(p[:, 1].min() for p in pts)
     return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "rows": rows, "stitches": stitches,
             "tube_radius": tube, "height": float(height), "width": 2.0 * tube + 2.0 * (1.0 + ALPHA_YARN),
-            "plies": [wrapped(p) for p in pts], **_yarns([wrapped(y.points / r_ply) for y in yarns])}
+            "plies": [wrapped(p) for p in pts], **_yarns([wrapped(y.points / r_ply) for y in yarns]),
+            "surface": _tube_surface(tube, float(height), (0.0, 0.0, tube))}
+
+
+#: Segments around the surface level's tube (its mid-surface, docs/decisions.md D44): 0.4 % of the radius
+#: between chord and arc.
+TUBE_SEGMENTS = 256
+
+
+def _tube_surface(radius: float, height: float, centre: tuple) -> dict:
+    """The knit's mid-surface of the sleeve: a cylinder of `radius` about the vertical axis through `centre`, the
+    triangles wound so that their normals point outward (the knit's face)."""
+    n = TUBE_SEGMENTS
+    theta = 2.0 * math.pi * np.arange(n) / n
+    cx, cy, cz = centre
+    ring = [np.stack([cx + radius * np.sin(theta), np.full(n, cy + y), cz - radius * np.cos(theta)], axis=1)
+            for y in (-0.5 * height, 0.5 * height)]
+    tris = []
+    for i in range(n):
+        j = (i + 1) % n
+        tris += [i, n + i, j, j, n + i, n + j]  # (bottom i, top i, bottom j): outward (checked by the test)
+    return {"vertices": [round(float(v), 4) for v in np.concatenate(ring).ravel()], "triangles": tris}
+
+
+def flat_knit_plies(rows: int, stitches: int) -> dict:
+    """The garment's knit, flat: rows x stitches of the same plies and yarns in the plane z = 0 (ply radius 1),
+    its face toward +z, with its "period" (one stitch along x, one row along y): the patch `neuralyarn surface`
+    walks through to measure the surface level's BSDF (D44)."""
+    yarns = geometry.plain_knit(rows, stitches, samples_per_loop=SAMPLES_PER_LOOP)
+    plies = []
+    for y in yarns:
+        plies += geometry.twist_plies(y, PLIES_PER_YARN, alpha_yarn=ALPHA_YARN, samples_per_turn=SAMPLES_PER_TURN)
+    r_ply = float(np.mean([p.radius.mean() for p in plies]))
+    wale = float(yarns[1].points[0, 1] - yarns[0].points[0, 1]) if rows > 1 else 4.5
+
+    def flat(p: np.ndarray) -> list[float]:
+        return [round(float(v), 5) for v in (p / r_ply).ravel()]
+
+    return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "rows": rows, "stitches": stitches,
+            "period": [2.0 * math.pi / r_ply, wale / r_ply], "plies": [flat(p.points) for p in plies],
+            **_yarns([flat(y.points) for y in yarns])}
 
 
 def yarn_radius() -> float:
@@ -112,18 +152,20 @@ def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rows", type=int, default=40)
     ap.add_argument("--stitches", type=int, default=40)
+    ap.add_argument("--flat", action="store_true", help="the knit flat, with its period: the surface level's patch")
     ap.add_argument("--out", required=True)
     a = ap.parse_args(argv)
     try:
-        g = garment_plies(a.rows, a.stitches)
+        g = (flat_knit_plies if a.flat else garment_plies)(a.rows, a.stitches)
     except geometry.GeometryError as e:
         print(f"garment: error: {e}", file=sys.stderr)
         return 1
     with open(a.out, "w") as f:
         json.dump(g, f, separators=(",", ":"))
     print(f"{a.rows} rows x {a.stitches} stitches: {len(g['plies'])} plies, "
-          f"{sum(len(p) for p in g['plies']) // 3} points, tube radius {g['tube_radius']:.1f}, "
-          f"height {g['height']:.1f} ply radii")
+          f"{sum(len(p) for p in g['plies']) // 3} points, " +
+          (f"period {g['period'][0]:.2f} x {g['period'][1]:.2f}" if a.flat else
+           f"tube radius {g['tube_radius']:.1f}, height {g['height']:.1f}") + " ply radii")
     return 0
 
 

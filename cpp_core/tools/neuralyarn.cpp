@@ -19,11 +19,15 @@
 #include "cli_common.h"
 #include "model_commands.h"
 #include "neuralyarn/fiber_report.h"
+#include "neuralyarn/io.h"
 #include "neuralyarn/geometry/yarn.h"
 #include "neuralyarn/plots.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/rdm/map_file.h"
+#include "neuralyarn/rdm/surface_gather.h"
+#include "neuralyarn/model/surface_fit.h"
+#include "neuralyarn/scenes/ply_curves.h"
 #include "neuralyarn/scenes/closeup_prediction.h"
 #include "neuralyarn/scenes/ply_scene.h"
 #include "neuralyarn/version.h"
@@ -217,6 +221,99 @@ struct GatherCommand {
   }
 };
 
+/* `neuralyarn surface`: the surface level's BSDF (D44) from walks through a flat patch of a pattern's curves. */
+struct SurfaceCommand {
+  CLI::App *cmd;
+  std::string plies, model_path, paths = "4e6", out, maps_out;
+  uint64_t seed = 1;
+  int threads = 0, view_bins = 8;
+  bool quiet = false;
+
+  explicit SurfaceCommand(CLI::App &app)
+      : cmd(app.add_subcommand("surface", "Measure a cloth pattern's far field through a flat patch of its curves and fit "
+                                          "the surface level's stock-closure BSDF to it"))
+  {
+    cmd->add_option("--plies", plies, "Plies file of a flat patch with its 'period' (scripts/garment.py --flat)")
+        ->required();
+    cmd->add_option("--model", model_path, "The curves' model: a ply-level model walks the plies, a yarn-level one "
+                                           "the yarns")
+        ->required();
+    cmd->add_option("--paths", paths, "Number of paths (over both faces and every view bin)")->capture_default_str();
+    cmd->add_option("--seed", seed, "Seed of the paths")->capture_default_str();
+    cmd->add_option("--threads", threads, "Worker threads (0: all cores); the result does not depend on it")
+        ->capture_default_str();
+    cmd->add_option("--view-bins", view_bins, "View cosine bins per face")->capture_default_str();
+    cmd->add_flag("--quiet", quiet, "No progress bar");
+    cmd->add_option("--out", out, "Surface BSDF file to write (.json)")->required();
+    cmd->add_option("--maps-out", maps_out, "Also write the measured maps (JSON: D, tau, scattered and their layout)");
+  }
+
+  int run() const
+  {
+    const scenes::PlyCurves pc = scenes::read_ply_curves(plies);
+    const model::YarnModel m = model::load_model(model_path);
+    const bool yarns = m.structure.is_yarn();
+    if (yarns && (pc.yarns.empty() || m.structure.plies != pc.plies_per_yarn ||
+                  std::abs(m.structure.ply_twist - pc.ply_twist) > 1e-6)) {
+      throw std::runtime_error("model '" + model_path + "' is a yarn-level model of " + std::to_string(m.structure.plies) +
+                               " plies; '" + plies + "' has no yarns of that plying");
+    }
+    if (!(pc.period[0] > 0.0)) {
+      throw std::runtime_error("'" + plies + "' has no 'period': the surface level walks through a flat patch "
+                               "(scripts/garment.py --flat)");
+    }
+    check_writable(out);
+    const auto &lines = yarns ? pc.yarns : pc.plies;
+    geometry::CurveSet curves;
+    curves.offsets.push_back(0);
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+    for (const auto &line : lines) {
+      for (const Eigen::Vector3d &q : line) {
+        curves.points.push_back(q.cast<float>());
+        lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
+      }
+      curves.offsets.push_back(int(curves.points.size()));
+      curves.radii.push_back(float(yarns ? pc.yarn_radius : 1.0));
+    }
+    rdm::SurfaceGatherOptions o;
+    o.paths = parse_count(paths);
+    o.seed = seed;
+    o.threads = threads;
+    o.view_bins = view_bins;
+    o.centre_x = 0.5 * (lo.x() + hi.x()), o.centre_y = 0.5 * (lo.y() + hi.y());
+    o.period_x = pc.period[0], o.period_y = pc.period[1];
+    ProgressBar bar(!quiet);
+    o.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };
+    const rdm::SurfaceMaps maps = rdm::gather_surface(curves, m, o);
+    model::SurfaceBsdf s = model::fit_surface(maps);
+    s.source = {{"model", model_path}, {"level", yarns ? "yarns" : "plies"}, {"plies", plies},
+                {"paths", maps.paths}, {"seed", seed}, {"period", {pc.period[0], pc.period[1]}},
+                {"paths_past_edges", maps.paths_past_edges}, {"paths_lost", maps.paths_lost},
+                {"code", std::string(kVersion) + "+" + kGitRevision}};
+    model::save_surface(s, out);
+    if (!maps_out.empty()) {
+      const nlohmann::json j = {{"view_bins", maps.view_bins}, {"light_theta", maps.light_theta},
+                                {"light_phi", maps.light_phi}, {"D", maps.D}, {"tau", maps.tau},
+                                {"scattered", maps.scattered}, {"layout", "D[side][view][hemisphere][theta][phi][rgb]"}};
+      write_file_atomically(maps_out, j.dump() + "\n", "");
+    }
+    std::printf("paths            %llu in %.2f s: %.3f M paths/s; %llu left near the patch's edge, %llu cut\n",
+                (unsigned long long)maps.paths, maps.seconds, double(maps.paths) / maps.seconds / 1e6,
+                (unsigned long long)maps.paths_past_edges, (unsigned long long)maps.paths_lost);
+    std::printf("absorbed (rgb)   %.4f %.4f %.4f\n", maps.absorbed[0], maps.absorbed[1], maps.absorbed[2]);
+    for (int side = 0; side < 2; side++) {
+      std::printf("%s face: cos theta_v, straight through, scattered (rgb), fit error\n", side == 0 ? "front" : "back");
+      for (int v = 0; v < view_bins; v++) {
+        const size_t c = size_t(side) * size_t(view_bins) + size_t(v);
+        std::printf("  %.3f   %.4f   %.4f %.4f %.4f   %.3f\n", s.view_cos(v), s.transparent[c], s.albedo[c * 3],
+                    s.albedo[c * 3 + 1], s.albedo[c * 3 + 2], s.fit_error[c]);
+      }
+    }
+    std::printf("wrote %s\n", out.c_str());
+    return 0;
+  }
+};
+
 /* `neuralyarn cycles-scene`: the close-up (or plies, layers, a baseline) for the patched Cycles, and what the
  * core library predicts of it. */
 struct SceneCommand {
@@ -289,8 +386,8 @@ struct SceneCommand {
         ->capture_default_str();
     cmd->add_option("--level", opt.level,
                     "With --plies and --model (or --baseline): draw the plies (a ply-level model) or the file's yarns "
-                    "(a yarn-level model)")
-        ->check(CLI::IsMember({"plies", "yarns"}))
+                    "(a yarn-level model); with --surface: the file's cloth surface (the surface level)")
+        ->check(CLI::IsMember({"plies", "yarns", "surface"}))
         ->capture_default_str();
     cmd->add_option("--plies", opt.plies,
                     "Instead of the straight ply: these ply centrelines (a \"neuralyarn-plies 1\" JSON file, e.g. "
@@ -309,6 +406,11 @@ struct SceneCommand {
         ->capture_default_str();
     auto *opt_model =
         cmd->add_option("--model", opt.model, "Aggregated version: one thick curve with this neural yarn model");
+    cmd->add_option("--surface", opt.surface,
+                    "With --level surface: the surface level's BSDF (`neuralyarn surface`) on the plies file's "
+                    "\"surface\" mesh")
+        ->check(CLI::ExistingFile)
+        ->excludes(opt_model);
     auto *opt_baseline = cmd->add_option("--baseline", opt.baseline,
                                          "Aggregated geometry with a stock closure instead of a model (--list-baselines)")
                                ->excludes(opt_model);
@@ -440,6 +542,7 @@ int main(int argc, char **argv)
   GatherCommand gather(app);
   SceneCommand scene(app);
   YarnGeometryCommand yarn_geometry(app);
+  SurfaceCommand surface(app);
   auto model_commands = add_model_commands(app);
 
   CLI11_PARSE(app, argc, argv);
@@ -466,6 +569,9 @@ int main(int argc, char **argv)
     }
     if (yarn_geometry.cmd->parsed()) {
       return yarn_geometry.run();
+    }
+    if (surface.cmd->parsed()) {
+      return surface.run();
     }
   }
   catch (const std::exception &e) {

@@ -17,8 +17,9 @@
 namespace neuralyarn::testing {
 
 /* A model with seeded random networks whose outputs sit in a plausible range (P_T ~ 0.1-0.5, rho_R ~ 1,
- * M ~ 0.05). */
-inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, double m_bias = -3.0)
+ * M ~ 0.05); `t_bias` moves the T network's output (-40: an opaque yarn, P_T ~ 0, with the calibration's
+ * dP_T made 0 too). */
+inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, double m_bias = -3.0, double t_bias = -1.0)
 {
   model::YarnModel m;
   m.preset = find_preset(preset);
@@ -35,7 +36,7 @@ inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, doubl
     r.flat = net.to_flat();
     return r;
   };
-  m.T = make({3, 7, 7, 1}, ny::kMlpHeadSigmoid, seed, -1.0);
+  m.T = make({3, 7, 7, 1}, ny::kMlpHeadSigmoid, seed, t_bias);
   m.R = make({3, 7, 7, 1}, ny::kMlpHeadExp, seed + 1, 0.0);
   m.M = make({6, 21, 21, 3}, ny::kMlpHeadExp, seed + 2, m_bias);
   m.proxy = {0.3, 0.35, 0.9, 0.7};
@@ -46,7 +47,7 @@ inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, doubl
   std::mt19937 rng(static_cast<uint32_t>(seed));
   std::uniform_real_distribution<float> U(-1.0f, 1.0f);
   for (int k = 0; k < 8; k++) {
-    m.calibration.values.push_back(0.05f * U(rng));
+    m.calibration.values.push_back(t_bias < -20.0 ? 0.0f : 0.05f * U(rng));
     for (int j = 1; j < ny::kYarnCalStride; j++) {
       m.calibration.values.push_back(1.0f + 0.2f * U(rng));
     }

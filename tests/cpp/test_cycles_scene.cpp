@@ -17,6 +17,7 @@
 #include <gtest/gtest.h>
 
 #include "neuralyarn/model/model.h"
+#include "neuralyarn/model/surface_fit.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/scenes/ply_scene.h"
 #include "neuralyarn/units.h"
@@ -472,11 +473,26 @@ TEST(CyclesSceneBaselines, StockClosuresOnTheAggregatedGeometryWithTheirColour)
 
 namespace {
 
+/* A file name of this process in the temporary directory: <stem><pid>.json. */
+std::string temp_json(const std::string &stem)
+{
+  return (fs::temp_directory_path() / (stem + std::to_string(::getpid()) + ".json")).string();
+}
+
+/* The options of an aggregated scene of a plies file at a level (its model or surface still to give). */
+PlySceneOptions at_level(const std::string &plies, const std::string &level)
+{
+  PlySceneOptions o;
+  o.plies = plies;
+  o.level = level;
+  return o;
+}
+
 std::string write_plies(const std::string &body)
 {
-  const fs::path path = fs::temp_directory_path() / ("ny_plies_test_" + std::to_string(::getpid()) + ".json");
+  const std::string path = temp_json("ny_plies_test_");
   std::ofstream(path) << body;
-  return path.string();
+  return path;
 }
 
 }  // namespace
@@ -557,11 +573,9 @@ TEST(CyclesScenePlies, YarnLevelDrawsTheYarnsWithAYarnModel)
   m.structure.plies = 3;
   m.structure.ply_twist = 0.5;
   m.structure.surface_alpha = -0.08;
-  const std::string yarn_model = (fs::temp_directory_path() / ("ny_yarn_model_" + std::to_string(::getpid()) + ".json")).string();
+  const std::string yarn_model = temp_json("ny_yarn_model_");
   neuralyarn::model::save_model(m, yarn_model);
-  PlySceneOptions o;
-  o.plies = plies;
-  o.level = "yarns";
+  PlySceneOptions o = at_level(plies, "yarns");
   o.model = yarn_model;
   const std::string agg = scene_text(o);
   EXPECT_EQ(hair_attribute(agg, "nkeys"), (std::vector<double>{3}));
@@ -599,4 +613,78 @@ TEST(CyclesScenePlies, YarnLevelDrawsTheYarnsWithAYarnModel)
   }
   fs::remove(plies);
   fs::remove(yarn_model);
+}
+
+TEST(CyclesScenePlies, SurfaceLevelDrawsTheClothSurfaceWithItsStockClosures)
+{
+  /* Units of ply radius 0.5: the quad's vertices come out doubled. */
+  const std::string plies = write_plies(R"({"format": "neuralyarn-plies 1", "ply_radius": 0.5,
+      "plies": [[0, 0, 0, 4, 0, 0]],
+      "surface": {"vertices": [-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0], "triangles": [0, 1, 2, 0, 2, 3]}})");
+  neuralyarn::model::SurfaceBsdf s;
+  s.view_bins = 2;
+  s.lobes = {{"diffuse", 0.0}, {"ggx", 0.25}};
+  s.transparent = {0.1f, 0.3f, 0.2f, 0.6f};
+  s.W = std::vector<float>(24, 0.2f);
+  s.W[0] = 0.5f; /* front, view bin 0, diffuse, red */
+  s.albedo = std::vector<float>(12, 0.5f);
+  s.fit_error = std::vector<float>(4, 0.1f);
+  const std::string surface = temp_json("ny_surface_");
+  neuralyarn::model::save_surface(s, surface);
+  PlySceneOptions o = at_level(plies, "surface");
+  o.surface = surface;
+  const std::string xml = scene_text(o);
+  /* No curves: the mesh of two triangles in ply radii. */
+  EXPECT_TRUE(elements(xml, "hair").empty());
+  const std::vector<Attributes> mesh = elements(xml, "mesh");
+  ASSERT_EQ(mesh.size(), 1u);
+  EXPECT_EQ(numbers(mesh[0].at("nverts")), (std::vector<double>{3, 3}));
+  EXPECT_EQ(numbers(mesh[0].at("verts")), (std::vector<double>{0, 1, 2, 0, 2, 3}));
+  EXPECT_EQ(numbers(mesh[0].at("P")).at(3), 2.0);
+  /* transparent, diffuse and the glossy lobe (roughness sqrt(alpha)), each weighted by its curve. */
+  EXPECT_EQ(elements(xml, "transparent_bsdf").size(), 1u);
+  EXPECT_EQ(elements(xml, "diffuse_bsdf").size(), 1u);
+  const std::vector<Attributes> glossy = elements(xml, "glossy_bsdf");
+  ASSERT_EQ(glossy.size(), 1u);
+  EXPECT_EQ(glossy[0].at("distribution"), "ggx");
+  EXPECT_NEAR(std::stod(glossy[0].at("roughness")), 0.5, 1e-6);
+  const std::vector<Attributes> curves = elements(xml, "rgb_curves");
+  ASSERT_EQ(curves.size(), 3u);
+  const std::vector<double> t = numbers(curves[0].at("curves")), d = numbers(curves[1].at("curves"));
+  ASSERT_EQ(t.size(), 3u * 256u);
+  /* x = 0: the front face seen edge-on (the tables extrapolated to cos 0); the last sample: the back face at
+   * the normal. */
+  const neuralyarn::model::SurfaceAt front0 = neuralyarn::model::surface_at(s, 0, 0.0);
+  const neuralyarn::model::SurfaceAt back1 = neuralyarn::model::surface_at(s, 1, 1.0);
+  EXPECT_NEAR(t[0], front0.transparent, 1e-6);
+  EXPECT_NEAR(t[t.size() - 1], back1.transparent, 1e-6);
+  EXPECT_NEAR(d[0], front0.W[0][0], 1e-6);
+  /* The curves' input: |N.I| and the face, through the nodes that compute x. */
+  EXPECT_NE(xml.find("<connect from=\"g backfacing\" to=\"bf value1\" />"), std::string::npos);
+  EXPECT_NE(xml.find("<connect from=\"g incoming\" to=\"nv vector2\" />"), std::string::npos);
+  /* Refused: the level without its BSDF, the BSDF without the level, a file without a surface, a model beside
+   * it, and the description for Blender (not written yet: a scene without its cloth would render wrong). */
+  o.surface.clear();
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  o.surface = surface;
+  o.level = "plies";
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  o.level = "surface";
+  o.model = std::string(NY_TEST_DATA_DIR) + "/../../models/fleece.json";
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  o.model.clear();
+  const std::string json = temp_json("ny_surface_scene_");
+  EXPECT_THROW(neuralyarn::scenes::write_ply_scene(neuralyarn::find_preset("fleece"), o, json), std::runtime_error);
+  EXPECT_FALSE(fs::exists(json));
+  o.plies = write_plies(R"({"format": "neuralyarn-plies 1", "ply_radius": 1, "plies": [[0,0,0,1,0,0]]})");
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+  for (const char *bad : {R"("surface": {"vertices": [0, 0, 0], "triangles": [0, 0, 1]})",
+                          R"("surface": {"vertices": [0, 0, "x"], "triangles": [0, 0, 0]})",
+                          R"("surface": {"vertices": [0, 0, 0], "triangles": [0, 0]})", R"("period": [1, -1])"}) {
+    o.plies = write_plies(std::string(R"({"format": "neuralyarn-plies 1", "ply_radius": 1, "plies": [[0,0,0,1,0,0]], )") +
+                          bad + "}");
+    EXPECT_THROW(scene_text(o), std::runtime_error) << bad;
+  }
+  fs::remove(plies);
+  fs::remove(surface);
 }

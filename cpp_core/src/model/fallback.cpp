@@ -14,6 +14,7 @@
 #include "neuralyarn/model/calibration.h"
 #include "neuralyarn/model/cycles_lobes.h"
 #include "neuralyarn/model/model.h"
+#include "neuralyarn/model/nnls.h"
 #include "neuralyarn/thread_limit.h"
 #include "neuralyarn/units.h"
 
@@ -46,47 +47,6 @@ double von_mises_upper_share(float kappa)
 /* Upper bound of a stored lobe weight (the loader's check): a weight is at most the view's energy over a
  * lobe's albedo, and the lobes' albedos are above ~0.3. */
 constexpr double kMaxWeight = 100.0;
-
-/* Non-negative least squares  min w^T G w - 2 b^T w, w >= 0, for the few lobes of the fallback: every
- * subset of free variables solved exactly (2^K - 1 small systems), the best feasible one kept. Exact, and
- * deterministic; K <= 8. */
-Eigen::VectorXd nnls_small(const Eigen::MatrixXd &G, const Eigen::VectorXd &b)
-{
-  const int K = int(b.size());
-  Eigen::VectorXd best = Eigen::VectorXd::Zero(K);
-  double best_obj = 0.0; /* w = 0 */
-  for (int mask = 1; mask < (1 << K); mask++) {
-    std::vector<int> idx;
-    for (int k = 0; k < K; k++) {
-      if (mask >> k & 1) {
-        idx.push_back(k);
-      }
-    }
-    const int n = int(idx.size());
-    Eigen::MatrixXd Gs(n, n);
-    Eigen::VectorXd bs(n);
-    for (int x = 0; x < n; x++) {
-      bs[x] = b[idx[size_t(x)]];
-      for (int y = 0; y < n; y++) {
-        Gs(x, y) = G(idx[size_t(x)], idx[size_t(y)]);
-      }
-    }
-    const Eigen::VectorXd ws = Gs.ldlt().solve(bs);
-    if (!ws.allFinite() || (ws.array() < 0.0).any()) {
-      continue;
-    }
-    Eigen::VectorXd w = Eigen::VectorXd::Zero(K);
-    for (int x = 0; x < n; x++) {
-      w[idx[size_t(x)]] = ws[x];
-    }
-    const double obj = w.dot(G * w) - 2.0 * w.dot(b);
-    if (obj < best_obj) {
-      best_obj = obj;
-      best = w;
-    }
-  }
-  return best;
-}
 
 /* The fitted weights of one view (FallbackTables::W's [lobe][rgb] block), wv in the yarn frame, E the
  * view's R + M energies (E_R + E_M_up + E_M_down). */

@@ -1,10 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "neuralyarn/scenes/cycles_xml.h"
 
+#include <cmath>
 #include <sstream>
 #include <stdexcept>
 
 #include <Eigen/Geometry>
+
+#include "neuralyarn/model/surface_fit.h"
 
 namespace neuralyarn::scenes {
 
@@ -94,12 +97,62 @@ std::string colour_text(const Rgb3 &c)
   return std::to_string(c.r) + " " + std::to_string(c.g) + " " + std::to_string(c.b);
 }
 
+/* The surface level's closures (D44): each weighted by an RGB curve of x = kSurfaceFront |N.I| + kSurfaceBackStart
+ * Backfacing (N faces the viewer on either face), summed. */
+void write_cloth_surface(std::ostringstream &x, const Material &m)
+{
+  if (m.surface.empty()) {
+    throw std::runtime_error("a cloth surface material needs closures");
+  }
+  x << "  <geometry name=\"g\" />\n"
+    << "  <vector_math name=\"nv\" math_type=\"dot_product\" />\n"
+    << "  <connect from=\"g normal\" to=\"nv vector1\" />\n  <connect from=\"g incoming\" to=\"nv vector2\" />\n"
+    << "  <math name=\"cv\" math_type=\"absolute\" />\n  <connect from=\"nv value\" to=\"cv value1\" />\n"
+    << "  <math name=\"bf\" math_type=\"multiply\" value2=\"" << model::kSurfaceBackStart << "\" />\n"
+    << "  <connect from=\"g backfacing\" to=\"bf value1\" />\n"
+    << "  <math name=\"x\" math_type=\"multiply_add\" value2=\"" << model::kSurfaceFront << "\" />\n"
+    << "  <connect from=\"cv value\" to=\"x value1\" />\n  <connect from=\"bf value\" to=\"x value3\" />\n"
+    << "  <combine_color name=\"xxx\" color_type=\"rgb\" />\n";
+  for (const char *c : {"r", "g", "b"}) {
+    x << "  <connect from=\"x value\" to=\"xxx " << c << "\" />\n";
+  }
+  std::string sum;
+  for (size_t k = 0; k < m.surface.size(); k++) {
+    const Material::SurfaceClosure &c = m.surface[k];
+    const std::string w = "w" + std::to_string(k), b = "c" + std::to_string(k);
+    x << "  <rgb_curves name=\"" << w << "\" fac=\"1\" min_x=\"0\" max_x=\"1\" curves=\"";
+    for (size_t i = 0; i < c.weight.size(); i++) {
+      x << (i ? " " : "") << c.weight[i][0] << " " << c.weight[i][1] << " " << c.weight[i][2];
+    }
+    x << "\" />\n  <connect from=\"xxx color\" to=\"" << w << " value\" />\n";
+    if (c.closure == "ggx") {
+      x << "  <glossy_bsdf name=\"" << b << "\" distribution=\"ggx\" roughness=\"" << std::sqrt(c.alpha) << "\" />\n";
+    }
+    else if (c.closure == "transparent" || c.closure == "diffuse" || c.closure == "translucent") {
+      x << "  <" << c.closure << "_bsdf name=\"" << b << "\" />\n";
+    }
+    else {
+      throw std::runtime_error("unknown surface closure '" + c.closure + "'");
+    }
+    x << "  <connect from=\"" << w << " value\" to=\"" << b << " color\" />\n";
+    if (sum.empty()) {
+      sum = b + " bsdf";
+    }
+    else {
+      const std::string a = "a" + std::to_string(k);
+      x << "  <add_closure name=\"" << a << "\" />\n  <connect from=\"" << sum << "\" to=\"" << a << " closure1\" />\n"
+        << "  <connect from=\"" << b << " bsdf\" to=\"" << a << " closure2\" />\n";
+      sum = a + " closure";
+    }
+  }
+  x << "  <connect from=\"" << sum << "\" to=\"output surface\" />\n";
+}
+
 /* The <shader> of a material: Blender's node defaults where the XML reader's differ (its Principled BSDF has
  * specular 0, Blender's node 0.5). */
-void write_shader(std::ostringstream &x, const CurveObject &obj, const std::string &scene_path)
+void write_shader(std::ostringstream &x, const std::string &shader, const Material &m, const std::string &scene_path)
 {
-  const Material &m = obj.material;
-  x << "<shader name=\"" << obj.shader << "\">\n";
+  x << "<shader name=\"" << shader << "\">\n";
   switch (m.kind) {
     case Material::Kind::neural_yarn:
       x << "  <neural_yarn_bsdf name=\"y\" model=\"" << xml_escape(model_path_for(m.model_path, scene_path)) << "\""
@@ -131,6 +184,9 @@ void write_shader(std::ostringstream &x, const CurveObject &obj, const std::stri
       x << "  <diffuse_bsdf name=\"y\" color=\"" << m.colour.r << " " << m.colour.g << " " << m.colour.b << "\" />\n"
         << "  <connect from=\"y bsdf\" to=\"output surface\" />\n";
       break;
+    case Material::Kind::cloth_surface:
+      write_cloth_surface(x, m);
+      break;
   }
   x << "</shader>\n";
 }
@@ -159,6 +215,28 @@ void write_curves(std::ostringstream &x, const CurveObject &obj)
   x << "\" />\n</state>\n";
 }
 
+/* The mesh as one <mesh> of triangles. */
+void write_mesh(std::ostringstream &x, const MeshObject &obj)
+{
+  if (obj.vertices.empty() || obj.triangles.empty() || obj.triangles.size() % 3) {
+    throw std::runtime_error("mesh '" + obj.name + "' has no triangles");
+  }
+  x << "<state shader=\"" << obj.shader << "\">\n<mesh P=\"";
+  for (size_t i = 0; i < obj.vertices.size(); i++) {
+    const Eigen::Vector3f &p = obj.vertices[i];
+    x << (i ? " " : "") << p.x() << " " << p.y() << " " << p.z();
+  }
+  x << "\"\n  nverts=\"";
+  for (size_t i = 0; i < obj.triangles.size() / 3; i++) {
+    x << (i ? " 3" : "3");
+  }
+  x << "\"\n  verts=\"";
+  for (size_t i = 0; i < obj.triangles.size(); i++) {
+    x << (i ? " " : "") << obj.triangles[i];
+  }
+  x << "\" />\n</state>\n";
+}
+
 }  // namespace
 
 std::string cycles_xml(const Scene &scene, const std::string &scene_path)
@@ -169,8 +247,12 @@ std::string cycles_xml(const Scene &scene, const std::string &scene_path)
     << " (generated by `neuralyarn cycles-scene`) -->\n<cycles>\n";
   write_setting(x, scene);
   for (const CurveObject &obj : scene.objects) {
-    write_shader(x, obj, scene_path);
+    write_shader(x, obj.shader, obj.material, scene_path);
     write_curves(x, obj);
+  }
+  for (const MeshObject &obj : scene.meshes) {
+    write_shader(x, obj.shader, obj.material, scene_path);
+    write_mesh(x, obj);
   }
   x << "</cycles>\n";
   return x.str();

@@ -91,6 +91,41 @@ PlyCurves read_ply_curves(const std::string &path)
     out.plies_per_yarn = k.get<int>();
     out.ply_twist = tw.get<double>();
   }
+  if (j.contains("period")) {
+    const nlohmann::json &p = j["period"];
+    if (!p.is_array() || p.size() != 2 || !p[0].is_number() || !p[1].is_number() ||
+        !(p[0].get<double>() > 0.0) || !(p[1].get<double>() > 0.0) || !std::isfinite(p[0].get<double>()) ||
+        !std::isfinite(p[1].get<double>()))
+    {
+      throw fail("'period' must be two positive numbers (the pattern's period along x and y)");
+    }
+    out.period[0] = scale * p[0].get<double>(), out.period[1] = scale * p[1].get<double>();
+  }
+  if (j.contains("surface")) {
+    const nlohmann::json &s = j["surface"];
+    const auto v = s.is_object() ? s.find("vertices") : s.end(), t = s.is_object() ? s.find("triangles") : s.end();
+    if (v == s.end() || t == s.end() || !v->is_array() || !t->is_array() || v->empty() || v->size() % 3 ||
+        t->empty() || t->size() % 3)
+    {
+      throw fail("'surface' must hold 'vertices' (x y z triples) and 'triangles' (index triples)");
+    }
+    for (const nlohmann::json &x : *v) {
+      if (!x.is_number() || !std::isfinite(x.get<double>())) {
+        throw fail("a surface vertex is not a finite number");
+      }
+    }
+    for (size_t i = 0; i < v->size(); i += 3) {
+      out.surface_vertices.emplace_back(scale * (*v)[i].get<double>(), scale * (*v)[i + 1].get<double>(),
+                                        scale * (*v)[i + 2].get<double>());
+    }
+    for (const nlohmann::json &x : *t) {
+      if (!x.is_number_integer() || x.get<int64_t>() < 0 || x.get<int64_t>() >= int64_t(out.surface_vertices.size())) {
+        throw fail("a surface triangle's index is not an integer in [0, " +
+                   std::to_string(out.surface_vertices.size()) + ")");
+      }
+      out.surface_triangles.push_back(x.get<int>());
+    }
+  }
   return out;
 }
 

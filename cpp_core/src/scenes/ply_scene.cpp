@@ -11,8 +11,9 @@
 #include "neuralyarn/geometry/ply.h"
 #include "neuralyarn/geometry/sweep.h"
 #include "neuralyarn/io.h"
-#include "neuralyarn/scenes/ply_curves.h"
 #include "neuralyarn/model/model.h"
+#include "neuralyarn/model/surface_fit.h"
+#include "neuralyarn/scenes/ply_curves.h"
 #include "neuralyarn/units.h"
 
 namespace neuralyarn::scenes {
@@ -153,8 +154,18 @@ LightRig check_options(const FiberPreset &preset, const PlySceneOptions &o)
 /* What the level and the baseline allow, given the plies file (if any). */
 void check_level_and_baseline(const PlySceneOptions &o, const PlyCurves &curves_in, bool yarn_level)
 {
+  if (o.level == "surface") {
+    if (o.surface.empty() || curves_in.surface_triangles.empty() || !o.model.empty() || !o.baseline.empty() || o.diffuse) {
+      throw std::runtime_error("the surface level draws the cloth surface of a plies file (--plies with \"surface\") "
+                               "with a surface BSDF (--surface), nothing else");
+    }
+    return;
+  }
+  if (!o.surface.empty()) {
+    throw std::runtime_error("--surface is the surface level's BSDF: give it with --level surface");
+  }
   if (!yarn_level && o.level != "plies") {
-    throw std::runtime_error("level must be plies or yarns, got '" + o.level + "'");
+    throw std::runtime_error("level must be plies, yarns or surface, got '" + o.level + "'");
   }
   if (yarn_level && (curves_in.yarns.empty() || (o.model.empty() && o.baseline.empty() && !o.diffuse))) {
     throw std::runtime_error("the yarn level draws the yarns of a plies file (--plies with \"yarns\") with a model "
@@ -427,6 +438,28 @@ CurveObject aggregated(const PlySceneOptions &o, const std::string &model_path, 
   return obj;
 }
 
+/* The plies file's cloth surface with the surface level's stock closures (D44). */
+MeshObject cloth_surface(const PlySceneOptions &o, const PlyCurves &curves_in)
+{
+  const model::SurfaceBsdf bsdf = model::load_surface(o.surface);
+  MeshObject obj;
+  obj.name = "cloth";
+  obj.shader = "surface";
+  Material &m = obj.material;
+  m.kind = Material::Kind::cloth_surface;
+  /* 256 samples over both faces: 125 per face between cos theta_v = 0 and 1, finer than the view bins. */
+  constexpr int kSamples = 256;
+  m.surface.push_back({"transparent", 0.0, model::surface_curve(bsdf, -1, kSamples)});
+  for (size_t k = 0; k < bsdf.lobes.size(); k++) {
+    m.surface.push_back({bsdf.lobes[k].closure, bsdf.lobes[k].alpha, model::surface_curve(bsdf, int(k), kSamples)});
+  }
+  for (const Eigen::Vector3d &v : curves_in.surface_vertices) {
+    obj.vertices.push_back((o.unit_scale * v).cast<float>());
+  }
+  obj.triangles = curves_in.surface_triangles;
+  return obj;
+}
+
 /* The fibers with the Khungurn fiber closure. */
 CurveObject fibers(const FiberPreset &preset, geometry::CurveSet curves)
 {
@@ -462,6 +495,7 @@ Scene ply_scene(const FiberPreset &preset, const PlySceneOptions &o)
   scene.title = preset.name + (o.empty                ? std::string(" ply scene without objects (the renderer's own memory)")
                                : o.diffuse            ? std::string(" ply, aggregated (one thick curve, grey diffuse)")
                                : !o.baseline.empty()  ? " ply, aggregated (one thick curve, baseline " + o.baseline + ")"
+                               : o.level == "surface" ? std::string(" cloth, surface level (a mesh, stock closures)")
                                : aggregated_version   ? std::string(" ply, aggregated (one thick curve, neural_yarn_bsdf)")
                                                       : std::string(" ply, explicit fibers (khungurn_fiber_bsdf)"));
   set_up(scene, o, limits);
@@ -470,7 +504,10 @@ Scene ply_scene(const FiberPreset &preset, const PlySceneOptions &o)
   }
   light(scene, o, rig);
   const std::vector<Placement> plies = ply_placements(o);
-  if (aggregated_version) {
+  if (o.level == "surface") {
+    scene.meshes.push_back(cloth_surface(o, curves_in));
+  }
+  else if (aggregated_version) {
     scene.objects.push_back(aggregated(o, model_path, curves_in, yarn_level, plies));
   }
   else {

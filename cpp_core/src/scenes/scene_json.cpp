@@ -38,6 +38,7 @@ const char *material_type(Material::Kind k)
     case Material::Kind::principled_hair_huang: return "principled_hair_huang";
     case Material::Kind::sheen: return "sheen";
     case Material::Kind::diffuse: return "diffuse";
+    case Material::Kind::cloth_surface: return "cloth_surface";
   }
   return "";
 }
@@ -82,6 +83,9 @@ json curves(const geometry::CurveSet &c)
 
 json scene_json(const Scene &scene, const std::string &scene_path)
 {
+  if (!scene.meshes.empty()) { /* refused, not dropped: a scene without its cloth would render silently wrong */
+    throw std::runtime_error("the surface level's meshes are written as Cycles XML only (not yet for Blender)");
+  }
   const Integrator &in = scene.integrator;
   json lights = json::array();
   for (const Light &l : scene.lights) {

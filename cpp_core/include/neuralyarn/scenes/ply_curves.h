@@ -6,7 +6,10 @@
 //     {"format": "neuralyarn-plies 1", "ply_radius": R, "plies": [[x0, y0, z0, x1, y1, z1, ...], ...]}
 // in any unit; read scaled to ply radius 1 (cycles-scene's unit). Optionally the yarns the plies were
 // twisted from, for the yarn level (docs/decisions.md D27): "yarns" (their centrelines, same unit),
-// "yarn_radius", "plies_per_yarn" and "ply_twist".
+// "yarn_radius", "plies_per_yarn" and "ply_twist". Optionally, for the surface level (D44): "period" [px, py],
+// the pattern's period along x and y of a flat patch in the plane z = 0 (what `neuralyarn surface` walks
+// through), and "surface" {"vertices": [x, y, z, ...], "triangles": [i, j, k, ...]}, the cloth's mid-surface
+// (what the surface level draws; its normal, by the triangles' winding, toward the cloth's face).
 #pragma once
 
 #include <string>
@@ -22,6 +25,9 @@ struct PlyCurves {
   double yarn_radius = 0.0;                        /* with yarns: in ply radii */
   int plies_per_yarn = 0;
   double ply_twist = 0.0;
+  double period[2] = {0.0, 0.0};              /* optional: a flat patch's period, ply radii */
+  std::vector<Eigen::Vector3d> surface_vertices; /* optional: the mid-surface, ply radii */
+  std::vector<int> surface_triangles;            /* three vertex indices each */
   size_t num_points() const;
 };
 

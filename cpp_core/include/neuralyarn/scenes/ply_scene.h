@@ -78,7 +78,9 @@ struct PlySceneOptions {
                                   * garment); explicit: each ply's fibers swept along it (geometry/sweep.h) */
   std::string level = "plies";   /* aggregated version of `plies`: "plies" (each ply a curve, a ply-level model) or
                                   * "yarns" (each of the file's yarns one curve of its radius, a yarn-level model
-                                  * of the file's plying: D27) */
+                                  * of the file's plying: D27) or "surface" (the file's cloth surface with the
+                                  * stock closures of `surface`: D44) */
+  std::string surface;           /* level "surface": the surface BSDF file (model/surface_fit.h) */
   double light_scale = 1.0;      /* point lights' positions and sizes times this, their power times its square
                                   * (a scene larger than the close-up keeps the rig's look) */
   int seed = 0;                  /* Cycles' integrator seed: independent noise per value */

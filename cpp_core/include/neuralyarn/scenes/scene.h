@@ -9,6 +9,7 @@
 // Coordinates are Cycles' standalone ones: the camera looks along +z with +y up (left-handed, x to the right).
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -81,12 +82,21 @@ struct Material {
     principled_hair_chiang, principled_hair_huang, /* baselines: direct colouring, colour */
     sheen,   /* baseline: Principled BSDF with sheen weight 1, colour */
     diffuse, /* a grey Lambertian, colour: the check that two renderers build the same scene */
+    cloth_surface, /* the surface level (D44): stock closures weighted by the view angle (surface) */
   };
   Kind kind = Kind::diffuse;
   std::string model_path; /* neural_yarn: absolute; each writer makes it relative to its own file */
   std::string model_json; /* neural_yarn, optional: the model file's text, embedded */
   double C_R[3] = {0, 0, 0}, C_TT[3] = {0, 0, 0}, beta_R = 0, beta_TT = 0, gamma_TT = 0; /* radians */
   Rgb3 colour{0.5, 0.5, 0.5};
+  /* cloth_surface: its closures, each weighted by a curve over x = kSurfaceFront cos theta_v on the front face
+   * and kSurfaceBackStart + kSurfaceFront cos theta_v on the back one (model/surface_fit.h). */
+  struct SurfaceClosure {
+    std::string closure; /* "transparent", "diffuse", "translucent" or "ggx" */
+    double alpha = 0;    /* ggx: Cycles' alpha (the Glossy node's roughness squared) */
+    std::vector<std::array<double, 3>> weight; /* RGB samples evenly spaced over x in [0, 1] */
+  };
+  std::vector<SurfaceClosure> surface;
 };
 
 /* Curves with one material. */
@@ -94,6 +104,14 @@ struct CurveObject {
   std::string name, shader; /* shader: the material's name in the scene ("fiber", "yarn") */
   Material material;
   geometry::CurveSet curves;
+};
+
+/* A triangle mesh with one material (the surface level's cloth: its normal, by the winding, toward the face). */
+struct MeshObject {
+  std::string name, shader;
+  Material material;
+  std::vector<Eigen::Vector3f> vertices;
+  std::vector<int> triangles; /* three vertex indices each */
 };
 
 struct Scene {
@@ -105,6 +123,7 @@ struct Scene {
   Background background;
   std::vector<Light> lights;
   std::vector<CurveObject> objects;
+  std::vector<MeshObject> meshes;
   size_t num_curve_keys() const;
   size_t num_curves() const;
 };

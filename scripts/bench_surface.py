@@ -1,0 +1,101 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
+"""The surface level (D44) against what it was fitted to: the flat knit it was measured on, drawn at the yarn
+level (its yarns, the yarn-level model) and at the surface level (one quad, the fitted stock closures), side by
+side in the patched standalone Cycles under the same lights; prints the central region's mean colour of both and
+their ratio per channel. It separates the fit's error (lobes, tables, the renderer's reading of them) from the
+surface level's error against explicit fibers (the harness, `evaluate.sh --methods surface`).
+
+    .venv/bin/python scripts/bench_surface.py --presets fleece cotton --lights environment sun-30-normal \\
+        sun-150-normal --spp 256 --out build/bench_surface
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
+sys.path.insert(0, os.path.join(ROOT, "scripts"))
+from garment import flat_knit_plies  # noqa: E402
+from images import read_exr  # noqa: E402
+
+BUILD = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
+CLI = os.path.join(BUILD, "cpp_core", "neuralyarn")
+CYCLES = os.path.join(BUILD, "cycles", "bin", "cycles")
+#: The patch the harness fits on (evaluate.SURFACE_FIT), seen from far along its normal (its back face).
+ROWS = STITCHES = 14
+SIZE = 64
+CAMERA_DISTANCE = 200.0
+
+
+def patch(out: str) -> tuple[str, str]:
+    """The flat knit (for `neuralyarn surface`) and the same knit centred on the origin with a quad over it
+    (for cycles-scene --plies, whose camera looks at the origin along +z)."""
+    g = flat_knit_plies(ROWS, STITCHES)
+    fit = os.path.join(out, "flat_knit.json")
+    with open(fit, "w") as f:
+        json.dump(g, f, separators=(",", ":"))
+    pts = np.concatenate([np.reshape(y, (-1, 3)) for y in g["yarns"]])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    c = np.array([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.0])
+    for key in ("yarns", "plies"):
+        g[key] = [[round(float(v), 5) for v in (np.reshape(q, (-1, 3)) - c).ravel()] for q in g[key]]
+    x0, y0, x1, y1 = lo[0] - c[0], lo[1] - c[1], hi[0] - c[0], hi[1] - c[1]
+    g["surface"] = {"vertices": [x0, y0, 0, x1, y0, 0, x1, y1, 0, x0, y1, 0], "triangles": [0, 1, 2, 0, 2, 3]}
+    scene = os.path.join(out, "flat_knit_scene.json")
+    with open(scene, "w") as f:
+        json.dump(g, f, separators=(",", ":"))
+    return fit, scene
+
+
+def render(xml: str, exr: str, spp: int) -> tuple[np.ndarray, float]:
+    t0 = time.monotonic()
+    subprocess.run([CYCLES, "--background", "--quiet", "--samples", str(spp), "--threads", "2", "--width", str(SIZE),
+                    "--height", str(SIZE), "--output", exr, xml], check=True, capture_output=True)
+    seconds = time.monotonic() - t0
+    q = SIZE // 4
+    return read_exr(exr)[q:3 * q, q:3 * q, :3].mean(axis=(0, 1)), seconds
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--presets", nargs="+", default=["fleece"])
+    ap.add_argument("--lights", nargs="+", default=["environment", "sun-30-normal", "sun-60-normal", "sun-150-normal",
+                                                     "sun-170-normal"])
+    ap.add_argument("--spp", type=int, default=256)
+    ap.add_argument("--paths", default="8e6", help="paths of the surface fit")
+    ap.add_argument("--out", required=True)
+    a = ap.parse_args(argv)
+    os.makedirs(a.out, exist_ok=True)
+    fit, scene = patch(a.out)
+    print("preset light: yarn level rgb | surface level rgb | surface / yarn - 1 (%) | seconds yarn / surface")
+    for preset in a.presets:
+        yarn_model = os.path.join(ROOT, "models", f"{preset}_yarn.json")
+        surface = os.path.join(a.out, f"surface_{preset}.json")
+        t0 = time.monotonic()
+        subprocess.run([CLI, "surface", "--plies", fit, "--model", yarn_model, "--paths", a.paths, "--quiet",
+                        "--out", surface], check=True, capture_output=True)
+        print(f"{preset}: surface fitted in {time.monotonic() - t0:.1f} s")
+        for light in a.lights:
+            res = {}
+            for level, extra in (("yarns", ["--model", yarn_model]), ("surface", ["--surface", surface])):
+                xml = os.path.join(a.out, f"{preset}_{light}_{level}.xml")
+                subprocess.run([CLI, "cycles-scene", "--preset", preset, "--lights", light, "--width", str(SIZE),
+                                "--height", str(SIZE), "--plies", scene, "--camera-distance", str(CAMERA_DISTANCE),
+                                "--level", level, *extra, "--out", xml], check=True, capture_output=True)
+                res[level] = render(xml, xml[:-4] + ".exr", a.spp)
+            (y, ty), (s, ts) = res["yarns"], res["surface"]
+            rel = 100.0 * (s / np.maximum(y, 1e-12) - 1.0)
+            print(f"{preset} {light}: {' '.join(f'{v:.5f}' for v in y)} | {' '.join(f'{v:.5f}' for v in s)} | "
+                  f"{' '.join(f'{v:+.1f}' for v in rel)} | {ty:.1f} / {ts:.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
