@@ -4,10 +4,13 @@
 level (its yarns, the yarn-level model) and at the surface level (one quad, the fitted stock closures), side by
 side in the patched standalone Cycles under the same lights; prints the central region's mean colour of both and
 their ratio per channel. It separates the fit's error (lobes, tables, the renderer's reading of them) from the
-surface level's error against explicit fibers (the harness, `evaluate.sh --methods surface`).
+surface level's error against explicit fibers (the harness, `evaluate.sh --methods surface`). With --garment N,
+the same on the harness's N x N sleeve at --size (its mid-surface against its yarns): where the yarns are below a
+pixel and explicit fibers do not fit in memory.
 
     .venv/bin/python scripts/bench_surface.py --presets fleece cotton --lights environment sun-30-normal \\
         sun-150-normal --spp 256 --out build/bench_surface
+    .venv/bin/python scripts/bench_surface.py --garment 40 --size 80 60 --out build/bench_surface_garment
 """
 from __future__ import annotations
 
@@ -54,13 +57,14 @@ def patch(out: str) -> tuple[str, str]:
     return fit, scene
 
 
-def render(xml: str, exr: str, spp: int) -> tuple[np.ndarray, float]:
+def render(xml: str, exr: str, spp: int, size: tuple[int, int]) -> tuple[np.ndarray, float]:
+    """The central region's mean colour (the middle half of each side) and the wall time."""
+    w, h = size
     t0 = time.monotonic()
-    subprocess.run([CYCLES, "--background", "--quiet", "--samples", str(spp), "--threads", "2", "--width", str(SIZE),
-                    "--height", str(SIZE), "--output", exr, xml], check=True, capture_output=True)
+    subprocess.run([CYCLES, "--background", "--quiet", "--samples", str(spp), "--threads", "2", "--width", str(w),
+                    "--height", str(h), "--output", exr, xml], check=True, capture_output=True)
     seconds = time.monotonic() - t0
-    q = SIZE // 4
-    return read_exr(exr)[q:3 * q, q:3 * q, :3].mean(axis=(0, 1)), seconds
+    return read_exr(exr)[h // 4:3 * h // 4, w // 4:3 * w // 4, :3].mean(axis=(0, 1)), seconds
 
 
 def main(argv: list[str]) -> int:
@@ -70,10 +74,21 @@ def main(argv: list[str]) -> int:
                                                      "sun-170-normal"])
     ap.add_argument("--spp", type=int, default=256)
     ap.add_argument("--paths", default="8e6", help="paths of the surface fit")
+    ap.add_argument("--garment", type=int, help="instead of the flat knit: the harness's sleeve of N x N stitches")
+    ap.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), help="image size (default 64 64; the "
+                    "garment's: evaluate.py's)")
     ap.add_argument("--out", required=True)
     a = ap.parse_args(argv)
     os.makedirs(a.out, exist_ok=True)
     fit, scene = patch(a.out)
+    size = tuple(a.size) if a.size else (SIZE, SIZE)
+    framing = ["--camera-distance", str(CAMERA_DISTANCE)]
+    if a.garment:
+        import evaluate  # the harness's framing of the sleeve (its plies file and camera)
+        os.makedirs(os.path.join(a.out, "scenes"), exist_ok=True)
+        args = list(evaluate.garment_framing(a.out, a.garment, size[0] / size[1]))
+        i = args.index("--plies")
+        scene, framing = args[i + 1], args[:i] + args[i + 2:]
     print("preset light: yarn level rgb | surface level rgb | surface / yarn - 1 (%) | seconds yarn / surface")
     for preset in a.presets:
         yarn_model = os.path.join(ROOT, "models", f"{preset}_yarn.json")
@@ -86,10 +101,10 @@ def main(argv: list[str]) -> int:
             res = {}
             for level, extra in (("yarns", ["--model", yarn_model]), ("surface", ["--surface", surface])):
                 xml = os.path.join(a.out, f"{preset}_{light}_{level}.xml")
-                subprocess.run([CLI, "cycles-scene", "--preset", preset, "--lights", light, "--width", str(SIZE),
-                                "--height", str(SIZE), "--plies", scene, "--camera-distance", str(CAMERA_DISTANCE),
+                subprocess.run([CLI, "cycles-scene", "--preset", preset, "--lights", light, "--width", str(size[0]),
+                                "--height", str(size[1]), "--plies", scene, *framing,
                                 "--level", level, *extra, "--out", xml], check=True, capture_output=True)
-                res[level] = render(xml, xml[:-4] + ".exr", a.spp)
+                res[level] = render(xml, xml[:-4] + ".exr", a.spp, size)
             (y, ty), (s, ts) = res["yarns"], res["surface"]
             rel = 100.0 * (s / np.maximum(y, 1e-12) - 1.0)
             print(f"{preset} {light}: {' '.join(f'{v:.5f}' for v in y)} | {' '.join(f'{v:.5f}' for v in s)} | "

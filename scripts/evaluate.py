@@ -385,11 +385,11 @@ def framed_plies_args(path: str, plies: dict, distance: float) -> tuple[str, ...
 
 
 def garment_scene_args(a) -> list[str]:
-    return list(_garment_scene_args(a.out, a.garment_stitches, a.width / a.height))
+    return list(garment_framing(a.out, a.garment_stitches, a.width / a.height))
 
 
 @functools.lru_cache(maxsize=None)
-def _garment_scene_args(out: str, n: int, aspect: float) -> tuple[str, ...]:
+def garment_framing(out: str, n: int, aspect: float) -> tuple[str, ...]:
     """cycles-scene's arguments for the garment: its plies file (DIR/scenes/garment_SxS.json, written once a
     run), the camera that frames the whole tube in an image of that aspect, the point lights moved out with it."""
     g = garment_plies(n, n)
@@ -966,14 +966,15 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
 
 
 def write_strip(a, name: str, images: dict) -> None:
-    """reference | native | explicit (| yarns, when rendered), side by side on one exposure (the reference's); a
-    missing or failed method is a grey panel. Small images are enlarged (whole pixels) to at least 320 pixels a panel."""
+    """reference | native | explicit (| yarns | surface, when rendered), side by side on one exposure (the
+    reference's); a missing or failed method is a grey panel. Small images are enlarged (whole pixels) to at least
+    320 pixels a panel."""
     import matplotlib.image
     ref = images["reference"]
     x = exposure_of(ref)
     gap = np.ones((ref.shape[0], 1, 3))
     panels = []
-    for k in ("reference", "native", "explicit") + (("yarns",) if "yarns" in images else ()):
+    for k in ("reference", "native", "explicit") + tuple(m for m in ("yarns", "surface") if m in images):
         panels += [display(images[k], x) if k in images else np.full_like(ref, 0.5), gap]
     strip = np.clip(np.concatenate(panels[:-1], axis=1), 0.0, 1.0)
     k = max(1, math.ceil(320 / ref.shape[1]))
