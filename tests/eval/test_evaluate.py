@@ -100,7 +100,7 @@ def test_progress_and_cached_references(quick):
 
 @pytest.mark.parametrize("args, message", [
     (["--lights", "sun"], "evaluate: error: unknown light 'sun' (known: key-rim, environment, front, grazing, back, axis)"),
-    (["--methods", "cycles-osl"], "evaluate: error: unknown method 'cycles-osl' (known: explicit, native, yarns, osl, nodes, chiang, huang, sheen)"),
+    (["--methods", "cycles-osl"], "evaluate: error: unknown method 'cycles-osl' (known: explicit, native, yarns, surface, osl, nodes, chiang, huang, sheen)"),
     (["--presets", "wool"], "evaluate: error: unknown preset 'wool' (known: fleece, silk, polyester, cotton, gabardine)"),
 ])
 def test_unknown_name_exits_1_with_one_line(tmp_path, args, message):
