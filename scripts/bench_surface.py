@@ -6,7 +6,10 @@ side in the patched standalone Cycles under the same lights; prints the central 
 their ratio per channel. It separates the fit's error (lobes, tables, the renderer's reading of them) from the
 surface level's error against explicit fibers (the harness, `evaluate.sh --methods surface`). With --garment N,
 the same on the harness's N x N sleeve at --size (its mid-surface against its yarns): where the yarns are below a
-pixel and explicit fibers do not fit in memory.
+pixel and explicit fibers do not fit in memory. On the flat knit, under the parametric suns (sun-DEG-normal), it also
+prints what the walk itself predicts there (the sun's irradiance times the maps' f |cos theta_l| at the view bin
+nearest the normal and the sun's |cos| bin, over the azimuths), and each render over it: the fit's error and the
+renderer's disagreement with the walk, apart.
 
     .venv/bin/python scripts/bench_surface.py --presets fleece cotton --lights environment sun-30-normal \\
         sun-150-normal --spp 256 --out build/bench_surface
@@ -16,7 +19,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
+import re
 import subprocess
 import sys
 import time
@@ -67,6 +72,22 @@ def render(xml: str, exr: str, spp: int, size: tuple[int, int]) -> tuple[np.ndar
     return read_exr(exr)[h // 4:3 * h // 4, w // 4:3 * w // 4, :3].mean(axis=(0, 1)), seconds
 
 
+def walk_prediction(maps_file: str, xml: str, light: str) -> np.ndarray | None:
+    """E times the maps' mean f |cos theta_l| for a parametric sun seen along the patch's normal from its back
+    (side 1, the last view bin), or None for another light."""
+    m = re.fullmatch(r"sun-(\d+(?:\.\d+)?)-normal", light)
+    if not m:
+        return None
+    with open(maps_file) as f:
+        maps = json.load(f)
+    v, t, p = maps["view_bins"], maps["light_theta"], maps["light_phi"]
+    d = np.reshape(maps["D"], (2, v, 2, t, p, 3))
+    deg = float(m.group(1))
+    c = abs(math.cos(math.radians(deg)))
+    strength = float(re.search(r'<light light_type="distant"[^>]* strength="([^ "]+)', open(xml).read()).group(1))
+    return strength * d[1, v - 1, 0 if deg < 90 else 1, min(int(c * t), t - 1)].mean(axis=0)
+
+
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--presets", nargs="+", default=["fleece"])
@@ -94,8 +115,9 @@ def main(argv: list[str]) -> int:
         yarn_model = os.path.join(ROOT, "models", f"{preset}_yarn.json")
         surface = os.path.join(a.out, f"surface_{preset}.json")
         t0 = time.monotonic()
+        maps_file = os.path.join(a.out, f"surface_{preset}_maps.json")
         subprocess.run([CLI, "surface", "--plies", fit, "--model", yarn_model, "--paths", a.paths, "--quiet",
-                        "--out", surface], check=True, capture_output=True)
+                        "--out", surface, "--maps-out", maps_file], check=True, capture_output=True)
         print(f"{preset}: surface fitted in {time.monotonic() - t0:.1f} s")
         for light in a.lights:
             res = {}
@@ -109,6 +131,10 @@ def main(argv: list[str]) -> int:
             rel = 100.0 * (s / np.maximum(y, 1e-12) - 1.0)
             print(f"{preset} {light}: {' '.join(f'{v:.5f}' for v in y)} | {' '.join(f'{v:.5f}' for v in s)} | "
                   f"{' '.join(f'{v:+.1f}' for v in rel)} | {ty:.1f} / {ts:.1f}")
+            walk = None if a.garment else walk_prediction(maps_file, xml, light)
+            if walk is not None:
+                print(f"    the walk predicts {' '.join(f'{v:.5f}' for v in walk)}: yarn level / walk "
+                      f"{' '.join(f'{v:.3f}' for v in y / walk)}, surface level / walk {' '.join(f'{v:.3f}' for v in s / walk)}")
     return 0
 
 
