@@ -73,9 +73,10 @@ def render(xml: str, exr: str, spp: int, size: tuple[int, int]) -> tuple[np.ndar
 
 
 def walk_prediction(maps_file: str, xml: str, light: str) -> np.ndarray | None:
-    """E times the maps' mean f |cos theta_l| for a parametric sun seen along the patch's normal from its back
-    (side 1, the last view bin), or None for another light."""
-    m = re.fullmatch(r"sun-(\d+(?:\.\d+)?)-normal", light)
+    """E times the maps' mean f |cos theta_l| over the light's azimuths (the surface level takes the cloth as
+    isotropic) for a parametric sun seen along the patch's normal from its back (side 1, the last view bin), or
+    None for another light."""
+    m = re.fullmatch(r"sun-(\d+(?:\.\d+)?)-(?:normal|axis)", light)
     if not m:
         return None
     with open(maps_file) as f:
