@@ -33,7 +33,8 @@ import evaluate as ev
 
 def scene(a, method: str, stitches: int) -> tuple[str, float]:
     """(path, seconds to write) of the garment scene for one method."""
-    e = types.SimpleNamespace(out=a.out, garment_stitches=stitches, yarns={})
+    e = types.SimpleNamespace(out=a.out, garment_stitches=stitches, yarns={}, width=ev.GARMENT["width"],
+                              height=ev.GARMENT["height"])
     path = os.path.join(a.out, "scenes", f"garment_{stitches}x{stitches}_{a.preset}_{method}.xml")
     args = ["--preset", a.preset, "--lights", a.light, "--width", str(ev.GARMENT["width"]),
             "--height", str(ev.GARMENT["height"]), "--out", path, *ev.garment_scene_args(e)]
@@ -46,7 +47,8 @@ def scene(a, method: str, stitches: int) -> tuple[str, float]:
 
 def estimated_keys(a, stitches: int) -> int:
     """cycles-scene's estimate of the explicit keys of a garment it refuses to write."""
-    e = types.SimpleNamespace(out=a.out, garment_stitches=stitches, yarns={})
+    e = types.SimpleNamespace(out=a.out, garment_stitches=stitches, yarns={}, width=ev.GARMENT["width"],
+                              height=ev.GARMENT["height"])
     try:
         ev.run_cli(["cycles-scene", "--preset", a.preset, "--out", os.path.join(a.out, "scenes", "refused.xml"),
                     *ev.garment_scene_args(e)])
