@@ -30,14 +30,13 @@ import numpy as np
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
 sys.path.insert(0, os.path.join(ROOT, "scripts"))
+import evaluate  # noqa: E402  (the harness's fit settings and the sleeve's framing)
 from garment import flat_knit_plies  # noqa: E402
 from images import read_exr  # noqa: E402
 
-BUILD = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
-CLI = os.path.join(BUILD, "cpp_core", "neuralyarn")
-CYCLES = os.path.join(BUILD, "cycles", "bin", "cycles")
-#: The patch the harness fits on (evaluate.SURFACE_FIT), seen from far along its normal (its back face).
-ROWS = STITCHES = 14
+CLI, CYCLES = evaluate.CLI, evaluate.CYCLES
+#: The flat knit's renders: SIZE x SIZE pixels, the camera CAMERA_DISTANCE ply radii away along the knit's normal
+#: (it sees the back face).
 SIZE = 64
 CAMERA_DISTANCE = 200.0
 
@@ -45,7 +44,7 @@ CAMERA_DISTANCE = 200.0
 def patch(out: str) -> tuple[str, str]:
     """The flat knit (for `neuralyarn surface`) and the same knit centred on the origin with a quad over it
     (for cycles-scene --plies, whose camera looks at the origin along +z)."""
-    g = flat_knit_plies(ROWS, STITCHES)
+    g = flat_knit_plies(evaluate.SURFACE_FIT["rows"], evaluate.SURFACE_FIT["stitches"])  # the harness's patch
     fit = os.path.join(out, "flat_knit.json")
     with open(fit, "w") as f:
         json.dump(g, f, separators=(",", ":"))
@@ -95,7 +94,8 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--lights", nargs="+", default=["environment", "sun-30-normal", "sun-60-normal", "sun-150-normal",
                                                      "sun-170-normal"])
     ap.add_argument("--spp", type=int, default=256)
-    ap.add_argument("--paths", default="8e6", help="paths of the surface fit")
+    ap.add_argument("--paths", default=evaluate.SURFACE_FIT["paths"], help="paths of the surface fit (default: the "
+                    "harness's)")
     ap.add_argument("--garment", type=int, help="instead of the flat knit: the harness's sleeve of N x N stitches")
     ap.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), help="image size (default 64 64; the "
                     "garment's: evaluate.py's)")
@@ -106,14 +106,13 @@ def main(argv: list[str]) -> int:
     size = tuple(a.size) if a.size else (SIZE, SIZE)
     framing = ["--camera-distance", str(CAMERA_DISTANCE)]
     if a.garment:
-        import evaluate  # the harness's framing of the sleeve (its plies file and camera)
         os.makedirs(os.path.join(a.out, "scenes"), exist_ok=True)
         args = list(evaluate.garment_framing(a.out, a.garment, size[0] / size[1]))
         i = args.index("--plies")
         scene, framing = args[i + 1], args[:i] + args[i + 2:]
     print("preset light: yarn level rgb | surface level rgb | surface / yarn - 1 (%) | seconds yarn / surface")
     for preset in a.presets:
-        yarn_model = os.path.join(ROOT, "models", f"{preset}_yarn.json")
+        yarn_model = evaluate.yarn_model_path(preset)
         surface = os.path.join(a.out, f"surface_{preset}.json")
         t0 = time.monotonic()
         maps_file = os.path.join(a.out, f"surface_{preset}_maps.json")

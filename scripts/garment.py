@@ -35,14 +35,19 @@ SAMPLES_PER_LOOP = 24
 SAMPLES_PER_TURN = 16
 
 
-def garment_plies(rows: int, stitches: int) -> dict:
-    """The plies file's content: {"format", "ply_radius" (1), "plies", "rows", "stitches", "tube_radius",
-    "height", "width"} (lengths in ply radii). Raises geometry.GeometryError for bad sizes."""
+def _knit(rows: int, stitches: int) -> tuple[list, list, float]:
+    """The garment's knit in Crane's units: its yarns (one per row), their plies and the plies' radius."""
     yarns = geometry.plain_knit(rows, stitches, samples_per_loop=SAMPLES_PER_LOOP)
     plies = []
     for y in yarns:
         plies += geometry.twist_plies(y, PLIES_PER_YARN, alpha_yarn=ALPHA_YARN, samples_per_turn=SAMPLES_PER_TURN)
-    r_ply = float(np.mean([p.radius.mean() for p in plies]))
+    return yarns, plies, float(np.mean([p.radius.mean() for p in plies]))
+
+
+def garment_plies(rows: int, stitches: int) -> dict:
+    """The plies file's content: {"format", "ply_radius" (1), "plies", "rows", "stitches", "tube_radius",
+    "height", "width"} (lengths in ply radii). Raises geometry.GeometryError for bad sizes."""
+    yarns, plies, r_ply = _knit(rows, stitches)
     course = 2.0 * math.pi * stitches / r_ply  # one stitch is 2 pi wide (Crane's units)
     tube = course / (2.0 * math.pi)
     pts = [p.points / r_ply for p in plies]
@@ -86,12 +91,10 @@ def flat_knit_plies(rows: int, stitches: int) -> dict:
     """The garment's knit, flat: rows x stitches of the same plies and yarns in the plane z = 0 (ply radius 1),
     its face toward +z, with its "period" (one stitch along x, one row along y): the patch `neuralyarn surface`
     walks through to measure the surface level's BSDF (D44)."""
-    yarns = geometry.plain_knit(rows, stitches, samples_per_loop=SAMPLES_PER_LOOP)
-    plies = []
-    for y in yarns:
-        plies += geometry.twist_plies(y, PLIES_PER_YARN, alpha_yarn=ALPHA_YARN, samples_per_turn=SAMPLES_PER_TURN)
-    r_ply = float(np.mean([p.radius.mean() for p in plies]))
-    wale = float(yarns[1].points[0, 1] - yarns[0].points[0, 1]) if rows > 1 else 4.5
+    yarns, plies, r_ply = _knit(rows, stitches)
+    # One row along y: the knit's own row spacing (a one-row patch takes it from two rows of one stitch).
+    pair = yarns if rows > 1 else geometry.plain_knit(2, 1, samples_per_loop=SAMPLES_PER_LOOP)
+    wale = float(pair[1].points[0, 1] - pair[0].points[0, 1])
 
     def flat(p: np.ndarray) -> list[float]:
         return [round(float(v), 5) for v in (p / r_ply).ravel()]

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <Eigen/Geometry>
 
 #include "cli_common.h"
 #include "model_commands.h"
@@ -263,24 +264,17 @@ struct SurfaceCommand {
                                "(scripts/garment.py --flat)");
     }
     check_writable(out);
-    const auto &lines = yarns ? pc.yarns : pc.plies;
-    geometry::CurveSet curves;
-    curves.offsets.push_back(0);
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
-    for (const auto &line : lines) {
-      for (const Eigen::Vector3d &q : line) {
-        curves.points.push_back(q.cast<float>());
-        lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
-      }
-      curves.offsets.push_back(int(curves.points.size()));
-      curves.radii.push_back(float(yarns ? pc.yarn_radius : 1.0));
+    const geometry::CurveSet curves = scenes::curve_set(yarns ? pc.yarns : pc.plies, yarns ? pc.yarn_radius : 1.0);
+    Eigen::AlignedBox3f box;
+    for (const Eigen::Vector3f &q : curves.points) {
+      box.extend(q);
     }
     rdm::SurfaceGatherOptions o;
     o.paths = parse_count(paths);
     o.seed = seed;
     o.threads = threads;
     o.view_bins = view_bins;
-    o.centre_x = 0.5 * (lo.x() + hi.x()), o.centre_y = 0.5 * (lo.y() + hi.y());
+    o.centre_x = box.center().x(), o.centre_y = box.center().y();
     o.period_x = pc.period[0], o.period_y = pc.period[1];
     ProgressBar bar(!quiet);
     o.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };

@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 
 #include "neuralyarn/io.h"
+#include "neuralyarn/model/fallback.h"
 #include "neuralyarn/model/nnls.h"
 #include "neuralyarn/units.h"
 
@@ -28,14 +29,12 @@ cl::Dir from_angles(double cos_t, double phi, double sign)
   return {s * std::cos(phi), s * std::sin(phi), sign * cos_t};
 }
 
-/* One view's weights [lobe][rgb] and fit error. */
-void fit_view(const rdm::SurfaceMaps &m, const std::vector<SurfaceLobe> &lobes, int side, int view,
-              const SurfaceFitOptions &o, float *W, float *error)
+/* The lobes' mean over each light bin (rows: hemisphere, theta, phi as in the maps) and over the view bin's
+ * cosines: the same for both faces. */
+Eigen::MatrixXd lobe_matrix(const rdm::SurfaceMaps &m, const std::vector<SurfaceLobe> &lobes, int view, int S)
 {
-  const int K = int(lobes.size()), S = o.subsamples;
-  const int n_bins = 2 * m.light_theta * m.light_phi;
-  /* The lobes' mean over each light bin and over the view bin's cosines. */
-  Eigen::MatrixXd L = Eigen::MatrixXd::Zero(n_bins, K);
+  const int K = int(lobes.size());
+  Eigen::MatrixXd L = Eigen::MatrixXd::Zero(2 * m.light_theta * m.light_phi, K);
   for (int sv = 0; sv < S; sv++) {
     const double cv = (view + (sv + 0.5) / S) / m.view_bins;
     const cl::Dir v = from_angles(cv, 0.0, 1.0);
@@ -57,7 +56,14 @@ void fit_view(const rdm::SurfaceMaps &m, const std::vector<SurfaceLobe> &lobes, 
       }
     }
   }
-  L /= double(S) * S * S;
+  return L / (double(S) * S * S);
+}
+
+/* One view's weights [lobe][rgb] and fit error, given the lobes' bin means L (lobe_matrix). */
+void fit_view(const rdm::SurfaceMaps &m, const Eigen::MatrixXd &L, int side, int view, const SurfaceFitOptions &o,
+              float *W, float *error)
+{
+  const int K = int(L.cols()), n_bins = int(L.rows());
   const double omega = m.bin_solid_angle();
   /* The lobes' albedos per hemisphere (0: the viewer's, 1: through the cloth), binned as the data. */
   const int half = m.light_theta * m.light_phi;
@@ -124,13 +130,7 @@ std::vector<float> floats(const json &j, const std::string &key, size_t n, doubl
 
 double surface_lobe_eval(const SurfaceLobe &lobe, const cl::Dir &v, const cl::Dir &l)
 {
-  if (lobe.closure == "diffuse") {
-    return cl::diffuse_eval(l);
-  }
-  if (lobe.closure == "translucent") {
-    return cl::translucent_eval(l);
-  }
-  return cl::ggx_eval(lobe.alpha, lobe.alpha, v, l);
+  return fallback_lobe_eval({lobe.closure, lobe.alpha, lobe.alpha}, v, l); /* the one dispatch over the closures */
 }
 
 SurfaceBsdf fit_surface(const rdm::SurfaceMaps &m, const SurfaceFitOptions &o)
@@ -152,9 +152,12 @@ SurfaceBsdf fit_surface(const rdm::SurfaceMaps &m, const SurfaceFitOptions &o)
   s.albedo.assign(m.scattered.begin(), m.scattered.end());
   s.W.assign(cells * K * 3, 0.0f);
   s.fit_error.assign(cells, 0.0f);
-  for (size_t cell = 0; cell < cells; cell++) {
-    fit_view(m, s.lobes, int(cell / size_t(m.view_bins)), int(cell % size_t(m.view_bins)), o, &s.W[cell * K * 3],
-             &s.fit_error[cell]);
+  for (int view = 0; view < m.view_bins; view++) {
+    const Eigen::MatrixXd L = lobe_matrix(m, s.lobes, view, o.subsamples);
+    for (int side = 0; side < 2; side++) {
+      const size_t cell = size_t(side * m.view_bins + view);
+      fit_view(m, L, side, view, o, &s.W[cell * K * 3], &s.fit_error[cell]);
+    }
   }
   return s;
 }

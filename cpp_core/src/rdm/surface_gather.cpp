@@ -53,8 +53,30 @@ void validate(const SurfaceGatherOptions &o, const Eigen::AlignedBox3f &box)
   }
 }
 
-/* The walk of one path: adds what leaves to `acc` (SurfaceMaps::D's layout, then tau, then scattered) and the
- * energy of a path cut at the event limit to `lost`. */
+/* What one chunk of paths left: D's sums (SurfaceMaps::D's layout), the straight-through count per
+ * (side, view), the energy of paths cut at the event limit, and the counts of cut paths and of paths that
+ * left near the patch's edge. Chunks are summed in order: the same numbers at any thread count. */
+struct Tally {
+  std::vector<double> D, straight;
+  double lost[3] = {0, 0, 0};
+  uint64_t lost_paths = 0, past_edges = 0;
+
+  void add(const Tally &t)
+  {
+    for (size_t i = 0; i < D.size(); i++) {
+      D[i] += t.D[i];
+    }
+    for (size_t i = 0; i < straight.size(); i++) {
+      straight[i] += t.straight[i];
+    }
+    for (int c = 0; c < 3; c++) {
+      lost[c] += t.lost[c];
+    }
+    lost_paths += t.lost_paths, past_edges += t.past_edges;
+  }
+};
+
+/* The walk of one path, into a tally. */
 struct Walker {
   const EmbreePly &curves;
   const ny::YarnBsdfParams &p;
@@ -63,8 +85,7 @@ struct Walker {
   Eigen::AlignedBox3f box;
   float tnear;
 
-  /* Returns true if the path left from within one period of the patch's edge. */
-  bool walk(Rng &rng, int side, int view, std::vector<double> &acc, double lost[3], uint64_t &lost_paths) const
+  void walk(Rng &rng, int side, int view, Tally &tally) const
   {
     const double cos_v = (view + double(uniform_float(rng))) / o.view_bins;
     const double sin_v = std::sqrt(std::max(0.0, 1.0 - cos_v * cos_v));
@@ -88,16 +109,12 @@ struct Walker {
       }
       if (step >= o.max_events) {
         for (int c = 0; c < 3; c++) {
-          lost[c] += beta[c];
+          tally.lost[c] += beta[c];
         }
-        lost_paths++;
-        return false;
+        tally.lost_paths++;
+        return;
       }
-      const Vec3 x = h.tangent;
-      Vec3 n = h.normal - x * ny::dot(h.normal, x); /* the tube's radial normal (not a joint sphere's) */
-      const float len = ny::length(n);
-      n = len > 1e-6f ? n * (1.0f / len) : h.normal;
-      const Vec3 y = ny::cross(n, x);
+      const Vec3 x = h.tangent, n = h.radial_normal(), y = ny::cross(n, x);
       org = org + d * h.t;
       last = org;
       const Vec3 wi = make_vec3(-ny::dot(d, x), -ny::dot(d, y), -ny::dot(d, n));
@@ -107,7 +124,7 @@ struct Walker {
       ny::YarnSample s;
       const float u0 = uniform_float(rng), u1 = uniform_float(rng), u2 = uniform_float(rng);
       if (!ny::yarn_sample(p, wi, u0, u1, u2, /*include_T=*/true, &s)) {
-        return false; /* nothing scattered: absorbed */
+        return; /* nothing scattered: absorbed */
       }
       if (s.delta) {
         continue; /* T: on through the tube, whose exit the query culls */
@@ -117,7 +134,7 @@ struct Walker {
         beta[c] *= w[c];
       }
       if (!(std::isfinite(beta[0]) && std::isfinite(beta[1]) && std::isfinite(beta[2]))) {
-        return false;
+        return;
       }
       straight = false;
       d = x * s.wo.x + y * s.wo.y + n * s.wo.z;
@@ -126,33 +143,29 @@ struct Walker {
       if (++events >= 4) {
         const double q = std::min(1.0, std::max({beta[0], beta[1], beta[2]}));
         if (double(uniform_float(rng)) >= q) {
-          return false;
+          return;
         }
         for (double &b : beta) {
           b /= q;
         }
       }
     }
-    const size_t n_d = layout.D.size(), V = size_t(layout.view_bins);
-    const size_t cell = size_t(side) * V + size_t(view);
     if (straight) {
-      acc[n_d + cell] += 1.0;
+      tally.straight[size_t(side * layout.view_bins + view)] += 1.0;
     }
     else {
       const double wz = zs * d.z;
-      const int hemi = wz > 0.0 ? 0 : 1;
       const int t = std::min(int(std::abs(wz) * layout.light_theta), layout.light_theta - 1);
       double rel = std::atan2(double(d.y), double(d.x)) - phi_v;
       rel -= 2.0 * kPi * std::floor(rel / (2.0 * kPi));
       const int q = std::min(int(rel / (2.0 * kPi) * layout.light_phi), layout.light_phi - 1);
-      const size_t i = layout.index(side, view, hemi, t, q);
+      const size_t i = layout.index(side, view, wz > 0.0 ? 0 : 1, t, q);
       for (int c = 0; c < 3; c++) {
-        acc[i + size_t(c)] += beta[c];
-        acc[n_d + 2 * V + cell * 3 + size_t(c)] += beta[c];
+        tally.D[i + size_t(c)] += beta[c];
       }
     }
-    return last.x < box.min().x() + o.period_x || last.x > box.max().x() - o.period_x ||
-           last.y < box.min().y() + o.period_y || last.y > box.max().y() - o.period_y;
+    tally.past_edges += last.x < box.min().x() + o.period_x || last.x > box.max().x() - o.period_x ||
+                        last.y < box.min().y() + o.period_y || last.y > box.max().y() - o.period_y;
   }
 };
 
@@ -183,14 +196,13 @@ SurfaceMaps gather_surface(const geometry::CurveSet &curves, const model::YarnMo
   SurfaceMaps maps;
   maps.view_bins = o.view_bins, maps.light_theta = o.light_theta, maps.light_phi = o.light_phi;
   const size_t V = size_t(o.view_bins), cells = 2 * V;
-  maps.D.assign(cells * 2 * size_t(o.light_theta) * size_t(o.light_phi) * 3, 0.0);
-  const size_t n_acc = maps.D.size() + cells + cells * 3;
+  Tally empty;
+  empty.D.assign(cells * 2 * size_t(o.light_theta) * size_t(o.light_phi) * 3, 0.0);
+  empty.straight.assign(cells, 0.0);
   const Walker walker{tubes, params, maps, o, box, 1e-4f * r_min};
 
   const uint64_t n_chunks = (o.paths + kChunk - 1) / kChunk;
-  std::vector<std::vector<double>> chunk_acc(n_chunks);
-  std::vector<std::array<double, 3>> chunk_lost(n_chunks, {0, 0, 0});
-  std::vector<uint64_t> chunk_edges(n_chunks, 0), chunk_lost_paths(n_chunks, 0);
+  std::vector<Tally> chunks(n_chunks);
   std::atomic<uint64_t> done{0};
   const int threads = o.threads > 0 ? o.threads : tbb::this_task_arena::max_concurrency();
   tbb::task_arena arena(threads);
@@ -199,15 +211,13 @@ SurfaceMaps gather_surface(const geometry::CurveSet &curves, const model::YarnMo
       for (uint64_t chunk = range.begin(); chunk != range.end(); chunk++) {
         /* One generator per chunk, seeded from (seed, chunk): the same paths at any thread count. */
         Rng rng(o.seed * 0x9E3779B97F4A7C15ULL + chunk * 0xD1B54A32D192ED03ULL + 1);
-        std::vector<double> acc(n_acc, 0.0);
-        double lost[3] = {0, 0, 0};
+        Tally tally = empty;
         const uint64_t k0 = chunk * kChunk, k1 = std::min(o.paths, k0 + kChunk);
         for (uint64_t k = k0; k < k1; k++) {
           const size_t cell = size_t(k % cells);
-          chunk_edges[chunk] += walker.walk(rng, int(cell / V), int(cell % V), acc, lost, chunk_lost_paths[chunk]) ? 1 : 0;
+          walker.walk(rng, int(cell / V), int(cell % V), tally);
         }
-        chunk_acc[chunk] = std::move(acc);
-        chunk_lost[chunk] = {lost[0], lost[1], lost[2]};
+        chunks[chunk] = std::move(tally);
         const uint64_t now = done.fetch_add(k1 - k0) + (k1 - k0);
         if (o.progress) {
           o.progress(now, o.paths);
@@ -215,21 +225,16 @@ SurfaceMaps gather_surface(const geometry::CurveSet &curves, const model::YarnMo
       }
     }, tbb::simple_partitioner());
   });
-
-  /* Summed in chunk order: the same numbers at any thread count. */
-  std::vector<double> acc(n_acc, 0.0);
-  double lost[3] = {0, 0, 0};
-  for (uint64_t c = 0; c < n_chunks; c++) {
-    for (size_t i = 0; i < n_acc; i++) {
-      acc[i] += chunk_acc[c][i];
-    }
-    for (int k = 0; k < 3; k++) {
-      lost[k] += chunk_lost[c][size_t(k)];
-    }
-    maps.paths_past_edges += chunk_edges[c];
-    maps.paths_lost += chunk_lost_paths[c];
+  Tally all = empty;
+  for (const Tally &t : chunks) {
+    all.add(t);
   }
+
+  /* Per (side, view) cell: means per path, D per steradian; what scattered is D's integral. */
   maps.paths = o.paths;
+  maps.paths_lost = all.lost_paths;
+  maps.paths_past_edges = all.past_edges;
+  maps.D = std::move(all.D);
   maps.tau.assign(cells, 0.0);
   maps.scattered.assign(cells * 3, 0.0);
   const size_t per_cell = maps.D.size() / cells;
@@ -238,17 +243,19 @@ SurfaceMaps gather_surface(const geometry::CurveSet &curves, const model::YarnMo
   for (size_t cell = 0; cell < cells; cell++) {
     const uint64_t n = o.paths / cells + (cell < o.paths % cells ? 1 : 0);
     const double inv = n > 0 ? 1.0 / double(n) : 0.0;
+    maps.tau[cell] = all.straight[cell] * inv;
     for (size_t i = 0; i < per_cell; i++) {
-      maps.D[cell * per_cell + i] = acc[cell * per_cell + i] * inv / omega;
+      const size_t j = cell * per_cell + i;
+      exit[i % 3] += maps.D[j];
+      maps.scattered[cell * 3 + i % 3] += maps.D[j] * inv;
+      maps.D[j] *= inv / omega;
     }
-    maps.tau[cell] = acc[maps.D.size() + cell] * inv;
     for (int c = 0; c < 3; c++) {
-      maps.scattered[cell * 3 + size_t(c)] = acc[maps.D.size() + cells + cell * 3 + size_t(c)] * inv;
-      exit[c] += (acc[maps.D.size() + cell] + acc[maps.D.size() + cells + cell * 3 + size_t(c)]);
+      exit[c] += all.straight[cell];
     }
   }
   for (int c = 0; c < 3; c++) {
-    maps.absorbed[c] = 1.0 - (exit[c] + lost[c]) / double(o.paths);
+    maps.absorbed[c] = 1.0 - (exit[c] + all.lost[c]) / double(o.paths);
   }
   maps.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return maps;

@@ -39,12 +39,8 @@ bool YarnTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHi
     hit->t = h.t;
     hit->fiber = h.fiber;
     hit->point = o + d * h.t;
-    /* Embree's normal at a joint of two segments is the joint sphere's: keep the part normal to the tangent. */
-    const Vec3 axis = h.tangent.x >= 0.0f ? h.tangent : -h.tangent;
-    Vec3 n = h.normal - axis * ny::dot(h.normal, axis);
-    const float len = ny::length(n);
-    hit->normal = len > 1e-6f ? n * (1.0f / len) : h.normal;
-    hit->axis = axis;
+    hit->normal = h.radial_normal();
+    hit->axis = h.tangent.x >= 0.0f ? h.tangent : -h.tangent;
     ray->o = hit->point;
     return true;
   }

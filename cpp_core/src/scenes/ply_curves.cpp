@@ -129,4 +129,18 @@ PlyCurves read_ply_curves(const std::string &path)
   return out;
 }
 
+geometry::CurveSet curve_set(const std::vector<std::vector<Eigen::Vector3d>> &lines, double radius, double scale)
+{
+  geometry::CurveSet c;
+  c.offsets = {0};
+  for (const auto &line : lines) {
+    for (const Eigen::Vector3d &p : line) {
+      c.points.push_back((scale * p).cast<float>());
+    }
+    c.offsets.push_back(int(c.points.size()));
+    c.radii.push_back(float(radius));
+  }
+  return c;
+}
+
 }  // namespace neuralyarn::scenes

@@ -426,15 +426,7 @@ CurveObject aggregated(const PlySceneOptions &o, const std::string &model_path, 
       axes.push_back(std::move(axis));
     }
   }
-  geometry::CurveSet &c = obj.curves;
-  c.offsets = {0};
-  for (const auto &axis : axes) {
-    for (const Eigen::Vector3d &p : axis) {
-      c.points.push_back((s * p).cast<float>());
-    }
-    c.offsets.push_back(int(c.points.size()));
-    c.radii.push_back(float(radius));
-  }
+  obj.curves = curve_set(axes, radius, s);
   return obj;
 }
 

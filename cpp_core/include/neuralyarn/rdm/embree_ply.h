@@ -20,6 +20,15 @@ struct EmbreeHit {
   ny::Vec3 normal;  /* geometric normal, unit, facing against the ray */
   ny::Vec3 tangent; /* unit direction of the hit segment (the fiber tangent, +x-ward) */
   bool entering = true; /* the ray enters the tube here (false: it leaves it, its origin was inside) */
+
+  /* The tube's radial normal at the hit: Embree's normal at a joint of two segments is the joint sphere's,
+   * so only its part normal to the tangent (the normal itself where that part vanishes). */
+  ny::Vec3 radial_normal() const
+  {
+    const ny::Vec3 n = normal - tangent * ny::dot(normal, tangent);
+    const float len = ny::length(n);
+    return len > 1e-6f ? n * (1.0f / len) : normal;
+  }
 };
 
 class EmbreePly {

@@ -17,6 +17,8 @@
 
 #include <Eigen/Core>
 
+#include "neuralyarn/geometry/ply.h"
+
 namespace neuralyarn::scenes {
 
 struct PlyCurves {
@@ -37,5 +39,8 @@ struct PlyCurves {
  * ply's, an integer plies_per_yarn in [2, 16] and a finite ply twist >= 0, or with bad curves. */
 constexpr size_t kMaxPlyPoints = 50'000'000;
 PlyCurves read_ply_curves(const std::string &path);
+
+/* Centrelines (the file's plies or yarns) as curves of one radius, every point times `scale`. */
+geometry::CurveSet curve_set(const std::vector<std::vector<Eigen::Vector3d>> &lines, double radius, double scale = 1.0);
 
 }  // namespace neuralyarn::scenes
