@@ -139,31 +139,56 @@ void print_lobes(const model::LobeFidelity &f)
 }
 
 /* The maps' forward peak (model/forward_peak.h) per theta_i row: its share of the row's M energy, the median
- * width 1 / sqrt(kappa) over the row's bins with a peak, and how much of the cone's excess it explains. */
-void print_forward_peaks(const model::ForwardPeakTable &t, const rdm::RdmMaps &maps)
+ * width (spot: 1 / sqrt(kappa); arc: beta and gamma) over the row's bins with a peak, how much of the cone's
+ * excess it explains, and (two maps) the most a lobe could, the rest being their noise. */
+void print_forward_peaks(const model::ForwardPeakTable &t, const rdm::RdmMaps &maps, model::ForwardShape shape)
 {
   const std::vector<double> EM = maps.energy(maps.m);
-  std::printf("forward peak     the maps' M lobe within 12 deg of -w_i as a von Mises-Fisher lobe on the radiance around it\n"
-              "  theta_i | share of M | width (deg) | explained\n");
+  const bool arc = shape == model::ForwardShape::kArc;
+  std::printf("forward peak     the maps' M lobe within 12 deg of -w_i as %s on the radiance around it\n"
+              "  theta_i | share of M | width (deg)     | explained | ceiling\n",
+              arc ? "the surface fibers' TT arc" : "a von Mises-Fisher lobe");
+  auto median = [](std::vector<double> &v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
   for (int ti = 0; ti < t.theta_bins; ti++) {
-    double w = 0.0, e = 0.0, explained = 0.0;
-    std::vector<double> widths;
+    double w = 0.0, e = 0.0, explained = 0.0, ceiling = 0.0;
+    int n_ceiling = 0;
+    std::vector<double> w1, w2;
     for (int pi = 0; pi < t.phi_bins; pi++) {
       const model::ForwardPeak &p = t.at(ti, pi);
       w += model::luminance(p.w.data());
       e += model::luminance(&EM[maps.incident_index(ti, pi) * 3]);
-      if (p.kappa > 0.0) {
-        widths.push_back(1.0 / std::sqrt(p.kappa) / kDeg);
+      if (p.kappa > 0.0 || p.beta > 0.0) {
+        w1.push_back((arc ? p.beta : 1.0 / std::sqrt(p.kappa)) / kDeg);
+        w2.push_back(p.gamma / kDeg);
         explained += p.explained;
+        if (p.ceiling > -1.0) {
+          ceiling += p.ceiling;
+          n_ceiling++;
+        }
       }
     }
-    std::sort(widths.begin(), widths.end());
     std::printf("  %5.1f   |   %5.1f %%  |", rdm::bin_center(ti, 0.0, 90.0, t.theta_bins), e > 0.0 ? 100 * w / e : 0.0);
-    if (widths.empty()) {
-      std::printf("      -      |     -\n");
+    if (w1.empty()) {
+      std::printf("       -         |     -     |    -\n");
+      continue;
+    }
+    const double n = double(w1.size());
+    if (arc) {
+      const double b = median(w1), g = median(w2);
+      std::printf(" %5.2f x %6.2f  |", b, g);
     }
     else {
-      std::printf("    %5.2f    |  %5.2f\n", widths[widths.size() / 2], explained / double(widths.size()));
+      std::printf("     %5.2f       |", median(w1));
+    }
+    std::printf("   %5.2f   |", explained / n);
+    if (n_ceiling > 0) {
+      std::printf("  %5.2f\n", ceiling / n_ceiling);
+    }
+    else {
+      std::printf("    -\n");
     }
   }
 }
@@ -312,6 +337,11 @@ class Commands : public ModelCommands {
                        "from the maps' noise");
     check_->add_flag("--forward-peaks", forward_peaks_,
                      "Fit the maps' forward peak of M per incident bin and report it per theta_i (docs/decisions.md D41)");
+    check_->add_option("--forward-shape", forward_shape_, "The forward peak's lobe: spot (von Mises-Fisher about -w_i) "
+                       "or arc (the surface fibers' TT form)")
+        ->check(CLI::IsMember({"spot", "arc"}))
+        ->needs("--forward-peaks")
+        ->capture_default_str();
     check_->add_option("--threads", threads_, "Worker threads (0: all cores); results do not depend on it")
         ->capture_default_str();
     check_->add_option("--image", image_, "Comparison image (PNG)");
@@ -478,7 +508,8 @@ class Commands : public ModelCommands {
       const rdm::RdmMaps both = maps_b_.empty() ? maps : rdm::mean_of_maps(maps, maps_b);
       model::ForwardPeakOptions fo;
       fo.threads = threads_;
-      print_forward_peaks(model::fit_forward_peaks(both, fo), both);
+      fo.shape = forward_shape_ == "arc" ? model::ForwardShape::kArc : model::ForwardShape::kSpot;
+      print_forward_peaks(model::fit_forward_peaks(maps, fo, maps_b_.empty() ? nullptr : &maps_b), both, fo.shape);
     }
     if (!image_.empty()) {
       model::write_comparison_image(m, maps, theta_i_, phi_i_, image_);
@@ -613,6 +644,7 @@ class Commands : public ModelCommands {
   bool furnace_inside_ = false;
   bool furnace_bound_ = false;
   bool forward_peaks_ = false;
+  std::string forward_shape_ = "spot";
   TrainModelOptions topt_;
   model::FallbackOptions fbopt_;
   rdm::GatherOptions gopt_;

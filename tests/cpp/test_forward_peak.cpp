@@ -2,11 +2,12 @@
 //
 // The forward peak's fit (model/forward_peak.h) on synthetic maps whose peak is known: a flat background
 // plus a von Mises-Fisher lobe about -w_i of known energy and concentration, integrated over the map bins as
-// a gather records it (the incident bin's extent included).
+// a gather records it (the incident bin's extent included); and an arc (the surface fibers' TT form).
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
+#include <utility>
 
 #include "neuralyarn/model/forward_peak.h"
 #include "neuralyarn/presets.h"
@@ -130,4 +131,131 @@ TEST(ForwardPeak, RejectsOptionsOutOfRange)
   o = {};
   o.sub = 0;
   EXPECT_THROW(model::fit_forward_peaks(maps, o), ParameterError);
+}
+
+namespace {
+
+/* An arc lobe (model::arc_density, the surface fibers' TT form) of energy w per channel tint, for theta_i
+ * bins from `first_peak` on, on a background, integrated over the bins as a gather records them (3 x 3
+ * incident and outgoing directions per bin); `noise` as synthetic(). 18 phi_i bins: a window of one bin. */
+const rdm::MapResolution kArcBins{12, 18, 45, 90};
+
+rdm::RdmMaps synthetic_arc(double beta, double gamma, double w, int first_peak, double noise, uint64_t seed)
+{
+  rdm::RdmMaps m;
+  m.bins = kArcBins;
+  m.preset = find_preset("polyester");
+  const ny::TwistRotation twist = ny::make_twist_rotation(float(m.surface_alpha()));
+  m.m.assign(size_t(kArcBins.theta_i) * kArcBins.phi_i * kArcBins.theta_o * kArcBins.phi_o * 3, 0.0f);
+  const double bg[3] = {0.02, 0.03, 0.05}, tint[3] = {0.5, 1.0, 2.0};
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> N(0.0, 1.0);
+  const int sub = 3;
+  auto dir = [](double th, double ph) {
+    return ny::make_vec3(float(std::sin(th) * std::cos(ph)), float(std::sin(th) * std::sin(ph)), float(std::cos(th)));
+  };
+  for (int ti = 0; ti < kArcBins.theta_i; ti++) {
+    for (int pi = 0; pi < kArcBins.phi_i; pi++) {
+      for (int to = 0; to < kArcBins.theta_o; to++) {
+        const double dO = m.outgoing_solid_angle(to);
+        const double c0 = std::cos(kPi * to / kArcBins.theta_o), c1 = std::cos(kPi * (to + 1) / kArcBins.theta_o);
+        for (int po = 0; po < kArcBins.phi_o; po++) {
+          double lobe = 0.0;
+          if (ti >= first_peak) {
+            for (int si = 0; si < sub * sub; si++) {
+              const double ci = std::cos(0.5 * kPi * ti / kArcBins.theta_i),
+                           cj = std::cos(0.5 * kPi * (ti + 1) / kArcBins.theta_i);
+              const double th_i = std::acos(ci + (si / sub + 0.5) / sub * (cj - ci));
+              const double ph_i = -kPi + 2.0 * kPi * (pi + (si % sub + 0.5) / sub) / kArcBins.phi_i;
+              const ny::Vec3 wi_f = ny::yarn_to_surface_fiber(twist, dir(th_i, ph_i));
+              for (int so = 0; so < sub * sub; so++) {
+                const double th_o = std::acos(c0 + (so / sub + 0.5) / sub * (c1 - c0));
+                const double ph_o = -kPi + 2.0 * kPi * (po + (so % sub + 0.5) / sub) / kArcBins.phi_o;
+                lobe += model::arc_density(wi_f, ny::yarn_to_surface_fiber(twist, dir(th_o, ph_o)), beta, gamma);
+              }
+            }
+            lobe /= sub * sub * sub * sub; /* the mean density over the bin pair: times dO / dO */
+          }
+          for (int c = 0; c < 3; c++) {
+            const double v = bg[c] + w * tint[c] * lobe;
+            m.m[m.map_index(ti, pi, to, po) + size_t(c)] = float(v * (1.0 + noise * N(rng)));
+          }
+        }
+      }
+    }
+  }
+  return m;
+}
+
+}  // namespace
+
+TEST(ForwardPeak, ArcDensityIsNormalisedForNarrowWidths)
+{
+  /* The normal in theta~ and the wrapped normal in phi~ over the sphere, dw = cos theta~ dtheta~ dphi~: 1 when
+   * the longitudinal normal lies well inside [-pi/2, pi/2] (it is not truncated there). */
+  const ny::Vec3 wi_f = ny::normalize(ny::make_vec3(0.2f, 0.9f, 0.3f));
+  for (const auto &[beta, gamma] : {std::pair{2.0, 5.0}, std::pair{6.0, 40.0}}) {
+    const int nt = 3000, np = 3000;
+    double sum = 0.0;
+    for (int i = 0; i < nt; i++) {
+      const double th = -0.5 * kPi + kPi * (i + 0.5) / nt;
+      for (int j = 0; j < np; j++) {
+        const double ph = -kPi + 2.0 * kPi * (j + 0.5) / np;
+        sum += model::arc_density(wi_f, ny::direction_from_angles(float(th), float(ph)), beta * kDeg, gamma * kDeg) *
+               std::cos(th) * (kPi / nt) * (2.0 * kPi / np);
+      }
+    }
+    EXPECT_NEAR(sum, 1.0, 5e-3) << beta << " " << gamma;
+  }
+}
+
+TEST(ForwardPeak, ArcRecoversAKnownArcThatASpotDoesNot)
+{
+  /* beta 3 and gamma 12 degrees on the search's grid (1.5, 3, 6) x (6, 12, 24); from theta_i 60 degrees on. */
+  const rdm::RdmMaps maps = synthetic_arc(3.0 * kDeg, 12.0 * kDeg, 0.02, 8, 0.0, 0);
+  model::ForwardPeakOptions o;
+  o.threads = 2;
+  o.shape = model::ForwardShape::kArc;
+  o.beta_min_deg = 1.5, o.beta_max_deg = 6.0, o.gamma_min_deg = 6.0, o.gamma_max_deg = 24.0, o.arc_steps = 3;
+  const model::ForwardPeakTable arc = model::fit_forward_peaks(maps, o, &maps);
+  o.shape = model::ForwardShape::kSpot;
+  const model::ForwardPeakTable spot = model::fit_forward_peaks(maps, o);
+  double arc_explained = 0.0, spot_explained = 0.0;
+  int n = 0;
+  for (int ti = 8; ti < kArcBins.theta_i; ti++) {
+    for (int pi = 0; pi < kArcBins.phi_i; pi++) {
+      const model::ForwardPeak &p = arc.at(ti, pi);
+      EXPECT_NEAR(p.beta / kDeg, 3.0, 1e-6) << ti << " " << pi;
+      EXPECT_NEAR(p.gamma / kDeg, 12.0, 1e-6) << ti << " " << pi;
+      EXPECT_GT(p.explained, 0.9) << ti << " " << pi;
+      /* The same map twice: no noise, all of the excess explicable. */
+      EXPECT_DOUBLE_EQ(p.ceiling, 1.0) << ti << " " << pi;
+      arc_explained += p.explained;
+      spot_explained += spot.at(ti, pi).explained;
+      n++;
+    }
+  }
+  EXPECT_GT(arc_explained / n, spot_explained / n + 0.1);
+}
+
+TEST(ForwardPeak, CeilingIsTheShareOfTheExcessAboveTheMapsNoise)
+{
+  /* Two maps with independent 20 % noise: the ceiling falls below 1; without maps B there is none. */
+  const rdm::RdmMaps a = synthetic_arc(3.0 * kDeg, 12.0 * kDeg, 0.02, 8, 0.2, 1);
+  const rdm::RdmMaps b = synthetic_arc(3.0 * kDeg, 12.0 * kDeg, 0.02, 8, 0.2, 2);
+  model::ForwardPeakOptions o;
+  o.threads = 2;
+  const model::ForwardPeakTable t = model::fit_forward_peaks(a, o, &b);
+  const model::ForwardPeakTable alone = model::fit_forward_peaks(a, o);
+  for (int pi = 0; pi < kArcBins.phi_i; pi++) {
+    EXPECT_GT(t.at(10, pi).ceiling, 0.0) << pi;
+    EXPECT_LT(t.at(10, pi).ceiling, 0.99) << pi;
+    EXPECT_EQ(alone.at(10, pi).ceiling, -1.0) << pi;
+  }
+  rdm::RdmMaps other = b;
+  other.bins.phi_o = 45;
+  EXPECT_THROW(model::fit_forward_peaks(a, o, &other), ParameterError);
+  o.shape = model::ForwardShape::kArc;
+  o.beta_min_deg = 0.0;
+  EXPECT_THROW(model::fit_forward_peaks(a, o), ParameterError);
 }

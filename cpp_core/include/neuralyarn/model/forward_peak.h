@@ -17,19 +17,35 @@
 // bin holds a few thousand M paths. A window whose excess is not positive in luminance, or whose lobe does
 // not reduce the excess's L1, gets w = 0.
 //
-// An instrument (`neuralyarn check --forward-peaks`): on the shipped presets' maps such a round lobe explains
-// well under half of the cone's excess (docs/benchmarks.md), so the peak is no spot and the kernel has no
-// such lobe.
+// Or, `shape` = arc, as the surface fibers' own TT form (D41: grazing light that meets fibers tilted by the
+// twist leaves on their cones, an arc through -w_i), in the surface-fiber frame (kernel/frames.h, the maps'
+// surface twist):
+//
+//   S_fwd(w_i, w_o) = w(w_i) N(theta~_o; -theta~_i, beta) N(phi~_o; phi~_i + pi, gamma) / cos theta~_o,
+//
+// a normal in theta~ about the specular cone and a wrapped normal in azimuth about straight on, searched
+// over a log grid of (beta, gamma).
+//
+// An instrument (`neuralyarn check --forward-peaks [spot|arc]`). With two maps the excess's own noise is
+// reported beside: the share of the mean map's excess that no lobe can explain, half the L1 of the two
+// maps' difference (docs/benchmarks.md).
 #pragma once
 
 #include <array>
 #include <vector>
 
+#include "neuralyarn/kernel/frames.h"
 #include "neuralyarn/rdm/gather.h"
 
 namespace neuralyarn::model {
 
+enum class ForwardShape { kSpot, kArc };
+
 struct ForwardPeakOptions {
+  ForwardShape shape = ForwardShape::kSpot;
+  double beta_min_deg = 0.5, beta_max_deg = 16.0;   /* arc: the longitudinal width's search range */
+  double gamma_min_deg = 1.0, gamma_max_deg = 60.0; /* arc: the azimuthal width's                */
+  int arc_steps = 12;                               /* arc: log grid per width                    */
   double cone_deg = 12.0;                /* the peak's cone about -w_i                          */
   double ring_deg = 20.0;                /* its surroundings: cone_deg .. ring_deg              */
   double kappa_min = 30.0, kappa_max = 3000.0; /* the search range (1/sqrt(kappa): 10.5 .. 1.0 deg) */
@@ -43,8 +59,12 @@ struct ForwardPeakOptions {
  * excess, luminance; 0 where w = 0). */
 struct ForwardPeak {
   std::array<double, 3> w{0.0, 0.0, 0.0};
-  double kappa = 0.0;
+  double kappa = 0.0;             /* spot */
+  double beta = 0.0, gamma = 0.0; /* arc, radians */
   double explained = 0.0;
+  /* With two maps: 1 - (L1 of half their excesses' difference) / L1 of the mean's excess, the most any lobe
+   * can explain of the mean map's noisy excess; -1 without. */
+  double ceiling = -1.0;
 };
 
 struct ForwardPeakTable {
@@ -63,7 +83,13 @@ double vmf_density(double cos_psi, double kappa);
  * (ti, pi), sub x sub directions each. */
 double forward_lobe_in_bin(const rdm::MapResolution &bins, int ti, int pi, int to, int po, double kappa, int sub);
 
-/* The peaks of the maps' M lobe, one per incident bin. Throws ParameterError for options out of range. */
-ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOptions &options = {});
+/* The arc's unit-energy density in solid angle (wi_f, wo_f in the surface-fiber frame). */
+double arc_density(const ny::Vec3 &wi_f, const ny::Vec3 &wo_f, double beta, double gamma);
+
+/* The peaks of the maps' M lobe, one per incident bin; with `maps_b` (same resolution and preset) fitted to
+ * the mean of both, and each bin's ceiling from their difference. Throws ParameterError for options out of
+ * range or maps that do not match. */
+ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOptions &options = {},
+                                   const rdm::RdmMaps *maps_b = nullptr);
 
 }  // namespace neuralyarn::model
