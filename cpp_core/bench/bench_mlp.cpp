@@ -29,12 +29,15 @@ MlpShape shape_of(int which)
   if (which == 2) {
     return MlpShape{{6, 21, 21, 21, 3}, ny::kMlpHeadExp};
   }
-  return MlpShape{{6, 32, 32, 3}, ny::kMlpHeadExp};
+  if (which == 3) {
+    return MlpShape{{6, 32, 32, 3}, ny::kMlpHeadExp};
+  }
+  return MlpShape{{6, 21, 21, 6}, ny::kMlpHeadExp}; /* two-sided M (D45) */
 }
 
 const char *name_of(int which)
 {
-  const char *names[] = {"T 3-7-7-1", "M 6-21-21-3", "M 6-21-21-21-3", "M 6-32-32-3"};
+  const char *names[] = {"T 3-7-7-1", "M 6-21-21-3", "M 6-21-21-21-3", "M 6-32-32-3", "M 6-21-21-6"};
   return names[which];
 }
 
@@ -62,12 +65,15 @@ template<class Forward> void run_kernel(benchmark::State &state, Forward forward
 /* The generic loop, runtime widths. */
 void BM_kernel(benchmark::State &state) { run_kernel(state, ny::mlp_forward); }
 
-/* mlp_forward_io: what yarn_bsdf.h calls (compile-time widths for 3-7-7-1, 6-21-21-3 and 6-32-32-3; the
- * deeper shape falls back to the generic loop). */
+/* mlp_forward_io: what yarn_bsdf.h calls (compile-time widths for 3-7-7-1, 6-21-21-3, 6-32-32-3 and
+ * 6-21-21-6; the deeper shape falls back to the generic loop). */
 void BM_kernel_io(benchmark::State &state)
 {
   if (state.range(0) == 0) {
     run_kernel(state, ny::mlp_forward_io<3, 1>);
+  }
+  else if (state.range(0) == 4) {
+    run_kernel(state, ny::mlp_forward_io<6, 6>);
   }
   else {
     run_kernel(state, ny::mlp_forward_io<6, 3>);
@@ -99,10 +105,10 @@ void BM_eigen_batch1024(benchmark::State &state)
   state.SetLabel(name_of(int(state.range(0))));
 }
 
-BENCHMARK(BM_kernel)->DenseRange(0, 3);
-BENCHMARK(BM_kernel_io)->DenseRange(0, 3);
-BENCHMARK(BM_eigen_single)->DenseRange(0, 3);
-BENCHMARK(BM_eigen_batch1024)->DenseRange(0, 3);
+BENCHMARK(BM_kernel)->DenseRange(0, 4);
+BENCHMARK(BM_kernel_io)->DenseRange(0, 4);
+BENCHMARK(BM_eigen_single)->DenseRange(0, 4);
+BENCHMARK(BM_eigen_batch1024)->DenseRange(0, 4);
 
 }  // namespace
 

@@ -388,8 +388,17 @@ class Commands : public ModelCommands {
   /* Fail on a bad option before spending minutes on loading or gathering. */
   void validate_train_options()
   {
-    for (const NetworkOptions *n : {&topt_.T, &topt_.R, &topt_.M}) {
-      train::parse_widths(n->widths);
+    /* Before any gathering: what the model file and the kernel take (model/model.h). */
+    for (const NetworkOptions *n : {&topt_.T, &topt_.R}) {
+      const std::vector<int> w = train::parse_widths(n->widths);
+      if (w.front() != 3 || w.back() != 1) {
+        throw ParameterError("widths", "'" + n->widths + "': the T and R networks map 3 inputs to 1 output");
+      }
+    }
+    const std::vector<int> w = train::parse_widths(topt_.M.widths);
+    if (w.front() != 6 || (w.back() != 3 && w.back() != 6)) {
+      throw ParameterError("widths", "'" + topt_.M.widths + "': the M network maps 6 inputs to 3 outputs, or to 6 "
+                                     "when it is two-sided (docs/decisions.md D45)");
     }
   }
 

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <string>
 #include <utility>
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
@@ -15,6 +16,7 @@
 #include "neuralyarn/model/fidelity.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/rdm/gather.h"
+#include "synthetic_model.h"
 
 using namespace neuralyarn;
 
@@ -94,11 +96,15 @@ TEST(Calibration, MatchesTheMapsAtBinCentresAndHelpsOnIndependentMaps)
 
 /* The M lobe's quadrature runs the network on 16 exits at once; it must be bit for bit the plain sum of
  * yarn_eval_M over the grid in row-major order (the shipped cotton model, and gabardine's wider 6-32-32-3 M),
- * split at the equator or not, on a grid whose rows are not a multiple of 16 cells (the padded last block). */
+ * split at the equator or not, on a grid whose rows are not a multiple of 16 cells (the padded last block); and
+ * a two-sided M. */
 TEST(Calibration, MLobeQuadratureIsThePlainSumOfYarnEvalM)
 {
-  for (const char *preset : {"cotton", "gabardine"}) {
-    const model::YarnModel m = model::load_model(model::builtin_model_path(preset));
+  /* And a two-sided M (6 -> 6, D45), whose rows read one side's outputs each. */
+  for (const char *preset : {"cotton", "gabardine", "two-sided"}) {
+    const std::string name(preset);
+    const model::YarnModel m = name == "two-sided" ? neuralyarn::testing::synthetic_model("fleece", 5, -3.0, -1.0, 6)
+                                                   : model::load_model(model::builtin_model_path(preset));
     const std::vector<float> flat = m.kernel_flat();
     const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
     for (const auto &[nt, np] : {std::pair{64, 128}, std::pair{6, 21}}) {

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <random>
 
 #include "neuralyarn/kernel/mlp.h"
@@ -132,6 +133,7 @@ TEST(Mlp, SizedShapesAreBitIdenticalToTheGenericLoop)
   const ShapeCase cases[] = {
       {{3, 7, 7, 1}, ny::kMlpHeadSigmoid}, {{3, 7, 7, 1}, ny::kMlpHeadExp}, {{6, 21, 21, 3}, ny::kMlpHeadExp},
       {{6, 32, 32, 3}, ny::kMlpHeadExp},   {{6, 20, 20, 3}, ny::kMlpHeadExp}, {{6, 21, 21, 21, 3}, ny::kMlpHeadExp},
+      {{6, 21, 21, 6}, ny::kMlpHeadExp},   {{6, 32, 32, 6}, ny::kMlpHeadExp}, {{6, 20, 20, 6}, ny::kMlpHeadExp},
   };
   std::mt19937_64 rng(11);
   for (const ShapeCase &sc : cases) {
@@ -147,6 +149,9 @@ TEST(Mlp, SizedShapesAreBitIdenticalToTheGenericLoop)
       }
       if (sc.widths.front() == 3) {
         ny::mlp_forward_io<3, 1>(flat.data(), in, a);
+      }
+      else if (sc.widths.back() == 6) {
+        ny::mlp_forward_io<6, 6>(flat.data(), in, a);
       }
       else {
         ny::mlp_forward_io<6, 3>(flat.data(), in, a);
@@ -168,7 +173,7 @@ TEST(Mlp, LanesAreBitIdenticalToOneInputAtATime)
 {
   const ShapeCase cases[] = {
       {{3, 7, 7, 1}, ny::kMlpHeadSigmoid}, {{6, 21, 21, 3}, ny::kMlpHeadExp}, {{6, 32, 32, 3}, ny::kMlpHeadExp},
-      {{6, 20, 20, 3}, ny::kMlpHeadExp},
+      {{6, 20, 20, 3}, ny::kMlpHeadExp},   {{6, 21, 21, 6}, ny::kMlpHeadExp}, {{6, 32, 32, 6}, ny::kMlpHeadExp},
   };
   constexpr int L = 16;
   std::mt19937_64 rng(12);
@@ -180,7 +185,7 @@ TEST(Mlp, LanesAreBitIdenticalToOneInputAtATime)
     const auto X = random_matrix<float>(I, 50 * L, rng, -8.0, 8.0);
     int nonzero = 0;
     for (int j0 = 0; j0 < X.cols(); j0 += L) {
-      float in[6 * L], out[3 * L];
+      float in[6 * L], out[6 * L];
       for (int i = 0; i < I; i++) {
         for (int l = 0; l < L; l++) {
           in[i * L + l] = X(i, j0 + l);
@@ -189,16 +194,22 @@ TEST(Mlp, LanesAreBitIdenticalToOneInputAtATime)
       if (I == 3) {
         model::mlp_forward_io_lanes<3, 1, L>(flat.data(), in, out);
       }
+      else if (O == 6) {
+        model::mlp_forward_io_lanes<6, 6, L>(flat.data(), in, out);
+      }
       else {
         model::mlp_forward_io_lanes<6, 3, L>(flat.data(), in, out);
       }
       for (int l = 0; l < L; l++) {
-        float x[6], y[3];
+        float x[6], y[6];
         for (int i = 0; i < I; i++) {
           x[i] = X(i, j0 + l);
         }
         if (I == 3) {
           ny::mlp_forward_io<3, 1>(flat.data(), x, y);
+        }
+        else if (O == 6) {
+          ny::mlp_forward_io<6, 6>(flat.data(), x, y);
         }
         else {
           ny::mlp_forward_io<6, 3>(flat.data(), x, y);
@@ -301,4 +312,50 @@ TEST(Mlp, WeightedLossesWeighTheirErrorsAsDocumented)
       EXPECT_NEAR(g(3 + k), grad_b[k], 1e-12 * std::abs(grad_b[k]) + 1e-15) << int(loss) << " bias " << k;
     }
   }
+}
+
+/* A NaN target is none (a two-sided M's other side, D45): for every loss, the value is the mean over the
+ * finite targets and an output with no target gets no gradient, so the same data with the NaN entries
+ * replaced by anything gives the same loss over the finite ones. */
+TEST(Mlp, NanTargetsAreNoTargets)
+{
+  Mlp<double> m(MlpShape{{2, 5, 2}, ny::kMlpHeadExp}, 4);
+  std::mt19937_64 rng(5);
+  const auto X = random_matrix<double>(2, 64, rng, -1.0, 1.0);
+  Mlp<double>::Mat T = random_matrix<double>(2, 64, rng, 0.1, 2.0);
+  Mlp<double>::Mat Tn = T;
+  for (int j = 0; j < T.cols(); j++) {
+    Tn(j % 2, j) = std::numeric_limits<double>::quiet_NaN(); /* each column keeps one of its two targets */
+  }
+  for (Loss loss : {Loss::kMse, Loss::kLogMse, Loss::kRelativeMse, Loss::kPoissonMse}) {
+    Mlp<double>::Vec g;
+    const double value = m.loss_and_gradient(X, Tn, loss, 1e-3, &g);
+    ASSERT_TRUE(std::isfinite(value)) << int(loss);
+    ASSERT_TRUE(g.allFinite()) << int(loss);
+    /* The mean over the kept targets, computed column by column with one output each. */
+    const Mlp<double>::Mat Y = m.forward(X);
+    double want = 0.0;
+    for (int j = 0; j < T.cols(); j++) {
+      const int k = 1 - j % 2;
+      const double y = Y(k, j), t = T(k, j), e = 1e-3;
+      want += loss == Loss::kMse           ? (y - t) * (y - t)
+              : loss == Loss::kRelativeMse ? (y - t) * (y - t) / (y * y + e)
+              : loss == Loss::kPoissonMse  ? (y - t) * (y - t) / (y + e)
+                                           : std::pow(std::log(y + e) - std::log(t + e), 2);
+    }
+    EXPECT_NEAR(value, want / T.cols(), 1e-12 * want) << int(loss);
+    /* Changing a NaN-masked column's value to another finite target changes the loss; NaN does not count. */
+    Mlp<double>::Mat Tm = T;
+    for (int j = 0; j < T.cols(); j++) {
+      Tm(j % 2, j) = 1e6;
+    }
+    EXPECT_GT(m.loss_and_gradient(X, Tm, loss, 1e-3, nullptr), 2 * value) << int(loss);
+  }
+  /* An output row with no target at all has no gradient in its bias (the last two parameters). */
+  Mlp<double>::Mat Tr = T;
+  Tr.row(1).setConstant(std::numeric_limits<double>::quiet_NaN());
+  Mlp<double>::Vec g;
+  m.loss_and_gradient(X, Tr, Loss::kRelativeMse, 1e-3, &g);
+  EXPECT_EQ(g(g.size() - 1), 0.0);
+  EXPECT_NE(g(g.size() - 2), 0.0);
 }

@@ -133,6 +133,28 @@ TEST(Dataset, MultipleScatteringSamplesCarryTheirBinsValue)
   EXPECT_NEAR(mean_zo / d.X.cols(), 0.0, 5 * 0.577 / std::sqrt(double(d.X.cols())));
 }
 
+/* Two-sided (D45): the bin's value in the three rows of w_o's side (the kernel's choice: z >= 0 the first three),
+ * NaN in the other three; the same inputs and values as the one-sided dataset of the same seed. */
+TEST(Dataset, TwoSidedMultipleScatteringSamplesFillTheirSidesRows)
+{
+  const rdm::RdmMaps &maps = fleece_maps();
+  const train::Dataset one = train::sample_multiple_scattering(maps, 4000, 4, false);
+  const train::Dataset two = train::sample_multiple_scattering(maps, 4000, 4, false, true);
+  ASSERT_EQ(two.Y.rows(), 6);
+  ASSERT_EQ(two.X, one.X);
+  int down = 0;
+  for (int j = 0; j < two.X.cols(); j++) {
+    const int side = two.X(5, j) < 0.0f ? 3 : 0;
+    down += side == 3;
+    for (int c = 0; c < 3; c++) {
+      ASSERT_EQ(two.Y(side + c, j), one.Y(c, j)) << j;
+      ASSERT_TRUE(std::isnan(two.Y(3 - side + c, j))) << j;
+    }
+  }
+  EXPECT_GT(down, 1800);
+  EXPECT_LT(down, 2200);
+}
+
 TEST(Trainer, RelativeLossIsUnbiasedForSparseNoisyTargets)
 {
   /* Monte Carlo bins of few paths: a target that is 0 nine times in ten and 10 otherwise (mean 1). The

@@ -505,6 +505,39 @@ TEST(YarnBsdf, MChannelKIsTheNetworksOutputKTimesItsScale)
   EXPECT_GE(distinct, 2); /* the test can see a swap */
 }
 
+/* A two-sided M network (6 -> 6, D45): exits above the surface read outputs 0-2, exits below it 3-5, each
+ * times the lobe's scale; and the flat array's check takes it while a 6 -> 4 network is refused. */
+TEST(YarnBsdf, TwoSidedMReadsTheOutputsOfItsExitsSide)
+{
+  const model::YarnModel m = synthetic_model("fleece", 5, -3.0, -1.0, 6);
+  const std::vector<float> flat = m.kernel_flat();
+  ASSERT_EQ(ny::yarn_flat_check(flat.data(), int(flat.size())), nullptr);
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  ASSERT_TRUE(p.m_two_sided);
+  const ny::Vec3 wi = ny::normalize(ny::make_vec3(0.3f, 0.2f, 0.93f));
+  const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+  float dP_T;
+  ny::Rgb c_R, c_M;
+  ny::yarn_calibration(p, wi, &dP_T, &c_R, &c_M);
+  const double escape = std::max(1.0 - l.P_T, double(ny::kYarnMinEscape));
+  int sides_differ = 0;
+  for (const double z : {0.8, 0.05, -0.05, -0.8}) {
+    const ny::Vec3 wo = ny::normalize(ny::make_vec3(0.4f, -0.3f, float(z)));
+    const std::vector<double> net = network_in_double(m.M, {wi.x, wi.y, wi.z, wo.x, wo.y, wo.z});
+    const int k = z >= 0.0 ? 0 : 3;
+    const ny::Rgb got = ny::yarn_eval_M(p, l, wo);
+    const double want[3] = {net[k] * c_M.r * escape, net[k + 1] * c_M.g * escape, net[k + 2] * c_M.b * escape};
+    const float g[3] = {got.r, got.g, got.b};
+    for (int c = 0; c < 3; c++) {
+      EXPECT_NEAR(g[c], want[c], 1e-4 * want[c] + 1e-9) << "z " << z << " channel " << c;
+    }
+    sides_differ += std::abs(net[0] - net[3]) > 0.1 * std::max(net[0], net[3]);
+  }
+  EXPECT_GE(sides_differ, 2); /* the test can tell the sides apart */
+  const std::vector<float> flat4 = synthetic_model("fleece", 5, -3.0, -1.0, 4).kernel_flat();
+  EXPECT_NE(ny::yarn_flat_check(flat4.data(), int(flat4.size())), nullptr);
+}
+
 /* A shadow ray computes P_T alone (yarn_transmission_probability, the Cycles closure's shadow path); it must
  * be the P_T of the full lobes, bit for bit, everywhere: on the calibration table's centres and between them,
  * past its last theta_i centre (the energy direction), at grazing incidence and below the surface. */

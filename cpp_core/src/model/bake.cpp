@@ -27,7 +27,8 @@ const char *loss_name(train::Loss l)
   return "?";
 }
 
-train::Dataset dataset_for(const char *name, const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation)
+train::Dataset dataset_for(const char *name, const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation,
+                           int outputs)
 {
   const std::string s(name);
   if (s == "T") {
@@ -36,7 +37,8 @@ train::Dataset dataset_for(const char *name, const rdm::RdmMaps &maps, int n, ui
   if (s == "R") {
     return train::sample_reflection_scale(maps, n, seed, validation);
   }
-  return train::sample_multiple_scattering(maps, n, seed, validation);
+  /* An M network of six outputs is two-sided (kernel/yarn_bsdf.h, D45). */
+  return train::sample_multiple_scattering(maps, n, seed, validation, outputs == 6);
 }
 }  // namespace
 
@@ -55,8 +57,9 @@ NetworkRecord train_one(const char *name, const rdm::RdmMaps &maps, const Networ
   train::MlpShape shape;
   shape.widths = train::parse_widths(o.widths);
   shape.head = head;
-  train::Dataset tr = dataset_for(name, maps, o.samples, seed * 1000003u + 1u, false);
-  train::Dataset va = dataset_for(name, maps, std::max(1, o.samples / 10), seed * 1000003u + 2u, true);
+  const int outputs = shape.widths.back();
+  train::Dataset tr = dataset_for(name, maps, o.samples, seed * 1000003u + 1u, false, outputs);
+  train::Dataset va = dataset_for(name, maps, std::max(1, o.samples / 10), seed * 1000003u + 2u, true, outputs);
   if (transmission) {
     /* The M network learns S_M |cos| / (1 - P_T) (kernel/yarn_bsdf.h, docs/decisions.md D15). */
     divide_by_escape(&tr, *transmission);
@@ -69,7 +72,9 @@ NetworkRecord train_one(const char *name, const rdm::RdmMaps &maps, const Networ
   Eigen::VectorXf scale = Eigen::VectorXf::Ones(tr.Y.rows());
   if (head == ny::kMlpHeadExp) {
     for (int c = 0; c < tr.Y.rows(); c++) {
-      const float mean = tr.Y.row(c).mean();
+      /* Over the targets there are (a two-sided M's rows hold NaN where the other side has them). */
+      const auto has = tr.Y.row(c).array().isFinite();
+      const float mean = has.count() > 0 ? has.select(tr.Y.row(c).array(), 0.0f).sum() / float(has.count()) : 0.0f;
       scale(c) = mean > 0.0f ? mean : 1.0f;
       tr.Y.row(c) /= scale(c);
       va.Y.row(c) /= scale(c);

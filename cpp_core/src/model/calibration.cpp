@@ -107,7 +107,7 @@ void m_lobe_energy_split(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, co
   /* yarn_eval_M at kLanes exits at once: its input (w_e, w_o), then its product with scale_M lane by lane;
    * the last block of a row repeats its last exit in the lanes past the row and leaves them out. */
   constexpr int kLanes = 16;
-  float in[6 * kLanes], out[3 * kLanes];
+  float in[6 * kLanes], out[6 * kLanes];
   for (int k = 0; k < kLanes; k++) {
     in[0 * kLanes + k] = l.we.x;
     in[1 * kLanes + k] = l.we.y;
@@ -125,9 +125,17 @@ void m_lobe_energy_split(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, co
         in[4 * kLanes + k] = g.y[q];
         in[5 * kLanes + k] = g.z[q];
       }
-      mlp_forward_io_lanes<6, 3, kLanes>(p.net_M, in, out);
+      /* A two-sided network's outputs for this exit's side (yarn_eval_M): a row of exits is on one side. */
+      const int side = p.m_two_sided && g.z[size_t(to) * size_t(np)] < 0.0f ? 3 : 0;
+      if (p.m_two_sided) {
+        mlp_forward_io_lanes<6, 6, kLanes>(p.net_M, in, out);
+      }
+      else {
+        mlp_forward_io_lanes<6, 3, kLanes>(p.net_M, in, out);
+      }
       for (int k = 0; k < n; k++) {
-        const ny::Rgb v = ny::make_rgb(out[k], out[kLanes + k], out[2 * kLanes + k]) * l.scale_M;
+        const ny::Rgb v = ny::make_rgb(out[side * kLanes + k], out[(side + 1) * kLanes + k],
+                                       out[(side + 2) * kLanes + k]) * l.scale_M;
         e[0] += v.r * dO;
         e[1] += v.g * dO;
         e[2] += v.b * dO;

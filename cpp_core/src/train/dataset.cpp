@@ -2,6 +2,7 @@
 #include "neuralyarn/train/dataset.h"
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "neuralyarn/kernel/fiber_bsdf.h"
@@ -142,14 +143,17 @@ Dataset sample_reflection_scale(const rdm::RdmMaps &maps, int n, uint64_t seed, 
   return sample_incident_table(maps, reflection_scale_table(maps), 1, n, seed, validation, true);
 }
 
-Dataset sample_multiple_scattering(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation)
+Dataset sample_multiple_scattering(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation, bool two_sided)
 {
   check_count(n);
   const rdm::MapResolution &b = maps.bins;
   IncidentSampler s{maps, validation, std::mt19937_64(seed)};
   Dataset d;
   d.X.resize(6, n);
-  d.Y.resize(3, n);
+  d.Y.resize(two_sided ? 6 : 3, n);
+  if (two_sided) {
+    d.Y.setConstant(std::numeric_limits<float>::quiet_NaN());
+  }
   for (int k = 0; k < n; k++) {
     double theta_i, phi_i;
     int ti, pi;
@@ -164,9 +168,10 @@ Dataset sample_multiple_scattering(const rdm::RdmMaps &maps, int n, uint64_t see
       d.X(3 + c, k) = wo(c);
     }
     const float *v = &maps.m[maps.map_index(ti, pi, to, po)];
-    d.Y(0, k) = v[0];
-    d.Y(1, k) = v[1];
-    d.Y(2, k) = v[2];
+    const int row = two_sided && wo.z() < 0.0f ? 3 : 0; /* the kernel's choice of outputs, yarn_eval_M */
+    d.Y(row, k) = v[0];
+    d.Y(row + 1, k) = v[1];
+    d.Y(row + 2, k) = v[2];
   }
   return d;
 }

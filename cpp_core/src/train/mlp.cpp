@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "neuralyarn/train/mlp.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <string>
@@ -217,24 +218,28 @@ template<class S> S Mlp<S>::loss_and_gradient(const Mat &X, const Mat &T, Loss l
     As.push_back(std::move(A));
   }
   const Mat &Y = As.back();
-  const S n = S(Y.size());
+  /* A NaN target is no target: that output of that sample has no loss and no gradient (two-sided M, D45:
+   * each sample trains the three outputs of its own hemisphere). The mean runs over the targets there are. */
+  const auto has = T.array().isFinite();
+  const Mat Tz = has.select(T.array(), S(0)).matrix();
+  const S n = std::max(S(1), S(has.count()));
   Mat dY;
   S value;
   if (loss == Loss::kMse) {
-    dY = Y - T;
+    dY = has.select(Y - Tz, S(0)).matrix();
     value = dY.squaredNorm() / n;
     dY *= S(2) / n;
   }
   else if (loss == Loss::kRelativeMse || loss == Loss::kPoissonMse) {
     const Mat w = loss == Loss::kRelativeMse ? Mat((Y.array().square() + eps).inverse().matrix())
                                              : Mat((Y.array() + eps).inverse().matrix());
-    dY = Y - T;
+    dY = has.select(Y - Tz, S(0)).matrix();
     value = (dY.array().square() * w.array()).sum() / n;
     dY = (S(2) / n * dY.array() * w.array()).matrix();
   }
   else {
     const auto Ye = Y.array() + eps;
-    const Mat r = (Ye.log() - (T.array() + eps).log()).matrix();
+    const Mat r = has.select(Ye.log() - (Tz.array() + eps).log(), S(0)).matrix();
     value = r.squaredNorm() / n;
     dY = (S(2) / n * r.array() / Ye).matrix();
   }

@@ -133,7 +133,7 @@ NY_KERNEL_FN void mlp_forward(NY_GLOBAL const float *params, NY_PRIVATE const fl
 }
 
 /* The shapes the trainer makes, by input and output width: I-H-H-O with the hidden widths H it uses
- * (3-7-7-1 for T and rho_R; 6-21-21-3, and 6-32-32-3 since decisions D22, for M), chosen by overloading on
+ * (3-7-7-1 for T and rho_R; 6-21-21-3, and 6-32-32-3 since decisions D22, for M; 6-H-H-6 for a two-sided M, D45), chosen by overloading on
  * MlpIO<I, O> (not `if constexpr` nor a specialised static member, which some kernel languages or Cycles'
  * NY_KERNEL_FN do not take). Returns false for any other shape. */
 template<int I, int O> struct MlpIO {
@@ -165,6 +165,20 @@ NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<6, 3>, NY_GLOBAL const float *
   }
   if (H == 32) {
     mlp_forward_sized<6, 32, 3>(p, head, input, output);
+    return true;
+  }
+  return false;
+}
+
+NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<6, 6>, NY_GLOBAL const float *p, int H, int head,
+                                            NY_PRIVATE const float *input, NY_PRIVATE float *output)
+{
+  if (H == 21) {
+    mlp_forward_sized<6, 21, 6>(p, head, input, output);
+    return true;
+  }
+  if (H == 32) {
+    mlp_forward_sized<6, 32, 6>(p, head, input, output);
     return true;
   }
   return false;

@@ -6,6 +6,7 @@
 //   S_T = P_T(w_i) delta(w_i + w_o)                                  a true delta transmission lobe
 //   S_R = rho_R(w_i) [(1 - tau) S_f^R + tau S_f^TT](w~_i, w~_o)   if w_i.n > 0 and w_o.n > 0, else 0
 //   S_M = c_M(w_i) e(w_i) MLP_M(w_i, w_o),  e = max(1 - P_T(w_i), e_min)   (models S_M |cos theta_o|)
+//         a two-sided MLP_M (6 -> 6) gives the upward exits (w_o.z >= 0) in outputs 0-2, the downward in 3-5
 //
 // in the yarn frame of frames.h (x = yarn tangent, z = normal of the bounding cylinder), w~ = M w the
 // surface-fiber frame rotated by phi~ = atan(pi alpha) about n. S_f^R is the R lobe of the Khungurn
@@ -127,7 +128,8 @@ NY_KERNEL_FN int yarn_r_shape_stride(int az_bins) { return az_bins + 3; }
 struct YarnBsdfParams {
   NY_GLOBAL const float *net_T; /* 3 -> 1, sigmoid head: P_T(w_i)          */
   NY_GLOBAL const float *net_R; /* 3 -> 1, exp head: rho_R(w_i)            */
-  NY_GLOBAL const float *net_M; /* 6 -> 3, exp head: S_M |cos theta_o|     */
+  NY_GLOBAL const float *net_M; /* 6 -> 3 or two-sided 6 -> 6, exp head: S_M |cos theta_o| */
+  bool m_two_sided;
   TwistRotation twist;
   float alpha;     /* the surface fibers' twist, from which the R nodes' twists follow */
   float free_path; /* lambda, ply radii */
@@ -205,8 +207,10 @@ NY_KERNEL_FN const char *yarn_flat_check(NY_GLOBAL const float *f, int n)
   if (!yarn_flat_network_ok(f, (int)oR, (int)oM, 3, 1, kMlpHeadExp)) {
     return "has a malformed R network (3 -> 1, exp head)";
   }
-  if (!yarn_flat_network_ok(f, (int)oM, (int)oC, 6, 3, kMlpHeadExp)) {
-    return "has a malformed M network (6 -> 3, exp head)";
+  if (!yarn_flat_network_ok(f, (int)oM, (int)oC, 6, 3, kMlpHeadExp) &&
+      !yarn_flat_network_ok(f, (int)oM, (int)oC, 6, 6, kMlpHeadExp))
+  {
+    return "has a malformed M network (6 -> 3 or 6 -> 6, exp head)";
   }
   const float nt = f[kYarnFlatCalThetaBins], np = f[kYarnFlatCalPhiBins];
   if (!(nt >= 0.0f && np >= 0.0f && nt <= 4096.0f && np <= 4096.0f) || nt != (float)(int)nt ||
@@ -276,6 +280,7 @@ NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(NY_GLOBAL const float *f)
   p.net_T = f + (int)f[kYarnFlatOffset_T];
   p.net_R = f + (int)f[kYarnFlatOffset_R];
   p.net_M = f + (int)f[kYarnFlatOffset_M];
+  p.m_two_sided = p.net_M[(int)p.net_M[0] + 1] == 6.0f; /* its output width (validated: 3 or 6) */
   p.twist = make_twist_rotation(f[kYarnFlatAlpha]);
   p.alpha = f[kYarnFlatAlpha];
   p.free_path = f[kYarnFlatFreePath];
@@ -659,6 +664,14 @@ NY_KERNEL_FN Rgb yarn_eval_M(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE cons
     return make_rgb(0.0f);
   }
   const float in[6] = {l.we.x, l.we.y, l.we.z, wo.x, wo.y, wo.z};
+  if (p.m_two_sided) {
+    /* The maps' M has an edge at the horizon (grazing light leaves just below it, D45): one output set per
+     * side puts the edge where it is instead of asking a smooth network for a step. */
+    float out[6];
+    mlp_forward_io<6, 6>(p.net_M, in, out);
+    const int k = wo.z >= 0.0f ? 0 : 3;
+    return make_rgb(out[k], out[k + 1], out[k + 2]) * l.scale_M;
+  }
   float out[3];
   mlp_forward_io<6, 3>(p.net_M, in, out);
   return make_rgb(out[0], out[1], out[2]) * l.scale_M;

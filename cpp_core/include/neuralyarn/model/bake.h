@@ -32,7 +32,8 @@ struct TrainModelOptions {
   NetworkOptions T{"3-7-7-1", 200000, 10000, 2048, 2e-2f, 0.05f, train::Loss::kMse, 1e-3f};
   NetworkOptions R{"3-7-7-1", 200000, 10000, 2048, 2e-2f, 0.05f, train::Loss::kLogMse, 1e-2f};
   /* M: the relative loss (docs/decisions.md D19): with MSE the network ignored everything a decade below
-   * the reflection peak, which is where the transmitted light is (0.03-0.5x of the maps through the ply). */
+   * the reflection peak, which is where the transmitted light is (0.03-0.5x of the maps through the ply).
+   * 6-H-H-6 makes it two-sided, one RGB output per hemisphere of exits (kernel/yarn_bsdf.h, D45). */
   NetworkOptions M{"6-21-21-3", 2000000, 20000, 4096, 1e-2f, 0.05f, train::Loss::kRelativeMse, 1e-3f};
   uint64_t seed = 1;
   /* M networks trained from different seeds (weights, samples, mini-batches; candidate k from seed + 2 +

@@ -63,7 +63,7 @@ void mlp_forward_sized_lanes(const float *p, int head, const float *in, float *o
   }
 }
 
-/* ny::mlp_forward_io<I, O> on L lanes: the trainer's shapes (3-7-7-1, 6-21-21-3, 6-32-32-3) vectorised
+/* ny::mlp_forward_io<I, O> on L lanes: the trainer's shapes (3-7-7-1, 6-21-21-3, 6-32-32-3, 6-21-21-6, 6-32-32-6) vectorised
  * over the lanes, any other lane by lane through mlp_forward_io. */
 template<int I, int O, int L>
 void mlp_forward_io_lanes(const float *params, const float *in, float *out)
@@ -80,6 +80,14 @@ void mlp_forward_io_lanes(const float *params, const float *in, float *out)
     }
     if (H == 32) {
       return mlp_forward_sized_lanes<6, 32, 3, L>(params + 6, head, in, out);
+    }
+  }
+  if constexpr (I == 6 && O == 6) {
+    if (H == 21) {
+      return mlp_forward_sized_lanes<6, 21, 6, L>(params + 6, head, in, out);
+    }
+    if (H == 32) {
+      return mlp_forward_sized_lanes<6, 32, 6, L>(params + 6, head, in, out);
     }
   }
   for (int l = 0; l < L; l++) {

@@ -42,8 +42,11 @@ std::vector<float> reflection_scale_table(const rdm::RdmMaps &maps);
 Dataset sample_reflection_scale(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation);
 
 /* S_M |cos theta_o| samples: w_i uniform on the upper hemisphere (training or validation bins), w_o
- * uniform on the sphere, target the M map's RGB value of their bin. */
-Dataset sample_multiple_scattering(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation);
+ * uniform on the sphere, target the M map's RGB value of their bin. Two-sided (D45): six target rows, the
+ * value in rows 0-2 where w_o leaves upward (z >= 0) and in rows 3-5 where it leaves downward, NaN (no
+ * target) in the other three. */
+Dataset sample_multiple_scattering(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation,
+                                   bool two_sided = false);
 
 /* The unit vector of polar angle theta (from the normal) and azimuth phi = atan2(y, x) in the entry frame. */
 Eigen::Vector3f entry_direction(double theta, double phi);

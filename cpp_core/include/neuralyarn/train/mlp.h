@@ -67,7 +67,8 @@ template<class S> class Mlp {
   Mat forward(const Mat &X) const;
 
   /* Loss of the batch against targets T (w_L x B) and its gradient with respect to every parameter,
-   * in the order of params(). `eps` is the log loss's offset. */
+   * in the order of params(). `eps` is the log loss's offset. A NaN target is none: that output of that
+   * column adds no loss and no gradient, and the mean runs over the finite targets. */
   S loss_and_gradient(const Mat &X, const Mat &T, Loss loss, S eps, Vec *gradient) const;
 
   /* All parameters as one vector (W_0, b_0, a_0, W_1, ...; W column-major) and back. */
