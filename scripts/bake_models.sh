@@ -30,9 +30,15 @@ CLI="$BUILD/cpp_core/neuralyarn"
 PRESETS=("$@")
 [ ${#PRESETS[@]} -gt 0 ] || mapfile -t PRESETS < <("$CLI" presets | cut -d" " -f1)  # the core's preset list
 mkdir -p "$ROOT/models" "$ROOT/docs/images"
-# The M network's widths per preset: the paper's 6-21-21-3, and 6-32-32-3 where the capacity study of
-# docs/decisions.md D22 shows it pays (gabardine: the axis light's fitting error 45 -> 10 %).
-m_widths() { case "$1" in gabardine) echo 6-32-32-3 ;; *) echo 6-21-21-3 ;; esac; }
+# The M network's widths per preset: the paper's 6-21-21-3; 32 hidden units where the capacity study of
+# docs/decisions.md D22 shows it pays (gabardine: the axis light's fitting error 45 -> 10 %); two-sided, one RGB
+# output per hemisphere of exits, where D45 shows it pays (polyester's ply level: its back light).
+m_widths() {
+  local h=21 out=3
+  [ "$1" = gabardine ] && h=32
+  [ "$1" = polyester ] && [ "$LEVEL" = ply ] && out=6
+  echo "6-$h-$h-$out"
+}
 for p in "${PRESETS[@]}"; do
   echo "=== $p$SUFFIX (M $(m_widths "$p"))"
   /usr/bin/time -f "bake wall %e s, peak RSS %M KB" \

@@ -2,9 +2,10 @@
 """The close-up's fitting error lobe by lobe, for two sets of models side by side (issue 17, decisions D38):
 
     .venv/bin/python scripts/bench_lobe_split.py --before OLD_MODELS_DIR [--after models] [--maps build/bench_lobes]
+        [--region centre|frame]
 
 For each preset and distant light (front, grazing, back, axis), over the central region of the 160 x 80
-close-up (evaluate.py's: columns 40-119, rows 34-45), the model's image mean predicted without a renderer
+close-up (evaluate.py's: columns 40-119, rows 34-45) or the whole frame, the model's image mean predicted without a renderer
 (bench_split.predict with `--predict-lobes R|M|RM`) against the mean of two independent maps' predictions
 (MAPS/<preset>_3001_L<K>.nyrdm and _3002_L<K>.nyrdm, the maps of scripts/bench_lobes.sh over the --after
 model's K cross-sections): Rec. 709 luminance, relative;
@@ -24,7 +25,8 @@ from images import LUMINANCE
 
 LIGHTS = ["front", "grazing", "back", "axis"]
 SIZE = (160, 80)
-REGION = (slice(34, 46), slice(40, 120))  # evaluate.central_region of this close-up: rows, columns
+REGIONS = {"centre": (slice(34, 46), slice(40, 120)),  # evaluate.central_region of this close-up: rows, columns
+           "frame": (slice(0, SIZE[1]), slice(0, SIZE[0]))}
 
 
 def main() -> None:
@@ -33,7 +35,11 @@ def main() -> None:
     ap.add_argument("--after", default="models", help="directory of the models after (default: models)")
     ap.add_argument("--maps", default=os.path.join("build", "bench_lobes"), help="the two maps per preset")
     ap.add_argument("--presets", nargs="+", default=PRESETS, choices=PRESETS)
+    ap.add_argument("--region", default="centre", choices=sorted(REGIONS),
+                    help="the central region (default) or the whole frame, whose light under a back light is mostly "
+                         "in the silhouettes")
     args = ap.parse_args()
+    region = REGIONS[args.region]
     print("| preset | light | R before | R after | M before | M after | R + M before | R + M after (worst channel) "
           "| maps A/B |")
     print("|---|---|---|---|---|---|---|---|---|")
@@ -41,7 +47,7 @@ def main() -> None:
         with open(os.path.join(args.after, f"{preset}.json")) as f:
             layouts = json.load(f)["provenance"]["maps"].get("layouts", 1)
         maps = [os.path.join(args.maps, f"{preset}_{seed}_L{layouts}.nyrdm") for seed in (3001, 3002)]
-        res = {(tag, lobes): predict(preset, LIGHTS, SIZE, REGION, maps, {}, os.path.join(d, f"{preset}.json"), lobes)
+        res = {(tag, lobes): predict(preset, LIGHTS, SIZE, region, maps, {}, os.path.join(d, f"{preset}.json"), lobes)
                for tag, d in (("before", args.before), ("after", args.after)) for lobes in ("R", "M", "RM")}
         for light in LIGHTS:
             cells = []
