@@ -108,8 +108,9 @@ def kernel_flat_problem(f: list, layout: int = 5) -> str | None:
         return "has a malformed T network (3 -> 1, sigmoid head)"
     if not _network_ok(f, int(oR), int(oM), 3, 1, _HEAD_EXP, header):
         return "has a malformed R network (3 -> 1, exp head)"
-    if not _network_ok(f, int(oM), int(oC), 6, 3, _HEAD_EXP, header):
-        return "has a malformed M network (6 -> 3, exp head)"
+    if not (_network_ok(f, int(oM), int(oC), 6, 3, _HEAD_EXP, header) or
+            _network_ok(f, int(oM), int(oC), 6, 6, _HEAD_EXP, header)):  # 6 -> 6: two-sided (D45)
+        return "has a malformed M network (6 -> 3 or 6 -> 6, exp head)"
     nt, np_ = f[18], f[19]
     if not (0 <= nt <= 4096 and 0 <= np_ <= 4096) or nt != int(nt) or np_ != int(np_) or \
             int(oC) + int(nt) * int(np_) * _CAL_STRIDE != int(oA):

@@ -24,9 +24,9 @@ if(NOT LAST_OUT MATCHES "network M 6-21-21-3.*sampling proxy +kappa_R [0-9.]+.*a
 endif()
 
 run_ok(${CLI} check ${OUT}/silk.json --maps ${OUT}/silk.nyrdm --image ${OUT}/check.png --theta-i 30 --phi-i 90
-       --forward-peaks)
+       --forward-peaks --forward-shape arc)
 if(NOT LAST_OUT MATCHES "energy vs map +R: mean relative error [0-9.]+ %" OR NOT EXISTS ${OUT}/check.png OR
-   NOT LAST_OUT MATCHES "forward peak .*theta_i \\| share of M \\| width \\(deg\\) \\| explained")
+   NOT LAST_OUT MATCHES "forward peak .*TT arc.*theta_i \\| share of M \\| width \\(deg\\) +\\| explained \\| ceiling")
   message(FATAL_ERROR "check output incomplete:\n${LAST_OUT}")
 endif()
 
