@@ -138,12 +138,13 @@ void print_lobes(const model::LobeFidelity &f)
               f.seconds);
 }
 
-/* The maps' forward peak (model/forward_peak.h) per theta_i row: its share of the row's M energy, the median
- * width (spot: 1 / sqrt(kappa); arc: beta and gamma) over the row's bins with a peak, how much of the cone's
- * excess it explains, and (two maps) the most a lobe could, the rest being their noise. */
-void print_forward_peaks(const model::ForwardPeakTable &t, const rdm::RdmMaps &maps, model::ForwardShape shape)
+/* The maps' forward peak (model/forward_peak.h) per theta_i row: its share of the row's M energy (EM: per
+ * incident bin, RGB, the fitted maps' mean), the median width (spot: 1 / sqrt(kappa); arc: beta and gamma) over
+ * the row's bins with a peak, how much of the cone's excess it explains, and (two maps) the most a lobe could,
+ * the rest being their noise. */
+void print_forward_peaks(const model::ForwardPeakTable &t, const rdm::RdmMaps &maps, const std::vector<double> &EM,
+                         model::ForwardShape shape)
 {
-  const std::vector<double> EM = maps.energy(maps.m);
   const bool arc = shape == model::ForwardShape::kArc;
   std::printf("forward peak     the maps' M lobe within 12 deg of -w_i as %s on the radiance around it\n"
               "  theta_i | share of M | width (deg)     | explained | ceiling\n",
@@ -396,7 +397,7 @@ class Commands : public ModelCommands {
       }
     }
     const std::vector<int> w = train::parse_widths(topt_.M.widths);
-    if (w.front() != 6 || (w.back() != 3 && w.back() != 6)) {
+    if (w.front() != 6 || !model::is_m_output_width(w.back())) {
       throw ParameterError("widths", "'" + topt_.M.widths + "': the M network maps 6 inputs to 3 outputs, or to 6 "
                                      "when it is two-sided (docs/decisions.md D45)");
     }
@@ -513,12 +514,19 @@ class Commands : public ModelCommands {
     const model::FidelityReport r = model::check_model(m, maps, {}, maps_b_.empty() ? nullptr : &maps_b);
     print_fidelity(r);
     if (forward_peaks_) {
-      /* Both maps together where there are two: twice the paths per bin. */
-      const rdm::RdmMaps both = maps_b_.empty() ? maps : rdm::mean_of_maps(maps, maps_b);
+      /* Both maps together where there are two (twice the paths per bin): the fit takes their mean, and the M
+       * energy, linear in the map, is the mean of theirs. */
+      std::vector<double> EM = maps.energy(maps.m);
+      if (!maps_b_.empty()) {
+        const std::vector<double> EM_b = maps_b.energy(maps_b.m);
+        for (size_t k = 0; k < EM.size(); k++) {
+          EM[k] = 0.5 * (EM[k] + EM_b[k]);
+        }
+      }
       model::ForwardPeakOptions fo;
       fo.threads = threads_;
       fo.shape = forward_shape_ == "arc" ? model::ForwardShape::kArc : model::ForwardShape::kSpot;
-      print_forward_peaks(model::fit_forward_peaks(maps, fo, maps_b_.empty() ? nullptr : &maps_b), both, fo.shape);
+      print_forward_peaks(model::fit_forward_peaks(maps, fo, maps_b_.empty() ? nullptr : &maps_b), maps, EM, fo.shape);
     }
     if (!image_.empty()) {
       model::write_comparison_image(m, maps, theta_i_, phi_i_, image_);

@@ -117,6 +117,8 @@ void m_lobe_energy_split(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, co
   for (int to = 0; to < nt; to++) {
     const double dO = g.solid_angle[size_t(to)];
     double *e = split && 2 * to >= nt ? down : up;
+    /* A two-sided network's outputs for this row's side (yarn_eval_M): a row of exits is on one side. */
+    const int side = p.m_two_sided && g.z[size_t(to) * size_t(np)] < 0.0f ? 3 : 0;
     for (int po = 0; po < np; po += kLanes) {
       const int n = std::min(kLanes, np - po);
       for (int k = 0; k < kLanes; k++) {
@@ -125,8 +127,6 @@ void m_lobe_energy_split(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, co
         in[4 * kLanes + k] = g.y[q];
         in[5 * kLanes + k] = g.z[q];
       }
-      /* A two-sided network's outputs for this exit's side (yarn_eval_M): a row of exits is on one side. */
-      const int side = p.m_two_sided && g.z[size_t(to) * size_t(np)] < 0.0f ? 3 : 0;
       if (p.m_two_sided) {
         mlp_forward_io_lanes<6, 6, kLanes>(p.net_M, in, out);
       }

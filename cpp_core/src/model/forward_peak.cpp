@@ -155,16 +155,17 @@ ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOp
       double e[3];
       double noise;                /* half the luminance of the two maps' excesses' difference */
       double dO;                   /* one sub-direction pair's share of the bin's solid angle */
-      std::vector<double> cos_psi; /* sub^2 incident x sub^2 outgoing directions: w_o . -w_i */
-      std::vector<std::array<ny::Vec3, 2>> pairs; /* the same in the surface-fiber frame (arc) */
+      std::vector<double> cos_psi; /* spot: sub^2 incident x sub^2 outgoing directions, w_o . -w_i */
+      std::vector<std::array<ny::Vec3, 2>> pairs; /* arc: the same pairs (w_i, w_o) in the surface-fiber frame */
     };
     std::vector<Cell> cells;
     for (int d = -half; d <= half; d++) {
       const int q = ((pi + d) % b.phi_i + b.phi_i) % b.phi_i;
       const Eigen::Vector3d fwd = -incident_centre(b, ti, q);
-      /* The ring's mean radiance of map A, map B (or A again). */
+      /* The ring's mean radiance of map A and, where there is one, map B. */
       double ring_e[2][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}}, ring_o = 0.0;
-      const rdm::RdmMaps *src[2] = {&maps, maps_b ? maps_b : &maps};
+      const rdm::RdmMaps *src[2] = {&maps, maps_b};
+      const int n_maps = maps_b ? 2 : 1;
       std::vector<std::array<int, 2>> cone;
       for (int to = 0; to < b.theta_o; to++) {
         const double dO = maps.outgoing_solid_angle(to);
@@ -177,7 +178,7 @@ ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOp
             cone.push_back({to, po});
             continue;
           }
-          for (int m = 0; m < 2; m++) {
+          for (int m = 0; m < n_maps; m++) {
             const float *v = &src[m]->m[maps.map_index(ti, q, to, po)];
             for (int ch = 0; ch < 3; ch++) {
               ring_e[m][ch] += double(v[ch]) * dO;
@@ -196,23 +197,25 @@ ForwardPeakTable fit_forward_peaks(const rdm::RdmMaps &maps, const ForwardPeakOp
         for (int so = 0; so < o.sub * o.sub; so++) {
           const Eigen::Vector3d wo = outgoing_sub(b, tp[0], tp[1], so, o.sub);
           for (const Eigen::Vector3d &d : minus_wi) {
-            cell.cos_psi.push_back(d.dot(wo));
             if (o.shape == ForwardShape::kArc) {
               cell.pairs.push_back({fiber(-d), fiber(wo)});
+            }
+            else {
+              cell.cos_psi.push_back(d.dot(wo));
             }
           }
         }
         double e[2][3];
-        for (int m = 0; m < 2; m++) {
+        for (int m = 0; m < n_maps; m++) {
           const float *v = &src[m]->m[maps.map_index(ti, q, tp[0], tp[1])];
           for (int ch = 0; ch < 3; ch++) {
             e[m][ch] = (double(v[ch]) - (ring_o > 0.0 ? ring_e[m][ch] / ring_o : 0.0)) * dO;
           }
         }
         for (int ch = 0; ch < 3; ch++) {
-          cell.e[ch] = 0.5 * (e[0][ch] + e[1][ch]);
+          cell.e[ch] = n_maps == 2 ? 0.5 * (e[0][ch] + e[1][ch]) : e[0][ch];
         }
-        cell.noise = 0.5 * std::abs(luminance(e[0]) - luminance(e[1]));
+        cell.noise = n_maps == 2 ? 0.5 * std::abs(luminance(e[0]) - luminance(e[1])) : 0.0;
         cells.push_back(std::move(cell));
       }
     }

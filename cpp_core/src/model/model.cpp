@@ -325,8 +325,8 @@ YarnModel model_from_json(const json &j, const std::string &source)
   try {
     check_network(m.T, "T", 3, 1, ny::kMlpHeadSigmoid);
     check_network(m.R, "R", 3, 1, ny::kMlpHeadExp);
-    /* 6 -> 6: two-sided (kernel/yarn_bsdf.h, D45). */
-    check_network(m.M, "M", 6, m.M.shape.widths.empty() || m.M.shape.widths.back() != 6 ? 3 : 6, ny::kMlpHeadExp);
+    const std::vector<int> &wM = m.M.shape.widths;
+    check_network(m.M, "M", 6, !wM.empty() && is_m_output_width(wM.back()) ? wM.back() : 3, ny::kMlpHeadExp);
   }
   catch (const ModelError &e) {
     throw ModelError(where + e.what());

@@ -94,6 +94,9 @@ struct YarnModel {
 /* The architectures the kernel expects: inputs, outputs and head of each network. */
 void check_network(const NetworkRecord &net, const char *name, int inputs, int outputs, ny::MlpHead head);
 
+/* The M network's output widths the kernel takes (yarn_flat_check): 3, or 6 when it is two-sided (D45). */
+inline bool is_m_output_width(int outputs) { return outputs == 3 || outputs == 6; }
+
 nlohmann::json model_to_json(const YarnModel &model);
 /* Validates everything (format, version, preset, network shapes, sizes, finiteness, proxy ranges);
  * throws ModelError whose message starts with `source` and names the problem. */
