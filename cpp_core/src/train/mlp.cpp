@@ -6,7 +6,8 @@
 #include <random>
 #include <string>
 
-#include "neuralyarn/presets.h" /* ParameterError */
+#include "neuralyarn/kernel/platform.h" /* NY_SIMD_LOOP */
+#include "neuralyarn/presets.h"         /* ParameterError */
 
 namespace neuralyarn::train {
 
@@ -153,6 +154,48 @@ template<class S> std::vector<float> Mlp<S>::to_flat() const
 }
 
 namespace {
+/* Columns a pass carries through the network together (one AVX-512 register of floats, two AVX2 ones; 8 and
+ * 32 were slower): every layer of a tile is computed before the next tile starts, so its activations and the
+ * gradient's lane-wise sums stay in the first-level cache. Fixed, so the order of every sum is the same on
+ * every machine and at every thread count (docs/decisions.md D46). */
+constexpr int kLanes = 16;
+template<class S> using Lanes = Eigen::Array<S, kLanes, 1>;
+template<class S> using LanesAt = Eigen::Map<Lanes<S>>;
+template<class S> using LanesOf = Eigen::Map<const Lanes<S>>;
+
+/* y_r = init_r + sum_k M(r, k) x_k for r < R, each x_k and y_r kLanes wide, M(r, k) = m[r rs + k ks], summed
+ * over k in order (the kernel's order for the forward pass); init null: 0. Four rows at a time, so four
+ * independent sums are in flight instead of one waiting on the last addition. */
+template<class S>
+void lanes_matvec(int R, int K, const S *m, long rs, long ks, const S *init, const S *x, S *y)
+{
+  int r = 0;
+  for (; r + 4 <= R; r += 4) {
+    Lanes<S> y0 = Lanes<S>::Constant(init ? init[r] : S(0)), y1 = Lanes<S>::Constant(init ? init[r + 1] : S(0)),
+             y2 = Lanes<S>::Constant(init ? init[r + 2] : S(0)), y3 = Lanes<S>::Constant(init ? init[r + 3] : S(0));
+    const S *mr = m + r * rs;
+    for (int k = 0; k < K; k++) {
+      const LanesOf<S> xk(x + k * kLanes);
+      const S *mk = mr + k * ks;
+      y0 += mk[0] * xk;
+      y1 += mk[rs] * xk;
+      y2 += mk[2 * rs] * xk;
+      y3 += mk[3 * rs] * xk;
+    }
+    LanesAt<S>(y + r * kLanes) = y0;
+    LanesAt<S>(y + (r + 1) * kLanes) = y1;
+    LanesAt<S>(y + (r + 2) * kLanes) = y2;
+    LanesAt<S>(y + (r + 3) * kLanes) = y3;
+  }
+  for (; r < R; r++) {
+    Lanes<S> yr = Lanes<S>::Constant(init ? init[r] : S(0));
+    for (int k = 0; k < K; k++) {
+      yr += m[r * rs + k * ks] * LanesOf<S>(x + k * kLanes);
+    }
+    LanesAt<S>(y + r * kLanes) = yr;
+  }
+}
+
 template<class S> S head_value(int head, S z)
 {
   if (head == ny::kMlpHeadSigmoid) {
@@ -163,6 +206,7 @@ template<class S> S head_value(int head, S z)
   }
   return z;
 }
+
 /* d head / dz, given z and y = head(z). */
 template<class S> S head_derivative(int head, S z, S y)
 {
@@ -176,132 +220,216 @@ template<class S> S head_derivative(int head, S z, S y)
 }
 }  // namespace
 
-template<class S> typename Mlp<S>::Mat Mlp<S>::layer(int l, const Mat &A, Mat *Z) const
-{
-  /* Whole-matrix expressions (no per-element loops): Eigen vectorises them, which made one training step
-   * 2x faster than indexing element by element (docs/benchmarks.md, "Training"). */
-  Z->noalias() = W_[size_t(l)] * A;
-  Z->colwise() += b_[size_t(l)];
-  if (l < num_layers() - 1) {
-    if (shape_.activation == Activation::kElu) {
-      return Z->unaryExpr([](S z) { return z > 0 ? z : std::expm1(z); });
-    }
-    /* Channel-wise PReLU: max(z, 0) + a * min(z, 0). */
-    const auto zero = S(0);
-    return (Z->array().max(zero) + Z->array().min(zero).colwise() * a_[size_t(l)].array()).matrix();
-  }
-  if (shape_.head == ny::kMlpHeadExp) {
-    return Z->array().min(S(ny::kMlpMaxExpArgument)).exp().matrix();
-  }
-  return Z->unaryExpr([this](S z) { return head_value<S>(int(shape_.head), z); });
-}
-
 template<class S> typename Mlp<S>::Mat Mlp<S>::forward(const Mat &X) const
 {
-  Mat A = X, Z;
-  for (int l = 0; l < num_layers(); l++) {
-    A = layer(l, A, &Z);
-  }
-  return A;
+  Mat Y(shape_.widths.back(), X.cols());
+  pass(X, nullptr, Columns{0, X.cols()}, Loss::kMse, S(0), nullptr, &Y);
+  return Y;
 }
 
 template<class S> S Mlp<S>::loss_and_gradient(const Mat &X, const Mat &T, Loss loss, S eps, Vec *gradient) const
 {
+  return pass(X, &T, Columns{0, X.cols()}, loss, eps, gradient, nullptr);
+}
+
+template<class S>
+S Mlp<S>::loss_and_gradient(const Mat &X, const Mat &T, const Columns &columns, Loss loss, S eps,
+                            Vec *gradient) const
+{
+  return pass(X, &T, columns, loss, eps, gradient, nullptr);
+}
+
+template<class S>
+S Mlp<S>::pass(const Mat &X, const Mat *T, const Columns &columns, Loss loss, S eps, Vec *gradient, Mat *Y) const
+{
   const int L = num_layers();
-  /* Forward, keeping pre-activations Z_l and activations A_l (A_0 = X). */
-  std::vector<Mat> Zs, As;
-  As.push_back(X);
+  const std::vector<int> &w = shape_.widths;
+  const long count = columns.count < 0 ? X.cols() - columns.begin : columns.count;
+  auto column = [&](long k) { return columns.index ? columns.index[columns.begin + k] : columns.begin + k; };
+
+  /* One tile's buffers, [unit][lane]: the activations A_0 (the inputs) .. A_L (the outputs), the
+   * pre-activations Z_0 .. Z_{L-1}, and two of the widest layer for dL/dZ going backward. */
+  std::vector<size_t> at_A(size_t(L) + 1), at_Z(static_cast<size_t>(L));
+  size_t size = 0;
+  int widest = 0;
+  for (int l = 0; l <= L; l++) {
+    at_A[size_t(l)] = size;
+    size += size_t(w[size_t(l)]) * kLanes;
+    widest = std::max(widest, w[size_t(l)]);
+  }
   for (int l = 0; l < L; l++) {
-    Mat Z;
-    Mat A = layer(l, As.back(), &Z);
-    Zs.push_back(std::move(Z));
-    As.push_back(std::move(A));
+    at_Z[size_t(l)] = size;
+    size += size_t(w[size_t(l) + 1]) * kLanes;
   }
-  const Mat &Y = As.back();
-  /* A NaN target is no target: that output of that sample has no loss and no gradient (two-sided M, D45:
-   * each sample trains the three outputs of its own hemisphere). The mean runs over the targets there are. */
-  const auto has = T.array().isFinite();
-  const Mat Tz = has.select(T.array(), S(0)).matrix();
-  const S n = std::max(S(1), S(has.count()));
-  Mat dY;
-  S value;
-  if (loss == Loss::kMse) {
-    dY = has.select(Y - Tz, S(0)).matrix();
-    value = dY.squaredNorm() / n;
-    dY *= S(2) / n;
-  }
-  else if (loss == Loss::kRelativeMse || loss == Loss::kPoissonMse) {
-    const Mat w = loss == Loss::kRelativeMse ? Mat((Y.array().square() + eps).inverse().matrix())
-                                             : Mat((Y.array() + eps).inverse().matrix());
-    dY = has.select(Y - Tz, S(0)).matrix();
-    value = (dY.array().square() * w.array()).sum() / n;
-    dY = (S(2) / n * dY.array() * w.array()).matrix();
-  }
-  else {
-    const auto Ye = Y.array() + eps;
-    const Mat r = has.select(Ye.log() - (Tz.array() + eps).log(), S(0)).matrix();
-    value = r.squaredNorm() / n;
-    dY = (S(2) / n * r.array() / Ye).matrix();
-  }
-  if (!gradient) {
-    return value;
+  std::vector<S> buffer(size + 2 * size_t(widest) * kLanes);
+  S *const dZ0 = buffer.data() + size, *const dZ1 = dZ0 + size_t(widest) * kLanes;
+  /* The gradient, lane by lane, in the order of params(); where layer l's parameters start in it. */
+  std::vector<S> acc(gradient ? size_t(num_params()) * kLanes : 0, S(0));
+  std::vector<size_t> at_W(static_cast<size_t>(L));
+  for (int l = 0, k = 0; l < L; l++) {
+    at_W[size_t(l)] = size_t(k) * kLanes;
+    k += w[size_t(l) + 1] * (w[size_t(l)] + 1) + (l < L - 1 ? w[size_t(l) + 1] : 0);
   }
 
-  /* Backward. */
-  std::vector<Mat> dW(static_cast<size_t>(L));
-  std::vector<Vec> db(static_cast<size_t>(L)), da(a_.size());
-  Mat dZ;
-  if (shape_.head == ny::kMlpHeadExp) {
-    /* d exp(min(z, zmax)) / dz = y below the clamp, 0 above. */
-    dZ = (Zs.back().array() < S(ny::kMlpMaxExpArgument)).select(dY.array() * Y.array(), S(0)).matrix();
-  }
-  else if (shape_.head == ny::kMlpHeadSigmoid) {
-    dZ = (dY.array() * Y.array() * (S(1) - Y.array())).matrix();
-  }
-  else {
-    dZ = dY;
-  }
-  for (int l = L - 1; l >= 0; l--) {
-    dW[size_t(l)].noalias() = dZ * As[size_t(l)].transpose();
-    db[size_t(l)] = dZ.rowwise().sum();
-    if (l == 0) {
-      break;
-    }
-    Mat dA;
-    dA.noalias() = W_[size_t(l)].transpose() * dZ;
-    const Mat &Zp = Zs[size_t(l) - 1];
-    const Vec &a = a_[size_t(l) - 1];
-    if (shape_.activation == Activation::kElu) {
-      dZ = (Zp.array() > S(0)).select(dA.array(), dA.array() * Zp.array().exp()).matrix();
-      da[size_t(l) - 1] = Vec::Zero(a.size());
-    }
-    else {
-      /* dL/da_i = sum over the batch of dA * min(z, 0); ReLU's slopes are the constant 0: no gradient. */
-      da[size_t(l) - 1] = shape_.activation == Activation::kPrelu
-                              ? Vec((dA.array() * Zp.array().min(S(0))).rowwise().sum().matrix())
-                              : Vec::Zero(a.size());
-      dZ = (Zp.array() < S(0)).select(dA.array().colwise() * a.array(), dA.array()).matrix();
-    }
-  }
-  gradient->resize(num_params());
-  int k = 0;
-  for (int l = 0; l < L; l++) {
-    const Mat &g = dW[size_t(l)];
-    for (int j = 0; j < g.cols(); j++) {
-      for (int i = 0; i < g.rows(); i++) {
-        (*gradient)(k++) = g(i, j);
+  /* A NaN target is no target: that output of that sample has no loss and no gradient (two-sided M, D45:
+   * each sample trains the three outputs of its own hemisphere). The mean runs over the targets there are,
+   * counted on the way: the sums are divided by their number at the end. */
+  long finite = 0;
+  const int head = int(shape_.head);
+  S value = S(0);
+  for (long t0 = 0; t0 < count; t0 += kLanes) {
+    const int m = int(std::min<long>(kLanes, count - t0)); /* lanes past m compute zeros and carry no loss */
+    /* A mini-batch's columns are scattered over the dataset: ask for the next tile's while this one runs
+     * (a copy of each epoch in its shuffled order instead cost more than the waiting). */
+    for (long k = t0 + kLanes; columns.index && k < std::min(count, t0 + 2 * kLanes); k++) {
+      __builtin_prefetch(X.data() + column(k) * X.rows());
+      if (T) {
+        __builtin_prefetch(T->data() + column(k) * T->rows());
       }
     }
-    for (int i = 0; i < db[size_t(l)].size(); i++) {
-      (*gradient)(k++) = db[size_t(l)](i);
-    }
-    if (l < L - 1) {
-      for (int i = 0; i < da[size_t(l)].size(); i++) {
-        (*gradient)(k++) = da[size_t(l)](i);
+    S *A0 = buffer.data() + at_A[0];
+    for (int t = 0; t < kLanes; t++) {
+      const long c = t < m ? column(t0 + t) : -1;
+      for (int j = 0; j < w[0]; j++) {
+        A0[j * kLanes + t] = c >= 0 ? X(j, c) : S(0);
       }
     }
+    /* Forward: z = b + sum_j W_ij a_j, summed over the inputs in order (kernel/mlp.h's order); PReLU, ELU
+     * or the head. */
+    for (int l = 0; l < L; l++) {
+      const int n_in = w[size_t(l)], n_out = w[size_t(l) + 1];
+      const bool hidden = l < L - 1;
+      const S *A = buffer.data() + at_A[size_t(l)];
+      S *Z = buffer.data() + at_Z[size_t(l)], *An = buffer.data() + at_A[size_t(l) + 1];
+      lanes_matvec<S>(n_out, n_in, W_[size_t(l)].data(), 1, n_out, b_[size_t(l)].data(), A, Z);
+      for (int i = 0; i < n_out; i++) {
+        const S *z = Z + i * kLanes;
+        S *out = An + i * kLanes;
+        if (!hidden) {
+          for (int t = 0; t < kLanes; t++) {
+            out[t] = head_value<S>(head, z[t]);
+          }
+        }
+        else if (shape_.activation == Activation::kElu) {
+          for (int t = 0; t < kLanes; t++) {
+            out[t] = z[t] > S(0) ? z[t] : std::expm1(z[t]);
+          }
+        }
+        else {
+          /* Channel-wise PReLU (ReLU: its slopes are the constant 0). */
+          const S slope = a_[size_t(l)](i);
+          NY_SIMD_LOOP
+          for (int t = 0; t < kLanes; t++) {
+            out[t] = z[t] < S(0) ? slope * z[t] : z[t];
+          }
+        }
+      }
+    }
+    const S *Yt = buffer.data() + at_A[size_t(L)];
+    if (Y) {
+      for (int t = 0; t < m; t++) {
+        for (int r = 0; r < w.back(); r++) {
+          (*Y)(r, t0 + t) = Yt[r * kLanes + t];
+        }
+      }
+    }
+    if (!T) {
+      continue;
+    }
+
+    /* The loss and dL/dY, then dL/dZ of the output layer through the head. */
+    S *dZ = dZ0;
+    const S *ZL = buffer.data() + at_Z[size_t(L) - 1];
+    for (int r = 0; r < w.back(); r++) {
+      for (int t = 0; t < kLanes; t++) {
+        S d = S(0);
+        const S target = t < m ? (*T)(r, column(t0 + t)) : S(NAN);
+        if (std::isfinite(target)) {
+          const S y = Yt[r * kLanes + t];
+          if (loss == Loss::kLogMse) {
+            const S res = std::log(y + eps) - std::log(target + eps);
+            value += res * res;
+            d = S(2) * res / (y + eps);
+          }
+          else {
+            const S weight = loss == Loss::kRelativeMse ? S(1) / (y * y + eps)
+                             : loss == Loss::kPoissonMse ? S(1) / (y + eps)
+                                                         : S(1);
+            const S e = y - target;
+            value += e * e * weight;
+            d = S(2) * e * weight;
+          }
+          finite++;
+          d *= head_derivative<S>(head, ZL[r * kLanes + t], y);
+        }
+        dZ[r * kLanes + t] = d;
+      }
+    }
+    if (!gradient) {
+      continue;
+    }
+
+    /* Backward, adding each parameter's gradient into its lanes. */
+    S *dA = dZ1;
+    for (int l = L - 1; l >= 0; l--) {
+      const int n_in = w[size_t(l)], n_out = w[size_t(l) + 1];
+      const S *A = buffer.data() + at_A[size_t(l)];
+      S *gW = acc.data() + at_W[size_t(l)], *gb = gW + size_t(n_out) * n_in * kLanes;
+      for (int j = 0; j < n_in; j++) {
+        const Lanes<S> a = LanesOf<S>(A + j * kLanes);
+        for (int i = 0; i < n_out; i++) {
+          LanesAt<S>(gW + (size_t(j) * n_out + i) * kLanes) += LanesOf<S>(dZ + i * kLanes) * a;
+        }
+      }
+      for (int i = 0; i < n_out; i++) {
+        LanesAt<S>(gb + size_t(i) * kLanes) += LanesOf<S>(dZ + i * kLanes);
+      }
+      if (l == 0) {
+        break;
+      }
+      /* dL/dA_l = W^T dL/dZ_l, then through layer l - 1's activation. */
+      const S *W = W_[size_t(l)].data();
+      const S *Zp = buffer.data() + at_Z[size_t(l) - 1];
+      S *ga = acc.data() + at_W[size_t(l) - 1] + size_t(n_in) * (w[size_t(l) - 1] + 1) * kLanes;
+      lanes_matvec<S>(n_in, n_out, W, n_out, 1, nullptr, dZ, dA);
+      for (int j = 0; j < n_in; j++) {
+        const S *zp = Zp + j * kLanes;
+        S *d = dA + j * kLanes;
+        if (shape_.activation == Activation::kElu) {
+          for (int t = 0; t < kLanes; t++) {
+            d[t] = zp[t] > S(0) ? d[t] : d[t] * std::exp(zp[t]);
+          }
+          continue;
+        }
+        /* dL/da_j = sum over the batch of dL/dA * min(z, 0); ReLU's slopes are the constant 0: no gradient. */
+        if (shape_.activation == Activation::kPrelu) {
+          S *g = ga + size_t(j) * kLanes;
+          NY_SIMD_LOOP
+          for (int t = 0; t < kLanes; t++) {
+            g[t] += d[t] * std::min(zp[t], S(0));
+          }
+        }
+        const S slope = a_[size_t(l) - 1](j);
+        NY_SIMD_LOOP
+        for (int t = 0; t < kLanes; t++) {
+          d[t] = zp[t] < S(0) ? slope * d[t] : d[t];
+        }
+      }
+      std::swap(dZ, dA);
+    }
   }
-  return value;
+  const S n = std::max(S(1), S(finite));
+  if (gradient) {
+    gradient->resize(num_params());
+    for (int k = 0; k < num_params(); k++) {
+      S g = S(0);
+      for (int t = 0; t < kLanes; t++) {
+        g += acc[size_t(k) * kLanes + size_t(t)];
+      }
+      (*gradient)(k) = g / n;
+    }
+  }
+  return value / n;
 }
 
 template<class S> int Mlp<S>::num_params() const

@@ -15,35 +15,22 @@
 namespace neuralyarn::train {
 
 namespace {
-/* Columns per chunk: large enough that Eigen's products run at full speed, small enough to give both
- * cores work for batches of a few thousand. Fixed, so the summation order never depends on threads. */
+/* Columns per chunk: enough to pay for a task, few enough to give both cores work for batches of a few
+ * thousand. Fixed, so the summation order never depends on threads. */
 constexpr long kChunk = 512;
 }  // namespace
 
 float dataset_loss(const Mlp<float> &net, const Mlp<float>::Mat &X, const Mlp<float>::Mat &T, Loss loss, float eps,
-                   Mlp<float>::Vec *gradient, const std::vector<long> *columns)
+                   Mlp<float>::Vec *gradient, Mlp<float>::Columns columns)
 {
-  const long n = columns ? long(columns->size()) : X.cols();
+  const long n = columns.count < 0 ? X.cols() : columns.count;
   const long chunks = std::max<long>(1, (n + kChunk - 1) / kChunk);
   std::vector<double> values(size_t(chunks), 0.0);
   std::vector<Mlp<float>::Vec> grads(gradient ? size_t(chunks) : 0);
   tbb::parallel_for(long(0), chunks, [&](long c) {
     const long begin = c * kChunk, count = std::min(kChunk, n - begin);
-    float v;
-    if (columns) {
-      /* Gather this chunk's columns (a few floats each) in the worker, not serially before the step. */
-      Mlp<float>::Mat Xc(X.rows(), count), Tc(T.rows(), count);
-      for (long j = 0; j < count; j++) {
-        const long k = (*columns)[size_t(begin + j)];
-        std::copy_n(X.data() + k * X.rows(), X.rows(), Xc.data() + j * X.rows());
-        std::copy_n(T.data() + k * T.rows(), T.rows(), Tc.data() + j * T.rows());
-      }
-      v = net.loss_and_gradient(Xc, Tc, loss, eps, gradient ? &grads[size_t(c)] : nullptr);
-    }
-    else {
-      v = net.loss_and_gradient(X.middleCols(begin, count), T.middleCols(begin, count), loss, eps,
-                                gradient ? &grads[size_t(c)] : nullptr);
-    }
+    const float v = net.loss_and_gradient(X, T, Mlp<float>::Columns{columns.begin + begin, count, columns.index}, loss,
+                                          eps, gradient ? &grads[size_t(c)] : nullptr);
     /* Each chunk's loss and gradient are means over its columns: weigh them by their share. */
     const double w = double(count) / double(n);
     values[size_t(c)] = double(v) * w;
@@ -107,7 +94,7 @@ TrainResult train_network(const MlpShape &shape, const Dataset &train, const Dat
         }
         batch[size_t(j)] = order[size_t(cursor++)];
       }
-      loss = dataset_loss(r.net, train.X, train.Y, o.loss, o.log_eps, &g, &batch);
+      loss = dataset_loss(r.net, train.X, train.Y, o.loss, o.log_eps, &g, {0, o.batch, batch.data()});
     }
     else {
       loss = dataset_loss(r.net, train.X, train.Y, o.loss, o.log_eps, &g);

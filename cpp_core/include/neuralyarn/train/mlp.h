@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
 //
 // Training-side MLP: the same networks as kernel/mlp.h (channel-wise PReLU hidden layers, identity /
-// sigmoid / exp head), batched with Eigen, with exact backpropagation and Adam. `to_flat()` writes the
-// kernel's array layout, so what is trained is bit-for-bit what renders.
+// sigmoid / exp head), run over a batch a few columns at a time through every layer (forward and exact
+// backpropagation fused, no temporaries), and Adam. `to_flat()` writes the kernel's array layout, so what
+// is trained is bit-for-bit what renders.
 //
 // Scalar is float for training and double for the finite-difference gradient tests.
 #pragma once
@@ -71,15 +72,23 @@ template<class S> class Mlp {
    * column adds no loss and no gradient, and the mean runs over the finite targets. */
   S loss_and_gradient(const Mat &X, const Mat &T, Loss loss, S eps, Vec *gradient) const;
 
+  /* The columns of X and T a loss runs over, read in place: `count` of them from `begin` (all: count < 0),
+   * or with `index` the columns index[begin .. begin + count) (a mini-batch). */
+  struct Columns {
+    long begin = 0, count = -1;
+    const long *index = nullptr;
+  };
+  S loss_and_gradient(const Mat &X, const Mat &T, const Columns &columns, Loss loss, S eps, Vec *gradient) const;
+
   /* All parameters as one vector (W_0, b_0, a_0, W_1, ...; W column-major) and back. */
   Vec params() const;
   void set_params(const Vec &p);
   int num_params() const;
 
  private:
-  /* Layer l applied to activations A: returns its output (PReLU, or the head for the last layer) and
-   * stores the pre-activation in *Z for backpropagation. */
-  Mat layer(int l, const Mat &A, Mat *Z) const;
+  /* The network over `columns` of X: the outputs into *Y (if not null); with targets T, the loss, and its
+   * gradient into *gradient (if not null). */
+  S pass(const Mat &X, const Mat *T, const Columns &columns, Loss loss, S eps, Vec *gradient, Mat *Y) const;
 
   MlpShape shape_;
   std::vector<Mat> W_; /* w_{l+1} x w_l */

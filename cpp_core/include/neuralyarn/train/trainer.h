@@ -44,10 +44,10 @@ struct TrainResult {
   double seconds = 0;
 };
 
-/* Loss (and gradient, unless null) of a whole dataset, computed in parallel chunks (see above). With
- * `columns` (a mini-batch: indices into X and T), of those columns only; each chunk gathers its own. */
+/* Loss (and gradient, unless null) of the columns `columns` of a dataset (all of them by default), computed
+ * in parallel chunks (see above). */
 float dataset_loss(const Mlp<float> &net, const Mlp<float>::Mat &X, const Mlp<float>::Mat &T, Loss loss, float eps,
-                   Mlp<float>::Vec *gradient, const std::vector<long> *columns = nullptr);
+                   Mlp<float>::Vec *gradient, Mlp<float>::Columns columns = {});
 
 TrainResult train_network(const MlpShape &shape, const Dataset &train, const Dataset &validation,
                           const TrainOptions &options);
