@@ -245,12 +245,14 @@ std::function<void(const std::string &, double)> bar_callback(ProgressBar *bar, 
 {
   auto current = std::make_shared<std::string>();
   return [bar, current, &o](const std::string &stage, double f) {
+    /* The networks "T", "R", "M", then "M2", "M3", ... for the M candidates, in Adam steps; the other stages
+     * ("R shape", "calibration", "fit", "fallback tables") in per cent. */
+    const bool network = stage == "T" || stage == "R" || stage[0] == 'M';
     if (*current != stage) {
       *current = stage;
-      bar->stage(stage == "fit" ? "fit  " : "train " + stage, stage == "fit" ? "" : "steps");
+      bar->stage(network ? "train " + stage : stage, network ? "steps" : "%");
     }
-    /* "M", then "M2", "M3", ... for the M candidates */
-    const int steps = stage == "T" ? o.T.steps : stage == "R" ? o.R.steps : stage[0] == 'M' ? o.M.steps : 1;
+    const int steps = stage == "T" ? o.T.steps : stage == "R" ? o.R.steps : network ? o.M.steps : 100;
     bar->update(uint64_t(f * steps + 0.5), uint64_t(std::max(1, steps)));
   };
 }

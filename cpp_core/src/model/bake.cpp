@@ -164,12 +164,20 @@ namespace {
  * grazing one (raw L1): the nodes move the cone where twisted plies put it and cost untwisted ones at grazing
  * light, which a mean over the bins hides (D38). Returns the candidates' scores (empty when there was no
  * choice). */
-nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double requested)
+nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double requested,
+                          const std::function<void(double)> &progress)
 {
+  auto done = [&](double f) {
+    if (progress) {
+      progress(f);
+    }
+  };
+  done(0.0);
   const double lambda = r_free_path(*m);
   if (requested >= 0.0 || lambda == 0.0) {
     m->r_free_path = requested >= 0.0 ? requested : 0.0;
     m->r_shape = fit_r_shape(*m, maps);
+    done(1.0);
     return nlohmann::json();
   }
   const LobeGrid map_R = pool_map_lobe(maps, Lobe::kR);
@@ -178,8 +186,12 @@ nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double request
   RShapeTable best_shape;
   for (const double candidate : {0.0, lambda}) {
     m->r_free_path = candidate;
+    /* Four quadratures of the R lobe over every incident bin, the free path's four times the surface
+     * fiber's (four nodes against one): 1, 2, 6, 10 of 10. */
     m->r_shape = fit_r_shape(*m, maps);
+    done(candidate == 0.0 ? 0.1 : 0.6);
     const LobeComparison cmp = compare_lobes(model_lobe_grid(*m, maps.bins, Lobe::kR), map_R);
+    done(candidate == 0.0 ? 0.2 : 1.0);
     const double score = cmp.l1_max_but_grazing; /* the goal's measure (issue 17); raw L1 without maps B */
     scores.push_back({{"r_free_path", candidate}, {"r_lobe_l1_worst", score}, {"r_lobe_l1_mean", candidate_score(cmp)}});
     if (scores.size() == 1 || score < best_score) {
@@ -269,8 +281,14 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
     a /= wsum;
   }
   /* The R lobe's shape (its energy is unchanged by it; it depends on R alone), then the energies. */
-  const nlohmann::json r_scores = fit_r_lobe(&m, maps, o.r_free_path);
+  const nlohmann::json r_scores = fit_r_lobe(&m, maps, o.r_free_path, stage("R shape"));
+  if (o.progress) {
+    o.progress("calibration", 0.0);
+  }
   m.calibration = calibrate_energy(m, maps, o.threads);
+  if (o.progress) {
+    o.progress("calibration", 1.0);
+  }
   m.provenance = {{"maps", maps_provenance(maps)},
                   {"training_seed", o.seed},
                   {"created", utc_now()},
@@ -296,7 +314,13 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
   /* Last: the fallback tables describe the finished model (networks, calibration and proxy). */
   FallbackOptions fo;
   fo.threads = o.threads;
+  if (o.progress) {
+    o.progress("fallback tables", 0.0);
+  }
   m.fallback = compute_fallback(m, fo);
+  if (o.progress) {
+    o.progress("fallback tables", 1.0);
+  }
   return m;
 }
 

@@ -47,7 +47,8 @@ struct TrainModelOptions {
   int threads = 0;
   ProxyFitOptions fit;
   bool fit_proxy = true;
-  /* Progress: stage name ("T", "R", "M", "fit") and the fraction done within it. */
+  /* Progress: stage name ("T", "R", "M", "M2" ..., "R shape", "calibration", "fit", "fallback tables") and the
+   * fraction done within it. */
   std::function<void(const std::string &stage, double fraction)> progress;
 };
 
