@@ -10,17 +10,20 @@
 #   bash scripts/setup.sh              # set up and run the main job
 #   bash scripts/setup.sh --with-maps  # ... and the maps/model check
 #   bash scripts/setup.sh --no-run     # set up only (used by scripts/test.sh)
+#   bash scripts/setup.sh --with-bench # also what the side-by-side benchmarks compare against (PyTorch)
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD="${NY_BUILD_DIR:-$ROOT/build}"
 RUN_MAIN=1
 WITH_MAPS=0
+WITH_BENCH=0
 for arg in "$@"; do
   case "$arg" in
     --no-run) RUN_MAIN=0 ;;
     --with-maps) WITH_MAPS=1 ;;
-    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
+    --with-bench) WITH_BENCH=1 ;;
+    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
     *) echo "setup.sh: unknown argument '$arg'" >&2; exit 2 ;;
   esac
 done
@@ -44,6 +47,8 @@ PACKAGES=(
   clang-14
   xvfb xauth
 )
+# Benchmarks only, not the tests: PyTorch (CPU), what scripts/bench_training.sh measures the trainer against.
+((WITH_BENCH)) && PACKAGES+=(python3-torch)
 missing=()
 for p in "${PACKAGES[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then

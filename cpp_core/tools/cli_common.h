@@ -12,6 +12,8 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -114,7 +116,7 @@ inline uint64_t parse_count(const std::string &text)
 
 /* A one-line progress bar on stderr, redrawn at most 4 times a second (every 10 % when stderr is not a
  * terminal, so logs stay short). A multi-stage job (bake) calls stage() before each stage; the bar then
- * shows the stage's name and its own progress and ETA. */
+ * shows the stage's name and its own progress and ETA, and stage_times() says where the time went. */
 class ProgressBar {
  public:
   explicit ProgressBar(bool enabled, std::string unit = "paths")
@@ -124,9 +126,12 @@ class ProgressBar {
   void stage(const std::string &name, const std::string &unit)
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    const auto now = Clock::now();
+    end_stage(now);
     stage_ = name + " ";
+    name_ = name;
     unit_ = unit;
-    start_ = Clock::now();
+    start_ = now;
     last_decile_ = -1;
     last_ = {};
   }
@@ -155,8 +160,29 @@ class ProgressBar {
                  human(rate).c_str(), unit_.c_str(), eta, tty_ ? (done >= total ? "\n" : "") : "\n");
     std::fflush(stderr);
   }
+  /* One line of the wall time of every stage so far: "stage times     gather 37.1 s, train T 0.4 s, ...". */
+  std::string stage_times()
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    end_stage(Clock::now());
+    std::string s = "stage times     ";
+    for (size_t k = 0; k < times_.size(); k++) {
+      char buf[128];
+      std::snprintf(buf, sizeof(buf), "%s%s %.1f s", k ? ", " : "", times_[k].first.c_str(), times_[k].second);
+      s += buf;
+    }
+    return s;
+  }
 
  private:
+  using Clock = std::chrono::steady_clock;
+  void end_stage(Clock::time_point now)
+  {
+    if (!name_.empty()) {
+      times_.emplace_back(name_, std::chrono::duration<double>(now - start_).count());
+      name_.clear();
+    }
+  }
   /* 1234 -> "1234", 4.2e7 -> "42M". */
   static std::string human(double v)
   {
@@ -169,9 +195,9 @@ class ProgressBar {
     }
     return buf;
   }
-  using Clock = std::chrono::steady_clock;
   bool enabled_, tty_;
-  std::string unit_, stage_;
+  std::string unit_, stage_, name_;
+  std::vector<std::pair<std::string, double>> times_;
   Clock::time_point start_, last_{};
   int last_decile_ = -1;
   std::mutex mutex_;

@@ -2,13 +2,10 @@
 #include "model_commands.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <optional>
 #include <string>
-#include <utility>
-#include <vector>
 
 #include "cli_common.h"
 #include "neuralyarn/io.h"
@@ -244,52 +241,16 @@ void print_fallback(const model::FallbackTables &f)
               f.theta_bins, f.phi_bins, pmin, pmax, er, eu, ed, amax);
 }
 
-/* Wall time per stage of a bake or a training, printed as one line at the end: where the minutes went. */
-class StageTimes {
- public:
-  void start(const std::string &name)
-  {
-    stop();
-    current_ = name;
-    t0_ = std::chrono::steady_clock::now();
-  }
-  std::string line()
-  {
-    stop();
-    std::string s = "stage times     ";
-    for (size_t k = 0; k < done_.size(); k++) {
-      char buf[128];
-      std::snprintf(buf, sizeof(buf), "%s%s %.1f s", k ? ", " : "", done_[k].first.c_str(), done_[k].second);
-      s += buf;
-    }
-    return s;
-  }
-
- private:
-  void stop()
-  {
-    if (!current_.empty()) {
-      done_.emplace_back(current_, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count());
-      current_.clear();
-    }
-  }
-  std::string current_;
-  std::chrono::steady_clock::time_point t0_;
-  std::vector<std::pair<std::string, double>> done_;
-};
-
-std::function<void(const std::string &, double)> bar_callback(ProgressBar *bar, const TrainModelOptions &o,
-                                                              StageTimes *times)
+std::function<void(const std::string &, double)> bar_callback(ProgressBar *bar, const TrainModelOptions &o)
 {
   auto current = std::make_shared<std::string>();
-  return [bar, current, &o, times](const std::string &stage, double f) {
+  return [bar, current, &o](const std::string &stage, double f) {
     /* The networks "T", "R", "M", then "M2", "M3", ... for the M candidates, in Adam steps; the other stages
      * ("R shape", "calibration", "fit", "fallback tables") in per cent. */
     const bool network = stage == "T" || stage == "R" || stage[0] == 'M';
     if (*current != stage) {
       *current = stage;
       bar->stage(network ? "train " + stage : stage, network ? "steps" : "%");
-      times->start(network ? "train " + stage : stage);
     }
     const int steps = stage == "T" ? o.T.steps : stage == "R" ? o.R.steps : network ? o.M.steps : 100;
     bar->update(uint64_t(f * steps + 0.5), uint64_t(std::max(1, steps)));
@@ -452,13 +413,12 @@ class Commands : public ModelCommands {
     topt_.fit_proxy = !no_fit_;
     topt_.threads = threads_;
     ProgressBar bar(!quiet_, "steps");
-    StageTimes times;
-    topt_.progress = bar_callback(&bar, topt_, &times);
+    topt_.progress = bar_callback(&bar, topt_);
     model::YarnModel m = model::train_model(maps, topt_);
     m.provenance["maps"]["file"] = maps_;
     model::save_model(m, out_);
     print_networks(m);
-    std::printf("%s\n", times.line().c_str());
+    std::printf("%s\n", bar.stage_times().c_str());
     std::printf("wrote %s\n", out_.c_str());
     return 0;
   }
@@ -501,16 +461,14 @@ class Commands : public ModelCommands {
       print_preset(preset);
     }
     ProgressBar bar(!quiet_, "paths");
-    StageTimes times;
     bar.stage("gather", "paths");
-    times.start("gather");
     gopt_.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };
     const rdm::RdmMaps maps = gather_level(preset, level_, gopt_);
     if (!maps_out_.empty()) {
       rdm::save_maps(maps, maps_out_);
     }
     topt_.threads = threads_;
-    topt_.progress = bar_callback(&bar, topt_, &times);
+    topt_.progress = bar_callback(&bar, topt_);
     model::YarnModel m = model::train_model(maps, topt_);
     m.provenance["gather_seconds"] = maps.stats.seconds;
     /* Two independent check gathers of half the check paths each: their mean checks the energies, the
@@ -521,13 +479,12 @@ class Commands : public ModelCommands {
       c.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };
       c.paths = std::max<uint64_t>(check_paths / 2, gopt_.bins.incident());
       c.seed = gopt_.seed + 1000;
-      bar.stage("check", "paths");
-      times.start("check gather");
+      bar.stage("check gather", "paths");
       check_a = gather_level(preset, level_, c);
       c.seed = gopt_.seed + 2000;
       check_b = gather_level(preset, level_, c);
     }
-    times.start("fidelity");
+    bar.stage("fidelity", "");
     const model::FidelityReport r = check_paths > 0 ? model::check_model(m, check_a, {}, &check_b)
                                                     : model::check_model(m, maps);
     m.fidelity = r.to_json();
@@ -539,7 +496,7 @@ class Commands : public ModelCommands {
     std::printf("gathered         %llu paths in %.1f s\n", (unsigned long long)maps.paths, maps.stats.seconds);
     print_networks(m);
     print_fidelity(r);
-    std::printf("%s\n", times.line().c_str());
+    std::printf("%s\n", bar.stage_times().c_str());
     if (!image_.empty()) {
       model::write_comparison_image(m, check_paths > 0 ? check_a : maps, theta_i_, phi_i_, image_);
       std::printf("wrote %s\n", image_.c_str());

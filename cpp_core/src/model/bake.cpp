@@ -184,14 +184,14 @@ nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double request
   nlohmann::json scores = nlohmann::json::array();
   double best_score = 0.0, best_path = 0.0;
   RShapeTable best_shape;
+  LobePooling fit_quadrature;
+  fit_quadrature.r_sub = kRSubFit;
   for (const double candidate : {0.0, lambda}) {
     m->r_free_path = candidate;
     /* Four quadratures of the R lobe over every incident bin, the free path's four times the surface
      * fiber's (four nodes against one): 1, 2, 6, 10 of 10. */
     m->r_shape = fit_r_shape(*m, maps);
     done(candidate == 0.0 ? 0.1 : 0.6);
-    LobePooling fit_quadrature;
-    fit_quadrature.r_sub = kRSubFit;
     const LobeComparison cmp = compare_lobes(model_lobe_grid(*m, maps.bins, Lobe::kR, fit_quadrature), map_R);
     done(candidate == 0.0 ? 0.2 : 1.0);
     const double score = cmp.l1_max_but_grazing; /* the goal's measure (issue 17); raw L1 without maps B */
@@ -262,6 +262,12 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
     }
     return [&o, name](double f) { o.progress(name, f); };
   };
+  /* A stage without steps of its own: its start and its end. */
+  auto report = [&](const char *name, double f) {
+    if (o.progress) {
+      o.progress(name, f);
+    }
+  };
   m.T = train_one("T", maps, o.T, ny::kMlpHeadSigmoid, o.seed, o.threads, stage("T"), nullptr);
   m.R = train_one("R", maps, o.R, ny::kMlpHeadExp, o.seed + 1, o.threads, stage("R"), nullptr);
   const train::Mlp<float> transmission = train::Mlp<float>::from_flat(m.T.flat);
@@ -284,13 +290,9 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
   }
   /* The R lobe's shape (its energy is unchanged by it; it depends on R alone), then the energies. */
   const nlohmann::json r_scores = fit_r_lobe(&m, maps, o.r_free_path, stage("R shape"));
-  if (o.progress) {
-    o.progress("calibration", 0.0);
-  }
+  report("calibration", 0.0);
   m.calibration = calibrate_energy(m, maps, o.threads);
-  if (o.progress) {
-    o.progress("calibration", 1.0);
-  }
+  report("calibration", 1.0);
   m.provenance = {{"maps", maps_provenance(maps)},
                   {"training_seed", o.seed},
                   {"created", utc_now()},
@@ -302,13 +304,9 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
     select_m_candidate(&m, maps, o, transmission, stage);
   }
   if (o.fit_proxy) {
-    if (o.progress) {
-      o.progress("fit", 0.0);
-    }
+    report("fit", 0.0);
     fit_model_proxy(&m, maps, o.fit);
-    if (o.progress) {
-      o.progress("fit", 1.0);
-    }
+    report("fit", 1.0);
   }
   else {
     m.proxy.kappa_R = global_kappa_R(maps);
@@ -316,13 +314,9 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
   /* Last: the fallback tables describe the finished model (networks, calibration and proxy). */
   FallbackOptions fo;
   fo.threads = o.threads;
-  if (o.progress) {
-    o.progress("fallback tables", 0.0);
-  }
+  report("fallback tables", 0.0);
   m.fallback = compute_fallback(m, fo);
-  if (o.progress) {
-    o.progress("fallback tables", 1.0);
-  }
+  report("fallback tables", 1.0);
   return m;
 }
 

@@ -133,9 +133,9 @@ NY_KERNEL_FN void mlp_forward(NY_GLOBAL const float *params, NY_PRIVATE const fl
 }
 
 /* The shapes the trainer makes, by input and output width: I-H-H-O with the hidden widths H it uses
- * (3-7-7-1 for T and rho_R; 6-21-21-3, and 6-32-32-3 since decisions D22, for M; 6-H-H-6 for a two-sided M, D45), chosen by overloading on
- * MlpIO<I, O> (not `if constexpr` nor a specialised static member, which some kernel languages or Cycles'
- * NY_KERNEL_FN do not take). Returns false for any other shape. */
+ * (3-7-7-1 for T and rho_R; 6-21-21-3, and 6-32-32-3 since decisions D22, for M; 6-H-H-6 for a two-sided M,
+ * D45), chosen by overloading on MlpIO<I, O> (not `if constexpr` nor a specialised static member, which some
+ * kernel languages or Cycles' NY_KERNEL_FN do not take). Returns false for any other shape. */
 template<int I, int O> struct MlpIO {
 };
 
@@ -156,29 +156,17 @@ NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<3, 1>, NY_GLOBAL const float *
   return true;
 }
 
-NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<6, 3>, NY_GLOBAL const float *p, int H, int head,
+/* M: 6 -> 3, or 6 -> 6 two-sided (the flat array's check admits no other output width). */
+template<int O>
+NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<6, O>, NY_GLOBAL const float *p, int H, int head,
                                             NY_PRIVATE const float *input, NY_PRIVATE float *output)
 {
   if (H == 21) {
-    mlp_forward_sized<6, 21, 3>(p, head, input, output);
+    mlp_forward_sized<6, 21, O>(p, head, input, output);
     return true;
   }
   if (H == 32) {
-    mlp_forward_sized<6, 32, 3>(p, head, input, output);
-    return true;
-  }
-  return false;
-}
-
-NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<6, 6>, NY_GLOBAL const float *p, int H, int head,
-                                            NY_PRIVATE const float *input, NY_PRIVATE float *output)
-{
-  if (H == 21) {
-    mlp_forward_sized<6, 21, 6>(p, head, input, output);
-    return true;
-  }
-  if (H == 32) {
-    mlp_forward_sized<6, 32, 6>(p, head, input, output);
+    mlp_forward_sized<6, 32, O>(p, head, input, output);
     return true;
   }
   return false;

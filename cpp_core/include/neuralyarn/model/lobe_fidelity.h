@@ -40,14 +40,14 @@
 
 namespace neuralyarn::model {
 
-/* Cells: map bins pooled to about this many degrees (in theta and phi, incident phi and both outgoing
- * angles); incident theta is never pooled (the report is per theta_i bin). */
 /* Incident directions per side of an incident bin in the R lobe's quadrature: 4 x 4 for the measure, 2 x 2 for
  * the bake's shape fit and its choice of free path, whose tables and choice are the same at either (the R
  * lobe's L1 against the maps within 0.1 point per theta_i bin, polyester and fleece) at 2.6x less time
  * (docs/benchmarks.md, "Training speed"). */
 constexpr int kRSubMeasure = 4, kRSubFit = 2;
 
+/* Cells: map bins pooled to about this many degrees (in theta and phi, incident phi and both outgoing
+ * angles); incident theta is never pooled (the report is per theta_i bin). */
 struct LobePooling {
   double cell_deg = 12.0;
   /* The R lobe's quadrature: r_sub x r_sub incident directions per incident bin (integrate_r_parts). */

@@ -74,20 +74,12 @@ void mlp_forward_io_lanes(const float *params, const float *in, float *out)
       return mlp_forward_sized_lanes<3, 7, 1, L>(params + 6, head, in, out);
     }
   }
-  if constexpr (I == 6 && O == 3) {
+  if constexpr (I == 6 && (O == 3 || O == 6)) {
     if (H == 21) {
-      return mlp_forward_sized_lanes<6, 21, 3, L>(params + 6, head, in, out);
+      return mlp_forward_sized_lanes<6, 21, O, L>(params + 6, head, in, out);
     }
     if (H == 32) {
-      return mlp_forward_sized_lanes<6, 32, 3, L>(params + 6, head, in, out);
-    }
-  }
-  if constexpr (I == 6 && O == 6) {
-    if (H == 21) {
-      return mlp_forward_sized_lanes<6, 21, 6, L>(params + 6, head, in, out);
-    }
-    if (H == 32) {
-      return mlp_forward_sized_lanes<6, 32, 6, L>(params + 6, head, in, out);
+      return mlp_forward_sized_lanes<6, 32, O, L>(params + 6, head, in, out);
     }
   }
   for (int l = 0; l < L; l++) {
