@@ -225,7 +225,7 @@ TEST(LobeFidelity, ModelGridsHoldTheLobesEnergies)
     ASSERT_EQ(R.phi_i_groups, 12); /* 30-degree incident bins: not pooled */
     for (int ti = 0; ti < b.theta_i; ti++) {
       for (int pi = 0; pi < b.phi_i; pi += 5) {
-        /* The same incident sub-directions as the grid: 4 x 4 (R) and 2 x 2 (M), uniform in solid angle. */
+        /* The same incident sub-directions as the grid: kRSub x kRSub (R) and 2 x 2 (M), uniform in solid angle. */
         auto expected = [&](int n, bool r_lobe) {
           const double t0 = 0.5 * kPi * ti / b.theta_i, t1 = 0.5 * kPi * (ti + 1) / b.theta_i;
           double e[3] = {0, 0, 0};
@@ -256,7 +256,7 @@ TEST(LobeFidelity, ModelGridsHoldTheLobesEnergies)
           }
           return std::array<double, 3>{e[0], e[1], e[2]};
         };
-        const std::array<double, 3> er = expected(4, true), em = expected(2, false);
+        const std::array<double, 3> er = expected(model::kRSub, true), em = expected(2, false);
         const size_t group = size_t(ti) * size_t(R.phi_i_groups) + size_t(pi);
         for (int c = 0; c < 3; c++) {
           double sr = 0, sm = 0;

@@ -184,15 +184,13 @@ nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double request
   nlohmann::json scores = nlohmann::json::array();
   double best_score = 0.0, best_path = 0.0;
   RShapeTable best_shape;
-  LobePooling fit_quadrature;
-  fit_quadrature.r_sub = kRSubFit;
   for (const double candidate : {0.0, lambda}) {
     m->r_free_path = candidate;
     /* Four quadratures of the R lobe over every incident bin, the free path's four times the surface
      * fiber's (four nodes against one): 1, 2, 6, 10 of 10. */
     m->r_shape = fit_r_shape(*m, maps);
     done(candidate == 0.0 ? 0.1 : 0.6);
-    const LobeComparison cmp = compare_lobes(model_lobe_grid(*m, maps.bins, Lobe::kR, fit_quadrature), map_R);
+    const LobeComparison cmp = compare_lobes(model_lobe_grid(*m, maps.bins, Lobe::kR), map_R);
     done(candidate == 0.0 ? 0.2 : 1.0);
     const double score = cmp.l1_max_but_grazing; /* the goal's measure (issue 17); raw L1 without maps B */
     scores.push_back({{"r_free_path", candidate}, {"r_lobe_l1_worst", score}, {"r_lobe_l1_mean", candidate_score(cmp)}});

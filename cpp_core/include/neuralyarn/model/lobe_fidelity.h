@@ -40,18 +40,17 @@
 
 namespace neuralyarn::model {
 
-/* Incident directions per side of an incident bin in the R lobe's quadrature: 4 x 4 for the measure, 2 x 2 for
- * the bake's shape fit and its choice of free path, whose tables and choice are the same at either (the R
- * lobe's L1 against the maps within 0.1 point per theta_i bin, polyester and fleece) at 2.6x less time
- * (docs/benchmarks.md, "Training speed"). */
-constexpr int kRSubMeasure = 4, kRSubFit = 2;
+/* Incident directions per side of an incident bin in the R lobe's quadrature (the measure, the bake's shape fit
+ * and its choice of free path): at 2 x 2 the R lobe's L1 against the maps is that of 4 x 4 within 0.6 point per
+ * theta_i bin, at a third of the time (D48; docs/benchmarks.md, "Training speed"). */
+constexpr int kRSub = 2;
 
 /* Cells: map bins pooled to about this many degrees (in theta and phi, incident phi and both outgoing
  * angles); incident theta is never pooled (the report is per theta_i bin). */
 struct LobePooling {
   double cell_deg = 12.0;
   /* The R lobe's quadrature: r_sub x r_sub incident directions per incident bin (integrate_r_parts). */
-  int r_sub = kRSubMeasure;
+  int r_sub = kRSub;
 };
 
 enum class Lobe { kR, kM };
@@ -104,7 +103,7 @@ ny::Vec3 incident_sub_direction(const rdm::MapResolution &bins, int ti, int pi, 
  * lobe's energy, averaged over the incident directions. Used by the measure and the R shape fit. */
 void integrate_r_lobe(const ny::YarnBsdfParams &p, const rdm::MapResolution &bins, int ti, int pi,
                       const std::function<void(int to, int po, const ny::Rgb &energy)> &add,
-                      int r_sub = kRSubMeasure);
+                      int r_sub = kRSub);
 
 /* The same integration with the lobe's two parts apart (kernel/yarn_bsdf.h yarn_eval_R_parts, each with the
  * lobe's whole weight over the number of nodes), the sample's azimuth phi~_o about its node's fiber and the
@@ -112,7 +111,7 @@ void integrate_r_lobe(const ny::YarnBsdfParams &p, const rdm::MapResolution &bin
 void integrate_r_parts(const ny::YarnBsdfParams &p, const rdm::MapResolution &bins, int ti, int pi,
                        const std::function<void(int to, int po, float phi_f, const ny::Rgb &R, const ny::Rgb &TT,
                                                 const ny::Rgb &tau)> &add,
-                       int r_sub = kRSubMeasure);
+                       int r_sub = kRSub);
 
 /* Adds `value` (RGB, energy) of one map bin (ti, pi, to, po) to a grid, with weight `w`. */
 void add_to_lobe_grid(LobeGrid *grid, int ti, int pi, int to, int po, const double value[3], double w);
