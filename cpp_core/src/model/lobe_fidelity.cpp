@@ -78,22 +78,18 @@ ny::Vec3 incident_sub_direction(const rdm::MapResolution &b, int ti, int pi, int
 }
 
 void integrate_r_lobe(const ny::YarnBsdfParams &p, const rdm::MapResolution &b, int ti, int pi,
-                      const std::function<void(int to, int po, const ny::Rgb &energy)> &add, int r_sub)
+                      const std::function<void(int to, int po, const ny::Rgb &energy)> &add)
 {
-  integrate_r_parts(
-      p, b, ti, pi,
-      [&](int to, int po, float, const ny::Rgb &R, const ny::Rgb &TT, const ny::Rgb &tau) {
-        add(to, po, (ny::make_rgb(1.0f) - tau) * R + tau * TT);
-      },
-      r_sub);
+  integrate_r_parts(p, b, ti, pi, [&](int to, int po, float, const ny::Rgb &R, const ny::Rgb &TT, const ny::Rgb &tau) {
+    add(to, po, (ny::make_rgb(1.0f) - tau) * R + tau * TT);
+  });
 }
 
 void integrate_r_parts(const ny::YarnBsdfParams &p, const rdm::MapResolution &b, int ti, int pi,
                        const std::function<void(int to, int po, float phi_f, const ny::Rgb &R, const ny::Rgb &TT,
-                                                const ny::Rgb &tau)> &add,
-                       int n_sub)
+                                                const ny::Rgb &tau)> &add)
 {
-  constexpr int n_theta = 32, n_phi = 64;
+  constexpr int n_sub = kRSub, n_theta = 32, n_phi = 64;
   for (int s = 0; s < n_sub * n_sub; s++) {
     const ny::YarnLobes l = ny::yarn_lobes(p, incident_sub_direction(b, ti, pi, s, n_sub));
     /* Each R node (weight 1 / n_R) on its own: one stratified set per part of its proposal (the TT part only
@@ -231,13 +227,10 @@ LobeGrid model_lobe_grid(const YarnModel &model, const rdm::MapResolution &b, Lo
     for (int pi = 0; pi < b.phi_i; pi++) {
       const double w_group = 1.0 / per_group[size_t(cell_of(pi, b.phi_i, g.phi_i_groups))];
       if (lobe == Lobe::kR) {
-        integrate_r_lobe(
-            p, b, ti, pi,
-            [&](int to, int po, const ny::Rgb &v) {
-              const double e[3] = {v.r, v.g, v.b};
-              add_to_lobe_grid(&g, ti, pi, to, po, e, w_group);
-            },
-            pooling.r_sub);
+        integrate_r_lobe(p, b, ti, pi, [&](int to, int po, const ny::Rgb &v) {
+          const double e[3] = {v.r, v.g, v.b};
+          add_to_lobe_grid(&g, ti, pi, to, po, e, w_group);
+        });
         continue;
       }
       /* M (tens of degrees wide): at every map bin centre, for 2 x 2 incident directions inside the bin. */

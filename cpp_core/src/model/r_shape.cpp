@@ -178,8 +178,7 @@ RShapeTable fit_r_shape(const YarnModel &model, const rdm::RdmMaps &maps, const 
                                 t_az[tp][size_t(kc) * 3 + size_t(c)] += vt[c];
                               }
                             }
-                          },
-                          o.r_sub);
+                          });
       }
     }
     for (int tp = 0; tp < o.phi_bins; tp++) {

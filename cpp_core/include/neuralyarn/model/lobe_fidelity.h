@@ -49,8 +49,6 @@ constexpr int kRSub = 2;
  * angles); incident theta is never pooled (the report is per theta_i bin). */
 struct LobePooling {
   double cell_deg = 12.0;
-  /* The R lobe's quadrature: r_sub x r_sub incident directions per incident bin (integrate_r_parts). */
-  int r_sub = kRSub;
 };
 
 enum class Lobe { kR, kM };
@@ -95,23 +93,21 @@ LobeGrid model_lobe_grid(const YarnModel &model, const rdm::MapResolution &bins,
 /* Incident direction `s` of an n x n stratification of incident bin (ti, pi), uniform in solid angle. */
 ny::Vec3 incident_sub_direction(const rdm::MapResolution &bins, int ti, int pi, int s, int n);
 
-/* The R lobe of `p` integrated over the map bins for incident bin (ti, pi): r_sub x r_sub incident directions
+/* The R lobe of `p` integrated over the map bins for incident bin (ti, pi): kRSub x kRSub incident directions
  * inside the bin, each lobe node by node (kernel/yarn_bsdf.h), each node by 32 x 64 stratified samples of
  * each part of its own proposal (reflection:
  * truncated normal in theta~, uniform phi~ on the upper half; TT, where it has a share: the two truncated
  * normals), combined by the balance heuristic; add(to, po, energy) receives every sample's share of the
  * lobe's energy, averaged over the incident directions. Used by the measure and the R shape fit. */
 void integrate_r_lobe(const ny::YarnBsdfParams &p, const rdm::MapResolution &bins, int ti, int pi,
-                      const std::function<void(int to, int po, const ny::Rgb &energy)> &add,
-                      int r_sub = kRSub);
+                      const std::function<void(int to, int po, const ny::Rgb &energy)> &add);
 
 /* The same integration with the lobe's two parts apart (kernel/yarn_bsdf.h yarn_eval_R_parts, each with the
  * lobe's whole weight over the number of nodes), the sample's azimuth phi~_o about its node's fiber and the
  * TT share tau of its incident direction: the R shape fit. */
 void integrate_r_parts(const ny::YarnBsdfParams &p, const rdm::MapResolution &bins, int ti, int pi,
                        const std::function<void(int to, int po, float phi_f, const ny::Rgb &R, const ny::Rgb &TT,
-                                                const ny::Rgb &tau)> &add,
-                       int r_sub = kRSub);
+                                                const ny::Rgb &tau)> &add);
 
 /* Adds `value` (RGB, energy) of one map bin (ti, pi, to, po) to a grid, with weight `w`. */
 void add_to_lobe_grid(LobeGrid *grid, int ti, int pi, int to, int po, const double value[3], double w);

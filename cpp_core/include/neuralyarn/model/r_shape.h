@@ -19,7 +19,6 @@
 
 #include <Eigen/Dense>
 
-#include "neuralyarn/model/lobe_fidelity.h" /* kRSub */
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/rdm/gather.h"
 
@@ -28,7 +27,6 @@ namespace neuralyarn::model {
 struct RShapeOptions {
   int theta_bins = 11, phi_bins = 24, azimuth_bins = 16;
   bool fit_tt = true; /* false: tau = 0 (the reflection part only, as model layout 3) */
-  int r_sub = kRSub; /* incident directions per side of a bin in the R lobe's quadrature */
 };
 
 /* The R lobe's mean free path to its fiber (kernel/yarn_bsdf.h), in ply radii: a fraction
