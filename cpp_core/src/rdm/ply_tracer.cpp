@@ -4,7 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
+
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 #include <Eigen/Geometry>
 
@@ -93,14 +98,17 @@ PlyTracer::PlyTracer(const geometry::Ply &ply, const TracerOptions &options)
   auto cell_index = [&](float v) { return std::clamp(int(std::floor((v + bound_) * inv_cell_)), 0, n_ - 1); };
   std::vector<uint32_t> count(size_t(n_) * size_t(n_) + 1, 0);
   for (int pass = 0; pass < 2; pass++) {
-    std::vector<uint32_t> fill;
+    std::vector<uint32_t> fill; /* the next free lane of each cell, counted from its first block */
     if (pass == 1) {
       start_.assign(count.size(), 0);
       for (size_t c = 1; c < count.size(); c++) {
-        start_[c] = start_[c - 1] + count[c - 1];
+        start_[c] = start_[c - 1] + (count[c - 1] + kLanes - 1) / kLanes;
       }
-      items_.resize(start_.back());
-      fill.assign(start_.begin(), start_.end() - 1);
+      TubeBlock empty{};
+      std::fill(std::begin(empty.fiber), std::end(empty.fiber), -1);
+      blocks_.assign(start_.back(), empty);
+      fill.assign(count.size() - 1, 0);
+      entries_ = 0;
     }
     for (int i = 0; i < N; i++) {
       const int y0 = cell_index(ymin[size_t(i)]), y1 = cell_index(ymax[size_t(i)]);
@@ -124,7 +132,16 @@ PlyTracer::PlyTracer(const geometry::Ply &ply, const TracerOptions &options)
             count[c]++;
           }
           else {
-            items_[fill[c]++] = CellItem{fibers_[size_t(i)], i, 0.0f};
+            /* Lanes in the order the fibers come, as the scalar test visited them: the first of equal
+             * distances wins either way. */
+            TubeBlock &b = blocks_[start_[c] + fill[c] / kLanes];
+            const int lane = int(fill[c] % kLanes);
+            const Tube &f = fibers_[size_t(i)];
+            b.ax[lane] = f.a.x, b.ay[lane] = f.a.y, b.az[lane] = f.a.z;
+            b.ux[lane] = f.axis.x, b.uy[lane] = f.axis.y, b.uz[lane] = f.axis.z;
+            b.fiber[lane] = i;
+            fill[c]++;
+            entries_++;
           }
         }
       }
@@ -203,6 +220,52 @@ void PlyTracer::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
   canonicalize(ray);
 }
 
+namespace {
+constexpr int kWidth = 4 * kTubeLanes;
+typedef float LanesF __attribute__((vector_size(kWidth)));
+typedef int32_t LanesI __attribute__((vector_size(kWidth)));
+
+inline LanesF lanes_sqrt(LanesF v)
+{
+#if defined(__SSE2__)
+  static_assert(kWidth == 16);
+  return _mm_sqrt_ps(v);
+#else
+  for (int k = 0; k < kTubeLanes; k++) {
+    v[k] = std::sqrt(v[k]);
+  }
+  return v;
+#endif
+}
+
+inline bool any_lane(LanesI m)
+{
+  int32_t a = 0;
+  for (int k = 0; k < kTubeLanes; k++) {
+    a |= m[k];
+  }
+  return a != 0;
+}
+
+/* Loads by memcpy (one vector move; no aliasing of float arrays through vector types), broadcasts by value
+ * (exact, signed zeros included). */
+template<typename V, typename T> inline V load(const T *p)
+{
+  V v;
+  std::memcpy(&v, p, sizeof(V));
+  return v;
+}
+
+inline LanesF splat(float x)
+{
+  LanesF v;
+  for (int k = 0; k < kTubeLanes; k++) {
+    v[k] = x;
+  }
+  return v;
+}
+}  // namespace
+
 float PlyTracer::nearest_in_slab(Vec3 o, Vec3 d, float t_end, int exclude, float travelled, float exclude_distance,
                                  int *fiber) const
 {
@@ -218,23 +281,45 @@ float PlyTracer::nearest_in_slab(Vec3 o, Vec3 d, float t_end, int exclude, float
   float next_z = d.z != 0.0f ? ((float(iz + (step_z > 0)) * cell_ - bound_) - o.z) * inv_dz : kInf;
   const float delta_y = std::abs(cell_ * inv_dy);
   const float delta_z = std::abs(cell_ * inv_dz);
+  const LanesF ox = splat(o.x), oy = splat(o.y), oz = splat(o.z);
+  const LanesF dx = splat(d.x), dy = splat(d.y), dz = splat(d.z);
+  const LanesF r2 = splat(r_ * r_), zero = splat(0.0f), one = splat(1.0f), inf = splat(kInf);
   for (;;) {
     const size_t c = size_t(iz) * size_t(n_) + size_t(iy);
     for (uint32_t k = start_[c]; k < start_[c + 1]; k++) {
-      const int f = items_[k].fiber;
-      const float t = intersect_tube(items_[k].tube, o, d);
-      if (!(t < best)) {
+      /* intersect_tube on a block of tubes, operation for operation (so in the same float rounding): entry
+       * distance C / (-B + sqrt(disc)) where the ray approaches the axis (B < 0), starts outside (C > 0)
+       * and meets the tube (disc >= 0); +inf elsewhere and in padding lanes. */
+      const TubeBlock &b = blocks_[k];
+      const LanesF ux = load<LanesF>(b.ux), uy = load<LanesF>(b.uy), uz = load<LanesF>(b.uz);
+      const LanesI lane_fiber = load<LanesI>(b.fiber);
+      const LanesF wx = ox - load<LanesF>(b.ax), wy = oy - load<LanesF>(b.ay), wz = oz - load<LanesF>(b.az);
+      const LanesF wa = wx * ux + wy * uy + wz * uz;
+      const LanesF da = dx * ux + dy * uy + dz * uz;
+      const LanesF B = (wx * dx + wy * dy + wz * dz) - wa * da;
+      const LanesF C = (wx * wx + wy * wy + wz * wz) - wa * wa - r2;
+      const LanesF A = one - da * da;
+      const LanesF disc = B * B - A * C;
+      const LanesI valid = (B < zero) & (C > zero) & (disc >= zero) & (lane_fiber >= 0);
+      const LanesF t = valid ? C / (-B + lanes_sqrt(valid ? disc : zero)) : inf;
+      if (!any_lane(t < best)) {
         continue;
       }
-      if (f == exclude && travelled + t < exclude_distance) {
-        continue;
+      for (int lane = 0; lane < kLanes; lane++) {
+        if (!(t[lane] < best)) {
+          continue;
+        }
+        const int f = lane_fiber[lane];
+        if (f == exclude && travelled + t[lane] < exclude_distance) {
+          continue;
+        }
+        const float x = o.x + t[lane] * d.x;
+        if (x < 0.0f || x > L_) {
+          continue; /* that part of the tube belongs to the neighbouring slab's chord */
+        }
+        best = t[lane];
+        best_fiber = f;
       }
-      const float x = o.x + t * d.x;
-      if (x < 0.0f || x > L_) {
-        continue; /* that part of the tube belongs to the neighbouring slab's chord */
-      }
-      best = t;
-      best_fiber = f;
     }
     const float t_cell_exit = std::min(next_y, next_z);
     if (best <= t_cell_exit || t_cell_exit >= t_end) {

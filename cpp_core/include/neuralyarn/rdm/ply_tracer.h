@@ -38,6 +38,10 @@
 
 namespace neuralyarn::rdm {
 
+/* Tubes a query tests at once (one SSE vector; eight lanes of AVX measured no faster, docs/benchmarks.md).
+ * Each lane computes what one scalar tube test would, in the same float operations. */
+inline constexpr int kTubeLanes = 4;
+
 struct TracerOptions {
   double sagitta = 0.01;   /* largest chord deviation from the helix, in fiber radii      */
   double cell_size = 2.0;  /* grid cell side in fiber radii                               */
@@ -88,7 +92,7 @@ class PlyTracer {
   double twist_rate() const { return w_; }
   int num_fibers() const { return int(fibers_.size()); }
   /* Number of (fiber, cell) entries of the grid: its memory and the mean candidate count. */
-  size_t grid_entries() const { return items_.size(); }
+  size_t grid_entries() const { return entries_; }
   int grid_resolution() const { return n_; }
 
   /* Traces `ray` (updated in place: on return it is at the hit or exit point, in the slab it ended in)
@@ -134,17 +138,20 @@ class PlyTracer {
   double w_ = 0.0;
   float rot_c_ = 1.0f, rot_s_ = 0.0f; /* Rot(w L) */
   std::vector<Tube> fibers_;
-  /* Grid over [-R, R]^2 in (y, z): cell (iy, iz) holds items_[start_[c] .. start_[c + 1]). */
+  /* Grid over [-R, R]^2 in (y, z): cell (iy, iz) holds blocks_[start_[c] .. start_[c + 1]). */
   int n_ = 1;
   float cell_ = 1.0f, inv_cell_ = 1.0f;
   std::vector<uint32_t> start_;
-  /* A cell's tubes are stored inline (32 bytes each), saving the indirection through fibers_. */
-  struct CellItem {
-    Tube tube;
-    int32_t fiber;
-    float pad;
+  size_t entries_ = 0;
+  /* A cell's tubes, stored inline in structure-of-arrays blocks of kLanes, so that one block's tube tests
+   * run as vector instructions without a branch per tube. Lanes past a cell's last tube have fiber -1. */
+  static constexpr int kLanes = kTubeLanes;
+  struct alignas(4 * kLanes) TubeBlock {
+    float ax[kLanes], ay[kLanes], az[kLanes]; /* chord start */
+    float ux[kLanes], uy[kLanes], uz[kLanes]; /* unit chord direction */
+    int32_t fiber[kLanes];
   };
-  std::vector<CellItem> items_;
+  std::vector<TubeBlock> blocks_;
 };
 
 }  // namespace neuralyarn::rdm
