@@ -3,8 +3,8 @@
 """The stability suite (issue 19): where each method holds and where it fails.
 
     bash scripts/stability.sh --out DIR [--quick] [--sweeps views scale units samples layers bakes furnace]
-        [--presets P ...] [--methods explicit native osl nodes] [--scale-px W ...] [--append] [--threads N]
-        [--timeout S]
+        [--presets P ...] [--methods explicit native osl nodes] [--scale-px W ...] [--layers N ...]
+        [--ref-spp N] [--ref-rotations N] [--append] [--threads N] [--timeout S]
 
 Sweeps, on the evaluation harness's scene (scripts/evaluate.py, `neuralyarn cycles-scene`), every method
 against an explicit-fiber reference of the same scene (the mean over orientations of the ply, as the harness):
@@ -508,6 +508,11 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--methods", nargs="+", help=f"render methods ({', '.join(RENDER_METHODS)})")
     ap.add_argument("--scale-px", nargs="+", type=float,
                     help="ply widths in pixels of the scale sweep (default: quick 30 3 0.5, full 300 30 3 1 0.5)")
+    ap.add_argument("--layers", nargs="+", type=int,
+                    help="cloth layers of the layers sweep (default: quick 2 8, full 2 8 32)")
+    ap.add_argument("--ref-spp", type=int, help="samples of each reference (default: quick 64, full 512)")
+    ap.add_argument("--ref-rotations", type=int,
+                    help="orientations each reference averages (default: quick 2, full 4)")
     ap.add_argument("--append", action="store_true",
                     help="keep the cells of DIR/results.json that this run does not redo (same sweep, preset and "
                          "method), so that one results.json, map and summary can gather several runs")
@@ -523,6 +528,15 @@ def main(argv: list[str]) -> int:
             if not all(0.0 < v <= 1000.0 for v in args.scale_px):
                 raise ev.Usage("--scale-px: widths must be in (0, 1000] pixels")
             cfg["scale_px"] = args.scale_px
+        if args.layers:
+            if not all(2 <= n <= 256 for n in args.layers):
+                raise ev.Usage("--layers: cloth layers must be in [2, 256]")
+            cfg["layers"] = args.layers
+        for name, value, top in (("--ref-spp", args.ref_spp, 1 << 16), ("--ref-rotations", args.ref_rotations, 1024)):
+            if value is not None:
+                if not 1 <= value <= top:
+                    raise ev.Usage(f"{name} must be in [1, {top}], got {value}")
+                cfg[name[2:].replace("-", "_")] = value
         sweeps = ev.names(args.sweeps) or SWEEPS
         presets = ev.names(args.presets) or cfg["presets"]
         methods = ev.names(args.methods) or cfg["methods"]

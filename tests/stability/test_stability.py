@@ -3,7 +3,8 @@
 and firefly pixels counted, bias and variance against a known reference), and the quick run as CI runs it:
 every cell has every field; no render has a NaN, Inf or negative pixel; no model gains energy in the white
 furnace; the native closure renders the same image at every scene unit; its noise falls with the samples;
-the impossible packing fails within a minute naming the parameter.
+the impossible packing fails within a minute naming the parameter; the layers and the references' samples can be
+chosen on the command line.
 
 Run by ctest (stability.pytest_quick) with .venv/bin/python -m pytest; NY_STABILITY_OUT names the output
 directory (default: a pytest temporary directory), NY_BUILD_DIR the build.
@@ -144,3 +145,22 @@ def test_append_replaces_the_cells_it_redoes_and_keeps_the_others(quick, tmp_pat
     assert not [f for f in os.listdir(tmp_path / "scenes") if "_explicit_" in f]
     assert run("--sweeps", "units", *native)["commands"] == [["scripts/stability.sh", "--quick", "--out", str(tmp_path),
                                                              "--sweeps", "units", *native]]
+
+
+def test_layers_and_reference_samples_can_be_chosen(tmp_path):
+    """--layers, --ref-spp and --ref-rotations reach the run (the 32-layer row of docs/benchmarks.md was made
+    with them); values outside their ranges exit 1 with one line naming the option."""
+    def run(*args, timeout=300):
+        return subprocess.run(["bash", os.path.join(ROOT, "scripts", "stability.sh"), "--quick", "--sweeps", "layers",
+                               "--out", str(tmp_path), *args], capture_output=True, text=True, timeout=timeout)
+    for bad, name in ((("--layers", "1"), "--layers"), (("--ref-spp", "0"), "--ref-spp"),
+                      (("--ref-rotations", "2000"), "--ref-rotations")):
+        r = run(*bad, timeout=60)
+        assert r.returncode == 1 and name in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    r = run("--layers", "3", "--ref-spp", "8", "--ref-rotations", "1")
+    assert r.returncode == 0, r.stderr[-2000:]
+    with open(tmp_path / "results.json") as f:
+        cells = json.load(f)["cells"]
+    assert cells and {c["layers"] for c in cells} == {3}
+    refs = [f for f in os.listdir(tmp_path / "refs") if f.endswith(".exr")]
+    assert refs and all(f.endswith("_3_False_16.0_8spp_1rot.exr") for f in refs), refs
