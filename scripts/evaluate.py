@@ -51,7 +51,7 @@ Metrics against reference A (linear HDR images):
   relmse                   mean over pixels of mean_c (x - r)^2 / (r^2 + 0.01), the top 0.1 % discarded;
   ssim                     scripts/images.py: display images (the reference's 99.5th percentile
                            maps to 1, clamped, sRGB), Gaussian window sigma 1.5.
-Cost: seconds_load (wall time of a 1-sample render of the same scene, the median of three), seconds_render
+Cost: seconds_load (wall time of a 1-sample render of the same scene, the median of three; of one in --quick), seconds_render
 (wall time minus that), peak_rss_mb (/usr/bin/time %M), baseline_rss_mb (an empty scene's in the method's own
 renderer: the standalone Cycles, or Blender for osl and nodes; both in results.json's `baseline_rss_mb`),
 curve_keys (cycles-scene's report of the scene). Speed against error (scripts/evaluate_charts.py): per (scene, preset, light) FLIP against render
@@ -137,10 +137,12 @@ CLOSEUP_FOV = 0.9  # cycles-scene's field of view (radians, of the image's short
 FLIP_PPD = 67.0
 RELMSE_EPS = 0.01
 RELMSE_DISCARD = 0.001
+# load_renders: 1-sample renders whose median is a method's load time (the quick run checks that the numbers
+# exist, not their noise: one, which saves two loads of every explicit-fiber scene in CI).
 QUICK = {"width": 96, "height": 48, "ref_spp": 64, "ref_rotations": 2, "spp": [4], "presets": ["fleece"],
-         "lights": ["key-rim", "grazing"]}
+         "lights": ["key-rim", "grazing"], "load_renders": 1}
 DEFAULTS = {"width": 160, "height": 80, "ref_spp": 1024, "ref_rotations": 8, "spp": [64], "presets": PRESETS,
-            "lights": None}
+            "lights": None, "load_renders": 3}
 
 
 class Usage(Exception):
@@ -241,6 +243,7 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
     a.height = a.height if a.height is not None else base["height"]
     a.ref_spp = a.ref_spp if a.ref_spp is not None else base["ref_spp"]
     a.ref_rotations = a.ref_rotations if a.ref_rotations is not None else base["ref_rotations"]
+    a.load_renders = base["load_renders"]
     a.seeds = a.seeds if a.seeds is not None else 1
     try:
         a.distances = [float(d) for d in names(a.distances)] if a.distances else [CLOSEUP_DISTANCE]
@@ -768,9 +771,10 @@ def fit_baseline(a, scene: str, preset: str, method: str, env_ref: dict, what: s
 
 
 def load_seconds(a, xml: str, exr: str, what: str, fallback) -> dict:
-    """The load cost: the median wall time of three 1-sample renders (one is as noisy as the renders of a few
-    samples it is subtracted from); peak memory of the first."""
-    costs = [render(a, xml, 1, exr, f"{what} {k + 1}/3", fallback) for k in range(3)]
+    """The load cost: the median wall time of a.load_renders 1-sample renders (three but in the quick run: one is
+    as noisy as the renders of a few samples it is subtracted from); peak memory of the first."""
+    n = a.load_renders
+    costs = [render(a, xml, 1, exr, f"{what} {k + 1}/{n}", fallback) for k in range(n)]
     return {"seconds": float(np.median([c["seconds"] for c in costs])), "peak_rss_mb": costs[0]["peak_rss_mb"]}
 
 
