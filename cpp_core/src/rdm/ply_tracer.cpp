@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numeric>
 
 #if defined(__SSE2__)
 #include <immintrin.h>
@@ -102,13 +103,13 @@ PlyTracer::PlyTracer(const geometry::Ply &ply, const TracerOptions &options)
     if (pass == 1) {
       start_.assign(count.size(), 0);
       for (size_t c = 1; c < count.size(); c++) {
-        start_[c] = start_[c - 1] + (count[c - 1] + kLanes - 1) / kLanes;
+        start_[c] = start_[c - 1] + (count[c - 1] + kTubeLanes - 1) / kTubeLanes;
       }
       TubeBlock empty{};
       std::fill(std::begin(empty.fiber), std::end(empty.fiber), -1);
       blocks_.assign(start_.back(), empty);
       fill.assign(count.size() - 1, 0);
-      entries_ = 0;
+      entries_ = std::accumulate(count.begin(), count.end(), size_t(0));
     }
     for (int i = 0; i < N; i++) {
       const int y0 = cell_index(ymin[size_t(i)]), y1 = cell_index(ymax[size_t(i)]);
@@ -134,14 +135,13 @@ PlyTracer::PlyTracer(const geometry::Ply &ply, const TracerOptions &options)
           else {
             /* Lanes in the order the fibers come, as the scalar test visited them: the first of equal
              * distances wins either way. */
-            TubeBlock &b = blocks_[start_[c] + fill[c] / kLanes];
-            const int lane = int(fill[c] % kLanes);
+            TubeBlock &b = blocks_[start_[c] + fill[c] / kTubeLanes];
+            const int lane = int(fill[c] % kTubeLanes);
             const Tube &f = fibers_[size_t(i)];
             b.ax[lane] = f.a.x, b.ay[lane] = f.a.y, b.az[lane] = f.a.z;
             b.ux[lane] = f.axis.x, b.uy[lane] = f.axis.y, b.uz[lane] = f.axis.z;
             b.fiber[lane] = i;
             fill[c]++;
-            entries_++;
           }
         }
       }
@@ -187,45 +187,25 @@ Vec3 PlyTracer::to_world_dir(Vec3 d, int64_t slab) const
   return make_vec3(d.x, float(c * d.y - s * d.z), float(s * d.y + c * d.z));
 }
 
-float PlyTracer::intersect_tube(const Tube &f, Vec3 o, Vec3 d) const
-{
-  /* |w_perp + t d_perp| = r with w = o - a, perpendicular parts taken against the unit axis. With d a unit
-   * vector the quadratic's coefficients need only five dot products:
-   *   A = 1 - (d.ax)^2,  B = w.d - (w.ax)(d.ax),  C = w.w - (w.ax)^2 - r^2.
-   * (w spans at most a slab length, so C keeps ~1e-5 r of accuracy in float.) */
-  const Vec3 w = o - f.a;
-  const float wa = ny::dot(w, f.axis);
-  const float da = ny::dot(d, f.axis);
-  const float B = ny::dot(w, d) - wa * da;
-  if (B >= 0.0f) {
-    return kInf; /* moving away from the axis (or parallel to it) */
-  }
-  const float C = ny::dot(w, w) - wa * wa - r_ * r_;
-  if (!(C > 0.0f)) {
-    return kInf; /* origin inside the tube */
-  }
-  const float A = 1.0f - da * da;
-  const float disc = B * B - A * C;
-  if (disc < 0.0f) {
-    return kInf;
-  }
-  /* Entry root in the cancellation-free form C / (-B + sqrt(disc)). */
-  return C / (-B + std::sqrt(disc));
-}
-
-void PlyTracer::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
-{
-  ray->o = hit.point;
-  ray->d = d;
-  canonicalize(ray);
-}
-
 namespace {
 constexpr int kWidth = 4 * kTubeLanes;
 typedef float LanesF __attribute__((vector_size(kWidth)));
 typedef int32_t LanesI __attribute__((vector_size(kWidth)));
 
-inline LanesF lanes_sqrt(LanesF v)
+/* x in every lane (exact, signed zeros included); for F = float, x itself. */
+template<class F> inline F splat(float x);
+template<> inline float splat<float>(float x) { return x; }
+template<> inline LanesF splat<LanesF>(float x)
+{
+  LanesF v;
+  for (int k = 0; k < kTubeLanes; k++) {
+    v[k] = x;
+  }
+  return v;
+}
+
+inline float root(float v) { return std::sqrt(v); }
+inline LanesF root(LanesF v)
 {
 #if defined(__SSE2__)
   static_assert(kWidth == 16);
@@ -247,8 +227,7 @@ inline bool any_lane(LanesI m)
   return a != 0;
 }
 
-/* Loads by memcpy (one vector move; no aliasing of float arrays through vector types), broadcasts by value
- * (exact, signed zeros included). */
+/* Loads by memcpy: one vector move, no aliasing of float arrays through vector types. */
 template<typename V, typename T> inline V load(const T *p)
 {
   V v;
@@ -256,15 +235,40 @@ template<typename V, typename T> inline V load(const T *p)
   return v;
 }
 
-inline LanesF splat(float x)
+/* Entry distance of the ray o + t d (d unit) into the round tube of radius r about the line a + s u (u unit), from
+ * w = o - a; +inf where the ray moves away from the axis or along it (B >= 0), starts inside (C <= 0) or misses
+ * (disc < 0). |w_perp + t d_perp| = r needs only five dot products:
+ *   A = 1 - (d.u)^2,  B = w.d - (w.u)(d.u),  C = w.w - (w.u)^2 - r^2,
+ * and the entry root is taken in the cancellation-free form C / (-B + sqrt(disc)). (w spans at most a slab
+ * length, so C keeps ~1e-5 r of accuracy in float.) F is float or a vector of lanes: each lane does the float's
+ * operations in the same order, so the grid's blocks and a single tube give the same distance to the bit. */
+template<class F>
+inline F tube_entry(F wx, F wy, F wz, F ux, F uy, F uz, F dx, F dy, F dz, F r2)
 {
-  LanesF v;
-  for (int k = 0; k < kTubeLanes; k++) {
-    v[k] = x;
-  }
-  return v;
+  const F wa = wx * ux + wy * uy + wz * uz;
+  const F da = dx * ux + dy * uy + dz * uz;
+  const F B = (wx * dx + wy * dy + wz * dz) - wa * da;
+  const F C = (wx * wx + wy * wy + wz * wz) - wa * wa - r2;
+  const F A = splat<F>(1.0f) - da * da;
+  const F disc = B * B - A * C;
+  const F zero = splat<F>(0.0f);
+  const auto valid = (B < zero) & (C > zero) & (disc >= zero);
+  return valid ? C / (-B + root(valid ? disc : zero)) : splat<F>(kInf);
 }
 }  // namespace
+
+float PlyTracer::intersect_tube(const Tube &f, Vec3 o, Vec3 d) const
+{
+  const Vec3 w = o - f.a;
+  return tube_entry(w.x, w.y, w.z, f.axis.x, f.axis.y, f.axis.z, d.x, d.y, d.z, r_ * r_);
+}
+
+void PlyTracer::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
+{
+  ray->o = hit.point;
+  ray->d = d;
+  canonicalize(ray);
+}
 
 float PlyTracer::nearest_in_slab(Vec3 o, Vec3 d, float t_end, int exclude, float travelled, float exclude_distance,
                                  int *fiber) const
@@ -281,31 +285,23 @@ float PlyTracer::nearest_in_slab(Vec3 o, Vec3 d, float t_end, int exclude, float
   float next_z = d.z != 0.0f ? ((float(iz + (step_z > 0)) * cell_ - bound_) - o.z) * inv_dz : kInf;
   const float delta_y = std::abs(cell_ * inv_dy);
   const float delta_z = std::abs(cell_ * inv_dz);
-  const LanesF ox = splat(o.x), oy = splat(o.y), oz = splat(o.z);
-  const LanesF dx = splat(d.x), dy = splat(d.y), dz = splat(d.z);
-  const LanesF r2 = splat(r_ * r_), zero = splat(0.0f), one = splat(1.0f), inf = splat(kInf);
+  const LanesF ox = splat<LanesF>(o.x), oy = splat<LanesF>(o.y), oz = splat<LanesF>(o.z);
+  const LanesF dx = splat<LanesF>(d.x), dy = splat<LanesF>(d.y), dz = splat<LanesF>(d.z);
+  const LanesF r2 = splat<LanesF>(r_ * r_), inf = splat<LanesF>(kInf);
   for (;;) {
     const size_t c = size_t(iz) * size_t(n_) + size_t(iy);
     for (uint32_t k = start_[c]; k < start_[c + 1]; k++) {
-      /* intersect_tube on a block of tubes, operation for operation (so in the same float rounding): entry
-       * distance C / (-B + sqrt(disc)) where the ray approaches the axis (B < 0), starts outside (C > 0)
-       * and meets the tube (disc >= 0); +inf elsewhere and in padding lanes. */
+      /* intersect_tube on a block of tubes; +inf in the padding lanes. */
       const TubeBlock &b = blocks_[k];
-      const LanesF ux = load<LanesF>(b.ux), uy = load<LanesF>(b.uy), uz = load<LanesF>(b.uz);
       const LanesI lane_fiber = load<LanesI>(b.fiber);
-      const LanesF wx = ox - load<LanesF>(b.ax), wy = oy - load<LanesF>(b.ay), wz = oz - load<LanesF>(b.az);
-      const LanesF wa = wx * ux + wy * uy + wz * uz;
-      const LanesF da = dx * ux + dy * uy + dz * uz;
-      const LanesF B = (wx * dx + wy * dy + wz * dz) - wa * da;
-      const LanesF C = (wx * wx + wy * wy + wz * wz) - wa * wa - r2;
-      const LanesF A = one - da * da;
-      const LanesF disc = B * B - A * C;
-      const LanesI valid = (B < zero) & (C > zero) & (disc >= zero) & (lane_fiber >= 0);
-      const LanesF t = valid ? C / (-B + lanes_sqrt(valid ? disc : zero)) : inf;
+      const LanesF t = lane_fiber >= 0 ? tube_entry(ox - load<LanesF>(b.ax), oy - load<LanesF>(b.ay),
+                                                    oz - load<LanesF>(b.az), load<LanesF>(b.ux), load<LanesF>(b.uy),
+                                                    load<LanesF>(b.uz), dx, dy, dz, r2)
+                                       : inf;
       if (!any_lane(t < best)) {
         continue;
       }
-      for (int lane = 0; lane < kLanes; lane++) {
+      for (int lane = 0; lane < kTubeLanes; lane++) {
         if (!(t[lane] < best)) {
           continue;
         }

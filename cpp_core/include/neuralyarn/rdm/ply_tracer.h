@@ -122,7 +122,8 @@ class PlyTracer {
     ny::Vec3 a;    /* chord start p_i(0) */
     ny::Vec3 axis; /* unit chord direction */
   };
-  /* Entry distance of the ray into tube f, or +inf; origin inside the tube gives +inf. */
+  /* Entry distance of the ray into tube f, or +inf; origin inside the tube gives +inf (the grid's blocks
+   * compute the same per lane: tube_entry in ply_tracer.cpp). */
   float intersect_tube(const Tube &f, ny::Vec3 o, ny::Vec3 d) const;
   void rotate_yz(ny::Vec3 *v, float c, float s) const;
   /* The nearest tube entry in the slab at t in [0, t_end] along the canonical ray (o, d), by a 2D DDA over
@@ -143,13 +144,12 @@ class PlyTracer {
   float cell_ = 1.0f, inv_cell_ = 1.0f;
   std::vector<uint32_t> start_;
   size_t entries_ = 0;
-  /* A cell's tubes, stored inline in structure-of-arrays blocks of kLanes, so that one block's tube tests
+  /* A cell's tubes, stored inline in structure-of-arrays blocks of kTubeLanes, so that one block's tube tests
    * run as vector instructions without a branch per tube. Lanes past a cell's last tube have fiber -1. */
-  static constexpr int kLanes = kTubeLanes;
-  struct alignas(4 * kLanes) TubeBlock {
-    float ax[kLanes], ay[kLanes], az[kLanes]; /* chord start */
-    float ux[kLanes], uy[kLanes], uz[kLanes]; /* unit chord direction */
-    int32_t fiber[kLanes];
+  struct alignas(4 * kTubeLanes) TubeBlock {
+    float ax[kTubeLanes], ay[kTubeLanes], az[kTubeLanes]; /* chord start */
+    float ux[kTubeLanes], uy[kTubeLanes], uz[kTubeLanes]; /* unit chord direction */
+    int32_t fiber[kTubeLanes];
   };
   std::vector<TubeBlock> blocks_;
 };
