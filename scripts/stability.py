@@ -532,11 +532,11 @@ def main(argv: list[str]) -> int:
             if not all(2 <= n <= 256 for n in args.layers):
                 raise ev.Usage("--layers: cloth layers must be in [2, 256]")
             cfg["layers"] = args.layers
-        for name, value, top in (("--ref-spp", args.ref_spp, 1 << 16), ("--ref-rotations", args.ref_rotations, 1024)):
+        for key, value, top in (("ref_spp", args.ref_spp, 1 << 16), ("ref_rotations", args.ref_rotations, 1024)):
             if value is not None:
                 if not 1 <= value <= top:
-                    raise ev.Usage(f"{name} must be in [1, {top}], got {value}")
-                cfg[name[2:].replace("-", "_")] = value
+                    raise ev.Usage(f"--{key.replace('_', '-')} must be in [1, {top}], got {value}")
+                cfg[key] = value
         sweeps = ev.names(args.sweeps) or SWEEPS
         presets = ev.names(args.presets) or cfg["presets"]
         methods = ev.names(args.methods) or cfg["methods"]
