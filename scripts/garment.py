@@ -32,7 +32,13 @@ import geometry  # noqa: E402  (addon/geometry: pure numpy)
 PLIES_PER_YARN = 3
 ALPHA_YARN = 0.5
 SAMPLES_PER_LOOP = 24
+#: Ply keys per ply turn about the yarn (twist_plies keeps at least one key per ply radius): the straight yarn's
+#: close-up 16, the garment 8 (9.5 with that floor). A renderer draws a Catmull-Rom spline through the keys, and
+#: the explicit fibers are swept along the same spline (sweep.h); at 8 keys per turn it stays within 0.7 % of a
+#: ply radius of the plies' helix (the keys' polygon: 7.5 %), under 0.04 pixels while a ply is under 10 pixels
+#: wide, as on every garment the harness frames (docs/benchmarks.md, "The garment's ply keys").
 SAMPLES_PER_TURN = 16
+GARMENT_SAMPLES_PER_TURN = 8
 
 
 def _knit(rows: int, stitches: int) -> tuple[list, list, float]:
@@ -40,7 +46,8 @@ def _knit(rows: int, stitches: int) -> tuple[list, list, float]:
     yarns = geometry.plain_knit(rows, stitches, samples_per_loop=SAMPLES_PER_LOOP)
     plies = []
     for y in yarns:
-        plies += geometry.twist_plies(y, PLIES_PER_YARN, alpha_yarn=ALPHA_YARN, samples_per_turn=SAMPLES_PER_TURN)
+        plies += geometry.twist_plies(y, PLIES_PER_YARN, alpha_yarn=ALPHA_YARN,
+                                      samples_per_turn=GARMENT_SAMPLES_PER_TURN)
     return yarns, plies, float(np.mean([p.radius.mean() for p in plies]))
 
 

@@ -75,6 +75,50 @@ TEST(SweepFibers, BentPlyKeepsEachFiberAtItsDistanceAndTwist)
   }
 }
 
+/* The fibers follow the curve a renderer draws through the ply's keys (Cycles' Catmull-Rom), not the polygon of
+ * the keys: with a ply sampled at 8 keys per turn of a circle the polygon cuts each span's middle 7.6 % of the
+ * radius inside, the spline 0.9 % (the aggregated ply is rendered on the spline, the explicit fibers must be
+ * swept along the same curve). A single fiber at the ply's centre traces the centreline itself. */
+TEST(SweepFibers, FollowsTheCurveTheRendererDrawsThroughTheKeys)
+{
+  const auto &p = neuralyarn::find_preset("fleece");
+  const PlyParams q{1, p.rho, p.alpha, 1.0};
+  PlyCrossSection cs;
+  cs.R = 1.0;
+  cs.r = 0.1;
+  cs.centers = {Eigen::Vector2d(0.0, 0.0)};
+  const Ply ply(q, cs);
+  const double rho = 5.0;
+  std::vector<Eigen::Vector3d> keys;
+  for (int k = 0; k <= 12; k++) { /* one and a half turns, 8 keys per turn (the garment's plies) */
+    const double t = 2.0 * kPi * k / 8.0;
+    keys.emplace_back(rho * std::cos(t), 0.05 * k, rho * std::sin(t));
+  }
+  const CurveSet c = sweep_fibers(ply, keys, 32);
+  ASSERT_EQ(c.num_curves(), 1);
+  /* Inside the second to the second-last span (the end spans repeat their end key, as Cycles does). */
+  int checked = 0;
+  for (int k = c.offsets[0]; k < c.offsets[1]; k++) {
+    const Eigen::Vector3d x = c.points[size_t(k)].cast<double>();
+    const double angle = std::atan2(x.z(), x.x()), span = 2.0 * kPi / 8.0;
+    const double along = (x.y() / 0.05) * span; /* the key index times the span angle, from the height */
+    if (along < span || along > 11.0 * span) {
+      continue;
+    }
+    EXPECT_NEAR(std::remainder(angle - along, 2.0 * kPi), 0.0, 0.02) << "key " << k;
+    EXPECT_NEAR(std::hypot(x.x(), x.z()), rho, 0.01 * rho) << "key " << k;
+    checked++;
+  }
+  EXPECT_GT(checked, 100);
+  /* The key estimate of a scene (centreline_length) is the length of the curve the fibers are swept along. */
+  const double len = centreline_length(keys);
+  double swept = 0.0;
+  for (int k = c.offsets[0] + 1; k < c.offsets[1]; k++) {
+    swept += (c.points[size_t(k)] - c.points[size_t(k - 1)]).cast<double>().norm();
+  }
+  EXPECT_NEAR(swept, len, 1e-3 * len);
+}
+
 TEST(SweepFibers, DegenerateCentrelinesAreRefused)
 {
   const Ply ply = fleece_ply();

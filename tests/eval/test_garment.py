@@ -42,7 +42,7 @@ def garment_ply_radius():
     """The ply radius in Crane's units (the yarn radius 0.5 split into 3 plies)."""
     y = garment.geometry.plain_knit(1, 1, samples_per_loop=garment.SAMPLES_PER_LOOP)[0]
     plies = garment.geometry.twist_plies(y, garment.PLIES_PER_YARN, alpha_yarn=garment.ALPHA_YARN,
-                                         samples_per_turn=garment.SAMPLES_PER_TURN)
+                                         samples_per_turn=garment.GARMENT_SAMPLES_PER_TURN)
     return float(np.mean([p.radius.mean() for p in plies]))
 
 

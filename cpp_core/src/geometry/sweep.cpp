@@ -19,30 +19,66 @@ int64_t sweep_segments(const PlyParams &params, double length, size_t points, in
                    int64_t(points) - 1});
 }
 
-CurveSet sweep_fibers(const Ply &ply, const std::vector<Eigen::Vector3d> &centreline, int segments_per_turn)
+std::vector<Eigen::Vector3d> catmull_rom_polyline(const std::vector<Eigen::Vector3d> &keys, int per_span)
 {
-  if (centreline.size() < 2) {
-    throw ParameterError("centreline", "a ply centreline needs at least two points, got " +
-                                           std::to_string(centreline.size()));
+  const size_t n = keys.size();
+  if (n < 3 || per_span < 2) {
+    return keys;
+  }
+  std::vector<Eigen::Vector3d> out;
+  out.reserve((n - 1) * size_t(per_span) + 1);
+  for (size_t k = 0; k + 1 < n; k++) {
+    const Eigen::Vector3d &p0 = keys[k ? k - 1 : 0], &p1 = keys[k], &p2 = keys[k + 1];
+    const Eigen::Vector3d &p3 = keys[std::min(k + 2, n - 1)];
+    /* Uniform Catmull-Rom: 0.5 (2 p1 + (p2 - p0) t + (2 p0 - 5 p1 + 4 p2 - p3) t^2 + (3 p1 - p0 - 3 p2 + p3) t^3). */
+    const Eigen::Vector3d c1 = 0.5 * (p2 - p0), c2 = 0.5 * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3),
+                          c3 = 0.5 * (3.0 * p1 - p0 - 3.0 * p2 + p3);
+    for (int j = 0; j < per_span; j++) {
+      const double t = double(j) / per_span;
+      out.push_back(p1 + t * (c1 + t * (c2 + t * c3)));
+    }
+  }
+  out.push_back(keys.back());
+  return out;
+}
+
+namespace {
+std::vector<double> arc_lengths(const std::vector<Eigen::Vector3d> &p)
+{
+  std::vector<double> s(p.size(), 0.0);
+  for (size_t k = 1; k < p.size(); k++) {
+    s[k] = s[k - 1] + (p[k] - p[k - 1]).norm();
+  }
+  return s;
+}
+}  // namespace
+
+double centreline_length(const std::vector<Eigen::Vector3d> &keys)
+{
+  return keys.empty() ? 0.0 : arc_lengths(catmull_rom_polyline(keys)).back();
+}
+
+CurveSet sweep_fibers(const Ply &ply, const std::vector<Eigen::Vector3d> &keys, int segments_per_turn)
+{
+  if (keys.size() < 2) {
+    throw ParameterError("centreline", "a ply centreline needs at least two points, got " + std::to_string(keys.size()));
   }
   if (segments_per_turn < 3) {
     throw ParameterError("segments_per_turn", "segments_per_turn must be >= 3, got " + std::to_string(segments_per_turn));
   }
-  std::vector<double> s(centreline.size(), 0.0);
-  for (size_t k = 0; k < centreline.size(); k++) {
-    if (!centreline[k].allFinite()) {
+  for (size_t k = 0; k < keys.size(); k++) {
+    if (!keys[k].allFinite()) {
       throw ParameterError("centreline", "ply centreline point " + std::to_string(k) + " is not finite");
     }
-    if (k) {
-      s[k] = s[k - 1] + (centreline[k] - centreline[k - 1]).norm();
-    }
   }
+  const std::vector<Eigen::Vector3d> centreline = catmull_rom_polyline(keys);
+  const std::vector<double> s = arc_lengths(centreline);
   const double length = s.back(), R = ply.params().R;
   if (!(length > 1e-9 * R)) {
     throw ParameterError("centreline", "the ply centreline has no length");
   }
-  const int segments = int(sweep_segments(ply.params(), length, centreline.size(), segments_per_turn));
-  /* Even arc-length samples of the polyline. */
+  const int segments = int(sweep_segments(ply.params(), length, keys.size(), segments_per_turn));
+  /* Even arc-length samples of the curve. */
   std::vector<Eigen::Vector3d> C(size_t(segments) + 1);
   size_t k = 0;
   for (int j = 0; j <= segments; j++) {

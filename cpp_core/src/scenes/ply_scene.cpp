@@ -264,11 +264,8 @@ geometry::CurveSet explicit_fibers(const FiberPreset &preset, const PlySceneOpti
     /* Refuse before any work a scene that cannot be rendered here. */
     int64_t keys = 0;
     for (const auto &ply : curves_in.plies) {
-      double length = 0.0;
-      for (size_t i = 1; i < ply.size(); i++) {
-        length += (ply[i] - ply[i - 1]).norm();
-      }
-      keys += int64_t(preset.N) * (geometry::sweep_segments(pp, length, ply.size(), o.segments_per_turn) + 1);
+      keys += int64_t(preset.N) *
+              (geometry::sweep_segments(pp, geometry::centreline_length(ply), ply.size(), o.segments_per_turn) + 1);
     }
     if (keys > kMaxExplicitKeys) {
       throw std::runtime_error("explicit fibers of these plies would be " + std::to_string(keys) +

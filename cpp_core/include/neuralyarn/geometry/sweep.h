@@ -14,8 +14,17 @@
 
 namespace neuralyarn::geometry {
 
-/* The fibers of `ply` along `centreline` (a polyline in the ply's units, at least two points, not all the
- * same), resampled evenly in arc length with max(turns * segments_per_turn, length / R, points - 1)
+/* The curve Cycles renders through the keys of one curve: the uniform Catmull-Rom spline through them, the first
+ * and the last key repeated (Embree's round Catmull-Rom curves, as Cycles hands them over), as a polyline of
+ * `per_span` segments per span between two keys. Two keys give the straight segment. */
+std::vector<Eigen::Vector3d> catmull_rom_polyline(const std::vector<Eigen::Vector3d> &keys, int per_span = 16);
+
+/* Arc length of that curve (of catmull_rom_polyline at its default resolution). */
+double centreline_length(const std::vector<Eigen::Vector3d> &keys);
+
+/* The fibers of `ply` along `centreline` — the curve a renderer draws through its keys (catmull_rom_polyline:
+ * the explicit fibers follow the very ply curve the aggregated model is rendered on; at least two keys, not
+ * all the same), resampled evenly in arc length with max(turns * segments_per_turn, length / R, keys - 1)
  * segments. The frame starts with the normal closest to +y (+z where the tangent is near y) and is carried
  * by double reflection (Wang et al. 2008); a fiber at cross-section centre (y, z) sits at
  *     C(s) + (y cos ws - z sin ws) N(s) + (y sin ws + z cos ws) B(s),  B = T x N,
