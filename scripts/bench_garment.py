@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Cost of the garment scene by size: explicit fibers against the native closure (issue 16, decisions D24).
 
-    cd scripts && ../.venv/bin/python bench_garment.py --stitches 4 8 10 --out ../build/bench_garment [--preset fleece]
+    cd scripts && ../.venv/bin/python bench_garment.py --stitches 4 8 10 15 --out ../build/bench_garment [--preset fleece]
         [--spp 16] [--light key-rim] [--full 40]
 
 Per size (S x S stitches of scripts/garment.py's sleeve, 320 x 240, framed as evaluate.sh frames it) and

@@ -41,20 +41,20 @@ SAMPLES_PER_TURN = 16
 GARMENT_SAMPLES_PER_TURN = 8
 
 
-def _knit(rows: int, stitches: int) -> tuple[list, list, float]:
+def _knit(rows: int, stitches: int, samples_per_turn: int = GARMENT_SAMPLES_PER_TURN) -> tuple[list, list, float]:
     """The garment's knit in Crane's units: its yarns (one per row), their plies and the plies' radius."""
     yarns = geometry.plain_knit(rows, stitches, samples_per_loop=SAMPLES_PER_LOOP)
     plies = []
     for y in yarns:
-        plies += geometry.twist_plies(y, PLIES_PER_YARN, alpha_yarn=ALPHA_YARN,
-                                      samples_per_turn=GARMENT_SAMPLES_PER_TURN)
+        plies += geometry.twist_plies(y, PLIES_PER_YARN, alpha_yarn=ALPHA_YARN, samples_per_turn=samples_per_turn)
     return yarns, plies, float(np.mean([p.radius.mean() for p in plies]))
 
 
-def garment_plies(rows: int, stitches: int) -> dict:
+def garment_plies(rows: int, stitches: int, samples_per_turn: int = GARMENT_SAMPLES_PER_TURN) -> dict:
     """The plies file's content: {"format", "ply_radius" (1), "plies", "rows", "stitches", "tube_radius",
-    "height", "width"} (lengths in ply radii). Raises geometry.GeometryError for bad sizes."""
-    yarns, plies, r_ply = _knit(rows, stitches)
+    "height", "width"} (lengths in ply radii), the plies at `samples_per_turn` keys per ply turn. Raises
+    geometry.GeometryError for bad sizes."""
+    yarns, plies, r_ply = _knit(rows, stitches, samples_per_turn)
     course = 2.0 * math.pi * stitches / r_ply  # one stitch is 2 pi wide (Crane's units)
     tube = course / (2.0 * math.pi)
     pts = [p.points / r_ply for p in plies]
