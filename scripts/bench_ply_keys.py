@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import types
@@ -27,11 +26,8 @@ from images import read_exr
 FULL = (slice(None), slice(None))
 
 
-def render(a, stitches: int, keys: int, distance: float, seed: int) -> tuple[dict, object]:
-    out = os.path.join(a.out, f"{stitches}x{stitches}_k{keys}")
-    os.makedirs(out, exist_ok=True)
-    framed = ev.framed_plies_args(os.path.join(out, "plies.json"), garment.garment_plies(stitches, stitches, keys),
-                                  distance)
+def render(a, out: str, framed: tuple[str, ...], seed: int, what: str) -> tuple[dict, object]:
+    """Writes and renders the native sleeve of the plies file and camera `framed` (evaluate.framed_plies_args)."""
     xml = os.path.join(out, f"native_s{seed}.xml")
     ev.cycles_scene(["--preset", a.preset, "--model", ev.model_path({}, a.preset), "--lights", a.light, "--seed",
                      str(seed), "--width", str(ev.GARMENT["width"]), "--height", str(ev.GARMENT["height"]),
@@ -39,7 +35,7 @@ def render(a, stitches: int, keys: int, distance: float, seed: int) -> tuple[dic
     r = types.SimpleNamespace(width=ev.GARMENT["width"], height=ev.GARMENT["height"], threads=a.threads,
                               timeout=a.timeout)
     exr = xml[:-4] + ".exr"
-    cost = ev.render(r, xml, a.spp, exr, f"{stitches}x{stitches}, {keys} keys per turn, seed {seed}")
+    cost = ev.render(r, xml, a.spp, exr, f"{what}, seed {seed}")
     return {"curve_keys": ev.written(xml)["curve_keys"], **cost}, read_exr(exr)
 
 
@@ -66,14 +62,14 @@ def main(argv: list[str]) -> int:
     rows = []
     for n in a.stitches:
         # One camera for every keys count: the harness's framing of the first.
-        g = garment.garment_plies(n, n, a.keys[0])
-        t = math.tan(0.5 * ev.CLOSEUP_FOV)
-        aspect = ev.GARMENT["width"] / ev.GARMENT["height"]
-        d = ev.GARMENT["margin"] * max(0.5 * g["height"] / t, 0.5 * g["width"] / (t * aspect))
+        d = ev.garment_distance(garment.garment_plies(n, n, a.keys[0]), ev.GARMENT["width"] / ev.GARMENT["height"])
         images = {}
         for k in a.keys:
+            out = os.path.join(a.out, f"{n}x{n}_k{k}")
+            os.makedirs(out, exist_ok=True)
+            framed = ev.framed_plies_args(os.path.join(out, "plies.json"), garment.garment_plies(n, n, k), d)
             for seed in (1, 2):
-                cost, images[k, seed] = render(a, n, k, d, seed)
+                cost, images[k, seed] = render(a, out, framed, seed, f"{n}x{n}, {k} keys per turn")
                 if seed == 1:
                     rows.append({"stitches": n, "keys_per_turn": k, **cost})
         ref = a.keys[0]

@@ -396,9 +396,14 @@ def garment_framing(out: str, n: int, aspect: float) -> tuple[str, ...]:
     """cycles-scene's arguments for the garment: its plies file (DIR/scenes/garment_SxS.json, written once a
     run), the camera that frames the whole tube in an image of that aspect, the point lights moved out with it."""
     g = garment_plies(n, n)
+    return framed_plies_args(os.path.join(out, "scenes", f"garment_{n}x{n}.json"), g, garment_distance(g, aspect))
+
+
+def garment_distance(g: dict, aspect: float) -> float:
+    """The camera distance (ply radii) that frames the whole tube of garment_plies' content `g`, with a margin, in
+    an image of that aspect (width / height)."""
     t = math.tan(0.5 * CLOSEUP_FOV)  # the shorter side's: the height here
-    d = GARMENT["margin"] * max(0.5 * g["height"] / t, 0.5 * g["width"] / (t * aspect))
-    return framed_plies_args(os.path.join(out, "scenes", f"garment_{n}x{n}.json"), g, d)
+    return GARMENT["margin"] * max(0.5 * g["height"] / t, 0.5 * g["width"] / (t * aspect))
 
 
 #: The surface level's fit (D44): the flat knit it walks through (the garment's pattern, wide enough that few
