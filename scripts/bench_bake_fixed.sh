@@ -2,7 +2,8 @@
 # The fixed costs of a bake (docs/benchmarks.md, "Fixed costs of a bake"): the M-lobe quadratures of the
 # calibration's bound, the furnace and the fallback tables, and a small bake at the paper's map resolution,
 # timed side by side for two builds of the CLI (e.g. a worktree of an earlier commit and this one), 2 threads.
-# The output files of the two builds are compared too: they must agree but for their code version.
+# The output files of the two builds are compared too: the same but for their code version and timings, or
+# the largest relative difference between them (a change in rounding).
 #
 #   bash scripts/bench_bake_fixed.sh OLD/cpp_core/neuralyarn build/cpp_core/neuralyarn
 set -euo pipefail
@@ -37,7 +38,18 @@ def strip(x):
     if isinstance(x, list):
         return [strip(v) for v in x]
     return x
+def largest_relative_difference(a, b, path=""):
+    """(difference, where) of the numbers that differ most; inf where the structure differs."""
+    if isinstance(a, dict) and isinstance(b, dict) and a.keys() == b.keys():
+        return max((largest_relative_difference(a[k], b[k], f"{path}.{k}") for k in a), default=(0.0, path))
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        return max((largest_relative_difference(x, y, f"{path}[{i}]") for i, (x, y) in enumerate(zip(a, b))),
+                   default=(0.0, path))
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
+        return (0.0 if a == b else abs(a - b) / max(abs(a), abs(b)), path)
+    return (0.0 if a == b else float("inf"), path)
 for name in ("silk", "fallback", "bake"):
     a, b = (strip(json.load(open(f"{out}/{name}_{w}.json"))) for w in ("before", "after"))
-    print(f"{name}: {'same' if a == b else 'DIFFERENT'} output")
+    d, where = largest_relative_difference(a, b)
+    print(f"{name}: " + ("same output" if d == 0 else f"outputs differ, most at {where}: relative {d:.2g}"))
 PY

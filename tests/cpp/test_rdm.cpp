@@ -1048,3 +1048,42 @@ TEST(MapFile, RoundTripAndCorruption)
   EXPECT_NE(error_of([&] { rdm::save_maps(maps, "/dev/null/x.nyrdm"); }), "");
   fs::remove_all(fs::path(path).parent_path());
 }
+
+/* The binner the R lobe's quadrature uses must put every direction where outgoing_bin does: random directions
+ * (the bins of their exact angles) and directions a hair (1e-9 rad) either side of every bin edge, where a
+ * first guess from float acosf / atan2f is off by one and the edge test must settle it. */
+TEST(OutgoingBinner, PutsEveryDirectionWhereOutgoingBinDoes)
+{
+  for (const rdm::MapResolution b : {rdm::MapResolution{22, 90, 45, 90}, rdm::MapResolution{4, 8, 7, 12}}) {
+    const rdm::OutgoingBinner binner(b);
+    auto check = [&](double x, double y, double z) {
+      int to0, po0, to1, po1;
+      rdm::outgoing_bin(b, x, y, z, &to0, &po0);
+      binner(x, y, z, &to1, &po1);
+      ASSERT_EQ(to0, to1) << x << " " << y << " " << z;
+      ASSERT_EQ(po0, po1) << x << " " << y << " " << z;
+    };
+    std::mt19937_64 rng(7);
+    std::normal_distribution<double> N;
+    for (int i = 0; i < 200000; i++) {
+      const double x = N(rng), y = N(rng), z = N(rng), r = std::sqrt(x * x + y * y + z * z);
+      check(x / r, y / r, z / r);
+    }
+    for (int t = 0; t <= b.theta_o; t++) {
+      for (int k = 0; k <= b.phi_o; k++) {
+        for (double dt : {-1e-9, 1e-9}) {
+          for (double dp : {-1e-9, 1e-9}) {
+            const double theta = kPi * t / b.theta_o + dt, phi = -kPi + 2.0 * kPi * k / b.phi_o + dp;
+            check(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+          }
+        }
+      }
+    }
+    /* The poles and the -x half-line, where atan2 reads the sign of a zero. */
+    for (double z : {-1.0, 1.0}) {
+      check(0.0, 0.0, z);
+    }
+    check(-1.0, 0.0, 0.0);
+    check(-1.0, -0.0, 0.0);
+  }
+}

@@ -2,6 +2,7 @@
 #include "neuralyarn/model/lobe_fidelity.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -90,8 +91,29 @@ void integrate_r_parts(const ny::YarnBsdfParams &p, const rdm::MapResolution &b,
                                                 const ny::Rgb &tau)> &add)
 {
   constexpr int n_sub = kRSub, n_theta = 32, n_phi = 64;
+  /* The samples form a (theta~, phi~) grid per node and part, and the lobe and its density are products of a
+   * factor of each angle (ny::yarn_r_theta, ny::yarn_r_phi): each factor is computed once per row or column,
+   * not per sample (the kernel evaluates the same functions at one w_o). The reflection part's azimuths are
+   * the same for every node and incident direction. */
+  struct Column {
+    float phi, s, c;
+  };
+  static const std::array<Column, n_phi> uniform_phi = [] {
+    std::array<Column, n_phi> u{};
+    for (int k = 0; k < n_phi; k++) {
+      const float phi = -ny::kHalfPi + ny::kPi * ((k + 0.5f) / n_phi);
+      u[size_t(k)] = {phi, sinf(phi), cosf(phi)};
+    }
+    return u;
+  }();
+  std::array<Column, n_phi> tt_phi;
+  std::array<ny::YarnRPhi, n_phi> a_uniform, a_tt;
+  const rdm::OutgoingBinner outgoing_bin(b);
   for (int s = 0; s < n_sub * n_sub; s++) {
     const ny::YarnLobes l = ny::yarn_lobes(p, incident_sub_direction(b, ti, pi, s, n_sub));
+    if (!l.valid) {
+      continue; /* no R lobe below the horizon */
+    }
     /* Each R node (weight 1 / n_R) on its own: one stratified set per part of its proposal (the TT part only
      * where it has a share), combined by the balance heuristic: each sample weighs eval / (sum over sets of
      * count x density). */
@@ -99,28 +121,40 @@ void integrate_r_parts(const ny::YarnBsdfParams &p, const rdm::MapResolution &b,
     const float count = float(n_sub * n_sub * n_theta * n_phi * l.n_R);
     for (int q = 0; q < l.n_R; q++) {
       const ny::YarnRNode &node = l.node[q];
+      for (int k = 0; k < n_phi; k++) {
+        a_uniform[size_t(k)] = ny::yarn_r_phi(l, q, uniform_phi[size_t(k)].phi);
+        if (parts == 2) {
+          const float phi = ny::sample_truncated_normal(node.tn_TT_phi, (k + 0.5f) / n_phi);
+          tt_phi[size_t(k)] = {phi, sinf(phi), cosf(phi)};
+          a_tt[size_t(k)] = ny::yarn_r_phi(l, q, phi);
+        }
+      }
       for (int part = 0; part < parts; part++) {
+        const std::array<Column, n_phi> &cols = part == 0 ? uniform_phi : tt_phi;
+        const std::array<ny::YarnRPhi, n_phi> &as = part == 0 ? a_uniform : a_tt;
         for (int j = 0; j < n_theta; j++) {
-          const float u1 = (j + 0.5f) / n_theta;
-          const float theta = ny::sample_truncated_normal(part == 0 ? node.tn_R : node.tn_TT, u1);
+          const float theta = ny::sample_truncated_normal(part == 0 ? node.tn_R : node.tn_TT, (j + 0.5f) / n_theta);
+          const float st = sinf(theta), ct = cosf(theta);
+          const ny::YarnRTheta t = ny::yarn_r_theta(l, q, theta, fminf(ct, 1.0f));
           for (int k = 0; k < n_phi; k++) {
-            const float u2 = (k + 0.5f) / n_phi;
-            const float phi =
-                part == 0 ? -ny::kHalfPi + ny::kPi * u2 : ny::sample_truncated_normal(node.tn_TT_phi, u2);
-            const ny::Vec3 wo_f = ny::direction_from_angles(theta, phi);
-            const ny::YarnOutgoing o = ny::yarn_outgoing(wo_f); /* w_o's angles once, for pdf and eval */
+            const Column &col = cols[size_t(k)];
+            /* As ny::direction_from_angles(theta, phi). */
+            const ny::Vec3 wo_f = ny::make_vec3(st, ct * col.s, ct * col.c);
+            if (!(wo_f.z > 0.0f)) {
+              continue;
+            }
             float pdf_R, pdf_TT;
-            ny::yarn_pdf_R_parts(l, q, o, &pdf_R, &pdf_TT);
+            ny::yarn_pdf_R_factors(l, t, as[size_t(k)], &pdf_R, &pdf_TT);
             const float pdf = count * (parts == 2 ? pdf_R + pdf_TT : pdf_R);
             if (!(pdf > 0.0f)) {
               continue;
             }
             const ny::Vec3 wo = l.n_R == 1 ? ny::surface_fiber_to_yarn(p.twist, wo_f) : ny::r_node_to_yarn(node, wo_f);
             int to, po;
-            rdm::outgoing_bin(b, wo.x, wo.y, wo.z, &to, &po);
+            outgoing_bin(wo.x, wo.y, wo.z, &to, &po);
             ny::Rgb R, TT;
-            ny::yarn_eval_R_parts(l, q, o, &R, &TT);
-            add(to, po, phi, R * (1.0f / pdf), TT * (1.0f / pdf), l.tau);
+            ny::yarn_eval_R_factors(l, t, as[size_t(k)], &R, &TT);
+            add(to, po, col.phi, R * (1.0f / pdf), TT * (1.0f / pdf), l.tau);
           }
         }
       }

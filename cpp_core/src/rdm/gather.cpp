@@ -446,6 +446,47 @@ void outgoing_bin(const MapResolution &b, double x, double y, double z, int *to,
   *po = bin_of(std::atan2(y, x), -kPi, kPi, b.phi_o);
 }
 
+OutgoingBinner::OutgoingBinner(const MapResolution &b) : n_theta_(b.theta_o), n_phi_(b.phi_o)
+{
+  for (int t = 0; t <= n_theta_; t++) {
+    cos_theta_edge_.push_back(std::cos(kPi * t / n_theta_));
+  }
+  for (int k = 0; k <= n_phi_; k++) {
+    phi_edge_c_.push_back(std::cos(-kPi + 2.0 * kPi * k / n_phi_));
+    phi_edge_s_.push_back(std::sin(-kPi + 2.0 * kPi * k / n_phi_));
+  }
+}
+
+void OutgoingBinner::operator()(double x, double y, double z, int *to, int *po) const
+{
+  /* theta_o is in bin t when cos(pi (t + 1) / n) < z <= cos(pi t / n). */
+  const double zc = std::clamp(z, -1.0, 1.0);
+  int t = std::clamp(int(std::acos(float(zc)) * float(n_theta_ / kPi)), 0, n_theta_ - 1);
+  while (t + 1 < n_theta_ && zc <= cos_theta_edge_[size_t(t + 1)]) {
+    t++;
+  }
+  while (t > 0 && zc > cos_theta_edge_[size_t(t)]) {
+    t--;
+  }
+  *to = t;
+  if (!(y != 0.0) || n_phi_ < 4) {
+    /* On the -x half-line atan2 tells -pi (bin 0) from pi (the last bin) by the sign of a zero y; and the
+     * half-plane test below needs bins narrower than pi. */
+    *po = bin_of(std::atan2(y, x), -kPi, kPi, n_phi_);
+    return;
+  }
+  /* phi_o >= edge k (within pi of it, as the guess is) when the edge's direction turns left onto (x, y). */
+  auto at_or_past = [&](int k) { return phi_edge_c_[size_t(k)] * y - phi_edge_s_[size_t(k)] * x >= 0.0; };
+  int k = std::clamp(int((std::atan2(float(y), float(x)) + float(kPi)) * float(n_phi_ / (2.0 * kPi))), 0, n_phi_ - 1);
+  while (k + 1 < n_phi_ && at_or_past(k + 1)) {
+    k++;
+  }
+  while (k > 0 && !at_or_past(k)) {
+    k--;
+  }
+  *po = k;
+}
+
 RdmMaps mean_of_maps(const RdmMaps &a, const RdmMaps &b)
 {
   if (!(a.bins == b.bins)) {

@@ -563,11 +563,68 @@ NY_KERNEL_FN float yarn_r_azimuth(NY_PRIVATE const YarnLobes &l, float phi)
   return kPi * nu;
 }
 
-/* Node q's two parts of the R lobe at w_o (o: w_o in the node's fiber frame), each with the lobe's whole
- * weight: the reflection (its azimuth density nu) and the TT part (0 where it has no share).
+/* Node q's two parts of the R lobe (below) are products of a factor of theta~_o and one of phi~_o: a
+ * quadrature over a (theta~, phi~) grid (model/lobe_fidelity.cpp) computes each once per row and column. */
+struct YarnRTheta {
+  float c;          /* cos(theta~_o), the fiber's own (longitudinal) cosine */
+  float L_R, L_TT;  /* the longitudinal lobes (L_TT: 0 without a TT share)  */
+  float p_R, p_TT;  /* the proposal's truncated normals in theta~           */
+};
+
+struct YarnRPhi {
+  float nu;    /* pi nu(phi~_o | w_i), the reflection's azimuth          */
+  float p_TT;  /* the TT part's azimuth density (0 without a TT share)   */
+};
+
+NY_KERNEL_FN YarnRTheta yarn_r_theta(NY_PRIVATE const YarnLobes &l, int q, float theta, float cos_theta)
+{
+  NY_PRIVATE const YarnRNode &n = l.node[q];
+  YarnRTheta t;
+  t.c = cos_theta;
+  t.L_R = longitudinal_eval(n.m_R, theta);
+  t.p_R = truncated_normal_pdf(n.tn_R, theta);
+  t.L_TT = t.p_TT = 0.0f;
+  if (l.q_TT > 0.0f) {
+    t.L_TT = longitudinal_eval(n.m_TT, theta);
+    t.p_TT = truncated_normal_pdf(n.tn_TT, theta);
+  }
+  return t;
+}
+
+NY_KERNEL_FN YarnRPhi yarn_r_phi(NY_PRIVATE const YarnLobes &l, int q, float phi)
+{
+  YarnRPhi a;
+  a.nu = yarn_r_azimuth(l, phi);
+  a.p_TT = l.q_TT > 0.0f ? truncated_normal_pdf(l.node[q].tn_TT_phi, phi) : 0.0f;
+  return a;
+}
+
+/* The two parts of node q's R lobe from their factors, w_o on the upper half (w~_o.z > 0), each with the lobe's
+ * whole weight: the reflection (its azimuth density nu) and the TT part (0 where it has no share).
  * S_R |cos| = mean over the nodes of (1 - tau) R + tau TT. The cosine is the fiber's own (longitudinal), so
  * that each part's energy is exactly rho_R F / 2: half of the fiber's albedo, the half whose azimuth
  * leaves the surface. */
+NY_KERNEL_FN void yarn_eval_R_factors(NY_PRIVATE const YarnLobes &l, NY_PRIVATE const YarnRTheta &t,
+                                      NY_PRIVATE const YarnRPhi &a, NY_PRIVATE Rgb *R, NY_PRIVATE Rgb *TT)
+{
+  *R = l.weight_R * (t.L_R * kInvTwoPi * t.c * a.nu);
+  *TT = l.q_TT > 0.0f ? l.weight_R * (t.L_TT * 0.5f * t.c * a.p_TT) : make_rgb(0.0f);
+}
+
+/* Smallest cos(theta~_o) used to turn a (theta, phi) density into solid angle (as fiber_bsdf.h). */
+constexpr float kYarnMinCosTheta = 1e-7f;
+
+/* Densities of node q's R proposal in solid angle from their factors, w_o on the upper half, in two parts
+ * (reflection; TT, density 0 when it has no share). */
+NY_KERNEL_FN void yarn_pdf_R_factors(NY_PRIVATE const YarnLobes &l, NY_PRIVATE const YarnRTheta &t,
+                                     NY_PRIVATE const YarnRPhi &a, NY_PRIVATE float *pdf_R, NY_PRIVATE float *pdf_TT)
+{
+  const float inv_cos = 1.0f / fmaxf(t.c, kYarnMinCosTheta);
+  *pdf_R = t.p_R * kInvPi * inv_cos;
+  *pdf_TT = l.q_TT > 0.0f ? t.p_TT * a.p_TT * inv_cos : 0.0f;
+}
+
+/* Node q's two parts of the R lobe at w_o (o: w_o in the node's fiber frame). */
 NY_KERNEL_FN void yarn_eval_R_parts(NY_PRIVATE const YarnLobes &l, int q, NY_PRIVATE const YarnOutgoing &o,
                                     NY_PRIVATE Rgb *R, NY_PRIVATE Rgb *TT)
 {
@@ -575,12 +632,7 @@ NY_KERNEL_FN void yarn_eval_R_parts(NY_PRIVATE const YarnLobes &l, int q, NY_PRI
   if (!l.valid || !(o.w.z > 0.0f)) {
     return;
   }
-  NY_PRIVATE const YarnRNode &n = l.node[q];
-  const float c = o.cos_theta;
-  *R = l.weight_R * (longitudinal_eval(n.m_R, o.theta) * kInvTwoPi * c * yarn_r_azimuth(l, o.phi));
-  if (l.q_TT > 0.0f) {
-    *TT = l.weight_R * (longitudinal_eval(n.m_TT, o.theta) * 0.5f * c * truncated_normal_pdf(n.tn_TT_phi, o.phi));
-  }
+  yarn_eval_R_factors(l, yarn_r_theta(l, q, o.theta, o.cos_theta), yarn_r_phi(l, q, o.phi), R, TT);
 }
 
 /* w_o in node q's frame: `o_base` (w_o in the surface-fiber frame) when that is the node's frame. */
@@ -590,11 +642,7 @@ NY_KERNEL_FN YarnOutgoing yarn_r_node_outgoing(NY_PRIVATE const YarnLobes &l, in
   return l.n_R == 1 ? o_base : yarn_outgoing(yarn_to_r_node(l.node[q], wo));
 }
 
-/* Smallest cos(theta~_o) used to turn a (theta, phi) density into solid angle (as fiber_bsdf.h). */
-constexpr float kYarnMinCosTheta = 1e-7f;
-
-/* Densities of node q's R proposal in solid angle (o: w_o in the node's frame), in two parts (reflection;
- * TT, density 0 when it has no share). */
+/* Densities of node q's R proposal in solid angle (o: w_o in the node's frame). */
 NY_KERNEL_FN void yarn_pdf_R_parts(NY_PRIVATE const YarnLobes &l, int q, NY_PRIVATE const YarnOutgoing &o,
                                    NY_PRIVATE float *pdf_R, NY_PRIVATE float *pdf_TT)
 {
@@ -602,12 +650,7 @@ NY_KERNEL_FN void yarn_pdf_R_parts(NY_PRIVATE const YarnLobes &l, int q, NY_PRIV
   if (!(o.w.z > 0.0f)) {
     return;
   }
-  NY_PRIVATE const YarnRNode &n = l.node[q];
-  const float inv_cos = 1.0f / fmaxf(o.cos_theta, kYarnMinCosTheta);
-  *pdf_R = truncated_normal_pdf(n.tn_R, o.theta) * kInvPi * inv_cos;
-  if (l.q_TT > 0.0f) {
-    *pdf_TT = truncated_normal_pdf(n.tn_TT, o.theta) * truncated_normal_pdf(n.tn_TT_phi, o.phi) * inv_cos;
-  }
+  yarn_pdf_R_factors(l, yarn_r_theta(l, q, o.theta, o.cos_theta), yarn_r_phi(l, q, o.phi), pdf_R, pdf_TT);
 }
 
 /* The R lobe at w_o (yarn frame; o_base: w_o in the surface-fiber frame), summed over the nodes with each
@@ -620,14 +663,20 @@ NY_KERNEL_FN void yarn_R_nodes(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVAT
   float pdf = 0.0f;
   for (int q = 0; q < l.n_R; q++) {
     const YarnOutgoing o = yarn_r_node_outgoing(l, q, wo, o_base);
-    if (f_R) {
+    if (!(o.w.z > 0.0f)) {
+      continue; /* R leaves the node's fiber on the upper half only */
+    }
+    /* The factors once for eval and pdf (the TT azimuth's density is in both). */
+    const YarnRTheta t = yarn_r_theta(l, q, o.theta, o.cos_theta);
+    const YarnRPhi a = yarn_r_phi(l, q, o.phi);
+    if (f_R && l.valid) {
       Rgb R, TT;
-      yarn_eval_R_parts(l, q, o, &R, &TT);
+      yarn_eval_R_factors(l, t, a, &R, &TT);
       sum = sum + (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
     }
     if (pdf_R) {
       float r, tt;
-      yarn_pdf_R_parts(l, q, o, &r, &tt);
+      yarn_pdf_R_factors(l, t, a, &r, &tt);
       pdf += (1.0f - l.q_TT) * r + l.q_TT * tt;
     }
   }

@@ -153,4 +153,18 @@ double bin_center(int index, double lo, double hi, int n);
 void incident_bin(const MapResolution &b, double x, double y, double z, int *ti, int *pi);
 void outgoing_bin(const MapResolution &b, double x, double y, double z, int *to, int *po);
 
+/* outgoing_bin for many directions: a first guess from float acosf / atan2f, settled against the bins' edges
+ * (precomputed) so that the bin is the one of the exact angle, as outgoing_bin's, at a fraction of its double
+ * acos and atan2 (the R lobe's quadrature bins ~10^8 samples per bake). */
+class OutgoingBinner {
+ public:
+  explicit OutgoingBinner(const MapResolution &b);
+  void operator()(double x, double y, double z, int *to, int *po) const;
+
+ private:
+  int n_theta_, n_phi_;
+  std::vector<double> cos_theta_edge_;       /* cos(pi t / n), t = 0..n            */
+  std::vector<double> phi_edge_c_, phi_edge_s_; /* cos and sin of -pi + 2 pi k / n, k = 0..n */
+};
+
 }  // namespace neuralyarn::rdm
