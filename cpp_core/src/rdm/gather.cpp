@@ -461,7 +461,9 @@ void OutgoingBinner::operator()(double x, double y, double z, int *to, int *po) 
 {
   /* theta_o is in bin t when cos(pi (t + 1) / n) < z <= cos(pi t / n). */
   const double zc = std::clamp(z, -1.0, 1.0);
-  int t = std::clamp(int(std::acos(float(zc)) * float(n_theta_ / kPi)), 0, n_theta_ - 1);
+  /* The guesses by the kernel's fast_atan2 (a few float ulps, far below a bin), not libm's acos and atan2. */
+  const float zf = float(zc), sf = std::sqrt(std::max(0.0f, 1.0f - zf * zf));
+  int t = std::clamp(int(ny::fast_atan2(sf, zf) * float(n_theta_ / kPi)), 0, n_theta_ - 1);
   while (t + 1 < n_theta_ && zc <= cos_theta_edge_[size_t(t + 1)]) {
     t++;
   }
@@ -477,7 +479,7 @@ void OutgoingBinner::operator()(double x, double y, double z, int *to, int *po) 
   }
   /* phi_o >= edge k (within pi of it, as the guess is) when the edge's direction turns left onto (x, y). */
   auto at_or_past = [&](int k) { return phi_edge_c_[size_t(k)] * y - phi_edge_s_[size_t(k)] * x >= 0.0; };
-  int k = std::clamp(int((std::atan2(float(y), float(x)) + float(kPi)) * float(n_phi_ / (2.0 * kPi))), 0, n_phi_ - 1);
+  int k = std::clamp(int((ny::fast_atan2(float(y), float(x)) + float(kPi)) * float(n_phi_ / (2.0 * kPi))), 0, n_phi_ - 1);
   while (k + 1 < n_phi_ && at_or_past(k + 1)) {
     k++;
   }

@@ -154,12 +154,18 @@ NY_KERNEL_FN LongitudinalLobe make_longitudinal_lobe(float mu, float beta, bool 
   return lobe;
 }
 
-NY_KERNEL_FN float longitudinal_eval(NY_PRIVATE const LongitudinalLobe &lobe, float theta)
+/* gbar(theta) given g = normal_pdf((theta - mu) / beta): one g serves every lobe of that mean and width. */
+NY_KERNEL_FN float longitudinal_eval_of(NY_PRIVATE const LongitudinalLobe &lobe, float theta, float g)
 {
   if (!(theta >= -kHalfPi && theta <= kHalfPi)) {
     return 0.0f;
   }
-  return normal_pdf((theta - lobe.mu) / lobe.beta) * lobe.inv_beta_G;
+  return g * lobe.inv_beta_G;
+}
+
+NY_KERNEL_FN float longitudinal_eval(NY_PRIVATE const LongitudinalLobe &lobe, float theta)
+{
+  return longitudinal_eval_of(lobe, theta, normal_pdf((theta - lobe.mu) / lobe.beta));
 }
 
 }  // namespace ny

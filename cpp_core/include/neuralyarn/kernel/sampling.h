@@ -84,13 +84,19 @@ NY_KERNEL_FN TruncatedNormal make_truncated_normal(float mu, float sigma, float 
 }
 
 /* Density with respect to x. */
-NY_KERNEL_FN float truncated_normal_pdf(NY_PRIVATE const TruncatedNormal &tn, float x)
+/* The density at standard score z given normal_pdf(z) = g: one g serves every lobe of that mean and width. */
+NY_KERNEL_FN float truncated_normal_pdf_of(NY_PRIVATE const TruncatedNormal &tn, float z, float g)
 {
-  const float z = (x - tn.mu) / tn.sigma;
   if (!(z >= tn.za && z <= tn.zb) || !(tn.mass > 0.0f)) {
     return 0.0f;
   }
-  return normal_pdf(z) / (tn.sigma * tn.mass);
+  return g / (tn.sigma * tn.mass);
+}
+
+NY_KERNEL_FN float truncated_normal_pdf(NY_PRIVATE const TruncatedNormal &tn, float x)
+{
+  const float z = (x - tn.mu) / tn.sigma;
+  return truncated_normal_pdf_of(tn, z, normal_pdf(z));
 }
 
 /* Smallest u used by the inverse CDF. u = 0 would ask for the truncated distribution's 0-quantile, its

@@ -581,12 +581,16 @@ NY_KERNEL_FN YarnRTheta yarn_r_theta(NY_PRIVATE const YarnLobes &l, int q, float
   NY_PRIVATE const YarnRNode &n = l.node[q];
   YarnRTheta t;
   t.c = cos_theta;
-  t.L_R = longitudinal_eval(n.m_R, theta);
-  t.p_R = truncated_normal_pdf(n.tn_R, theta);
+  /* A part's lobe and its proposal are one Gaussian (mean -theta~ of w_i in the node's frame, width beta_R or
+   * beta_TT; yarn_lobes): one normal_pdf for both. */
+  const float z_R = (theta - n.tn_R.mu) / n.tn_R.sigma, g_R = normal_pdf(z_R);
+  t.L_R = longitudinal_eval_of(n.m_R, theta, g_R);
+  t.p_R = truncated_normal_pdf_of(n.tn_R, z_R, g_R);
   t.L_TT = t.p_TT = 0.0f;
   if (l.q_TT > 0.0f) {
-    t.L_TT = longitudinal_eval(n.m_TT, theta);
-    t.p_TT = truncated_normal_pdf(n.tn_TT, theta);
+    const float z_TT = (theta - n.tn_TT.mu) / n.tn_TT.sigma, g_TT = normal_pdf(z_TT);
+    t.L_TT = longitudinal_eval_of(n.m_TT, theta, g_TT);
+    t.p_TT = truncated_normal_pdf_of(n.tn_TT, z_TT, g_TT);
   }
   return t;
 }

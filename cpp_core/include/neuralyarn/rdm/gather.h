@@ -153,7 +153,7 @@ double bin_center(int index, double lo, double hi, int n);
 void incident_bin(const MapResolution &b, double x, double y, double z, int *ti, int *pi);
 void outgoing_bin(const MapResolution &b, double x, double y, double z, int *to, int *po);
 
-/* outgoing_bin for many directions: a first guess from float acosf / atan2f, settled against the bins' edges
+/* outgoing_bin for many directions: a first guess in float (ny::fast_atan2), settled against the bins' edges
  * (precomputed) so that the bin is the one of the exact angle, as outgoing_bin's, at a fraction of its double
  * acos and atan2 (the R lobe's quadrature bins ~10^8 samples per bake). */
 class OutgoingBinner {
