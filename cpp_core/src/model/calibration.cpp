@@ -95,6 +95,37 @@ ExitGrid::ExitGrid(int nt, int np) : theta_bins(nt), phi_bins(np), solid_angle(s
   }
 }
 
+void yarn_eval_M_lanes(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, int n, const float *x, const float *y,
+                       const float *z, ny::Rgb *out)
+{
+  if (!l.valid) {
+    std::fill_n(out, n, ny::make_rgb(0.0f)); /* yarn_eval_M's zero */
+    return;
+  }
+  /* The input (w_e, w_o) lane-minor; lanes past n repeat the last exit and are left out. */
+  constexpr int L = kMLanes;
+  float in[6 * L], o[6 * L];
+  for (int k = 0; k < L; k++) {
+    const int e = std::min(k, n - 1);
+    in[0 * L + k] = l.we.x;
+    in[1 * L + k] = l.we.y;
+    in[2 * L + k] = l.we.z;
+    in[3 * L + k] = x[e];
+    in[4 * L + k] = y[e];
+    in[5 * L + k] = z[e];
+  }
+  if (p.m_two_sided) {
+    mlp_forward_io_lanes<6, 6, L>(p.net_M, in, o);
+  }
+  else {
+    mlp_forward_io_lanes<6, 3, L>(p.net_M, in, o);
+  }
+  for (int k = 0; k < n; k++) {
+    const int side = p.m_two_sided && !(z[k] >= 0.0f) ? 3 : 0; /* as yarn_eval_M: wo.z >= 0 the upper outputs */
+    out[k] = ny::make_rgb(o[side * L + k], o[(side + 1) * L + k], o[(side + 2) * L + k]) * l.scale_M;
+  }
+}
+
 void m_lobe_energy_split(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, const ExitGrid &g, bool split,
                          double up[3], double down[3])
 {
@@ -104,41 +135,19 @@ void m_lobe_energy_split(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, co
   if (!l.valid) {
     return; /* yarn_eval_M's zero */
   }
-  /* yarn_eval_M at kLanes exits at once: its input (w_e, w_o), then its product with scale_M lane by lane;
-   * the last block of a row repeats its last exit in the lanes past the row and leaves them out. */
-  constexpr int kLanes = 16;
-  float in[6 * kLanes], out[6 * kLanes];
-  for (int k = 0; k < kLanes; k++) {
-    in[0 * kLanes + k] = l.we.x;
-    in[1 * kLanes + k] = l.we.y;
-    in[2 * kLanes + k] = l.we.z;
-  }
   const int nt = g.theta_bins, np = g.phi_bins;
+  ny::Rgb v[kMLanes];
   for (int to = 0; to < nt; to++) {
     const double dO = g.solid_angle[size_t(to)];
     double *e = split && 2 * to >= nt ? down : up;
-    /* A two-sided network's outputs for this row's side (yarn_eval_M): a row of exits is on one side. */
-    const int side = p.m_two_sided && g.z[size_t(to) * size_t(np)] < 0.0f ? 3 : 0;
-    for (int po = 0; po < np; po += kLanes) {
-      const int n = std::min(kLanes, np - po);
-      for (int k = 0; k < kLanes; k++) {
-        const size_t q = size_t(to) * size_t(np) + size_t(po + std::min(k, n - 1));
-        in[3 * kLanes + k] = g.x[q];
-        in[4 * kLanes + k] = g.y[q];
-        in[5 * kLanes + k] = g.z[q];
-      }
-      if (p.m_two_sided) {
-        mlp_forward_io_lanes<6, 6, kLanes>(p.net_M, in, out);
-      }
-      else {
-        mlp_forward_io_lanes<6, 3, kLanes>(p.net_M, in, out);
-      }
+    for (int po = 0; po < np; po += kMLanes) {
+      const int n = std::min(kMLanes, np - po);
+      const size_t q = size_t(to) * size_t(np) + size_t(po);
+      yarn_eval_M_lanes(p, l, n, &g.x[q], &g.y[q], &g.z[q], v);
       for (int k = 0; k < n; k++) {
-        const ny::Rgb v = ny::make_rgb(out[side * kLanes + k], out[(side + 1) * kLanes + k],
-                                       out[(side + 2) * kLanes + k]) * l.scale_M;
-        e[0] += v.r * dO;
-        e[1] += v.g * dO;
-        e[2] += v.b * dO;
+        e[0] += v[k].r * dO;
+        e[1] += v[k].g * dO;
+        e[2] += v[k].b * dO;
       }
     }
   }

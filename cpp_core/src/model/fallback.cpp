@@ -62,34 +62,59 @@ std::vector<float> fit_view_weights(const ny::YarnBsdfParams &p, const std::vect
   for (int k = 0; k < K; k++) {
     albedo[size_t(k)] = fallback_lobe_albedo(lobes[size_t(k)], v);
   }
-  std::vector<Eigen::MatrixXd> G(3, Eigen::MatrixXd::Zero(K, K));
+  /* The normal equations' lower triangles, [channel][k][r <= k] with r contiguous (each entry sums the cells
+   * in grid order, as one Eigen entry did). */
+  std::vector<double> G(size_t(3) * size_t(K) * size_t(K), 0.0);
   std::vector<Eigen::VectorXd> b(3, Eigen::VectorXd::Zero(K));
   double eps[3];
   for (int c = 0; c < 3; c++) {
     eps[c] = std::max(o.fit_rel_eps * E[c] / (4.0 * kPi), 1e-12);
   }
-  std::vector<double> B(static_cast<size_t>(K));
+  std::vector<double> B(static_cast<size_t>(K) * kMLanes);
   const double dth = kPi / o.fit_theta, dph = 2.0 * kPi / o.fit_phi;
+  std::vector<double> sin_ph(size_t(o.fit_phi)), cos_ph(size_t(o.fit_phi));
+  for (int q = 0; q < o.fit_phi; q++) {
+    const double ph = -kPi + (q + 0.5) * dph;
+    sin_ph[size_t(q)] = std::sin(ph);
+    cos_ph[size_t(q)] = std::cos(ph);
+  }
+  /* A row's lights kMLanes at a time: the M network runs on them together (yarn_eval_M_lanes). */
+  float wx[kMLanes], wy[kMLanes], wz[kMLanes];
+  ny::Rgb S_M[kMLanes];
   for (int a = 0; a < o.fit_theta; a++) {
     const double th = -0.5 * kPi + (a + 0.5) * dth;
     const double ct = std::cos(th), st = std::sin(th), dw = ct * dth * dph;
-    for (int q = 0; q < o.fit_phi; q++) {
-      const double ph = -kPi + (q + 0.5) * dph;
-      const cl::Dir w{st, ct * std::sin(ph), ct * std::cos(ph)}; /* the light, surface-fiber frame */
-      const ny::Vec3 wo =
-          ny::surface_fiber_to_yarn(p.twist, ny::make_vec3(float(w.x), float(w.y), float(w.z)));
-      const ny::Rgb S = ny::yarn_eval_lobes(p, l, wo);
-      for (int k = 0; k < K; k++) {
-        B[size_t(k)] = fallback_lobe_eval(lobes[size_t(k)], v, w);
-      }
-      const double s[3] = {S.r, S.g, S.b};
-      for (int c = 0; c < 3; c++) {
-        const double wt = dw / ((s[c] + eps[c]) * (s[c] + eps[c]));
+    for (int q0 = 0; q0 < o.fit_phi; q0 += kMLanes) {
+      const int n = std::min(kMLanes, o.fit_phi - q0);
+      cl::Dir w[kMLanes];
+      for (int j = 0; j < n; j++) {
+        const int q = q0 + j;
+        w[j] = cl::Dir{st, ct * sin_ph[size_t(q)], ct * cos_ph[size_t(q)]}; /* the light, surface-fiber frame */
+        const ny::Vec3 wo =
+            ny::surface_fiber_to_yarn(p.twist, ny::make_vec3(float(w[j].x), float(w[j].y), float(w[j].z)));
+        wx[j] = wo.x;
+        wy[j] = wo.y;
+        wz[j] = wo.z;
         for (int k = 0; k < K; k++) {
-          const double wb = wt * B[size_t(k)];
-          b[size_t(c)][k] += wb * s[c];
-          for (int r = 0; r <= k; r++) {
-            G[size_t(c)](k, r) += wb * B[size_t(r)];
+          B[size_t(j) * size_t(K) + size_t(k)] = fallback_lobe_eval(lobes[size_t(k)], v, w[j]);
+        }
+      }
+      yarn_eval_M_lanes(p, l, n, wx, wy, wz, S_M);
+      for (int j = 0; j < n; j++) {
+        /* ny::yarn_eval_lobes: R + M, zero where w_i is below the surface. */
+        const ny::Rgb S = l.valid ? ny::yarn_eval_R(p, l, ny::make_vec3(wx[j], wy[j], wz[j])) + S_M[j]
+                                  : ny::make_rgb(0.0f);
+        const double *Bj = &B[size_t(j) * size_t(K)];
+        const double s[3] = {S.r, S.g, S.b};
+        for (int c = 0; c < 3; c++) {
+          const double wt = dw / ((s[c] + eps[c]) * (s[c] + eps[c]));
+          for (int k = 0; k < K; k++) {
+            const double wb = wt * Bj[k];
+            b[size_t(c)][k] += wb * s[c];
+            double *Gk = &G[(size_t(c) * size_t(K) + size_t(k)) * size_t(K)];
+            for (int r = 0; r <= k; r++) {
+              Gk[r] += wb * Bj[r];
+            }
           }
         }
       }
@@ -104,7 +129,12 @@ std::vector<float> fit_view_weights(const ny::YarnBsdfParams &p, const std::vect
     if (!(E[c] > 0.0)) {
       continue;
     }
-    Eigen::MatrixXd Gc = G[size_t(c)].selfadjointView<Eigen::Lower>();
+    Eigen::MatrixXd Gc(K, K);
+    for (int k = 0; k < K; k++) {
+      for (int r = 0; r <= k; r++) {
+        Gc(k, r) = Gc(r, k) = G[(size_t(c) * size_t(K) + size_t(k)) * size_t(K) + size_t(r)];
+      }
+    }
     /* The energy constraint as a row weighing 10^4 times the whole fit. */
     const double lambda = 1e4 * Gc.trace() / std::max(A.squaredNorm(), 1e-300);
     Gc += lambda * A * A.transpose();

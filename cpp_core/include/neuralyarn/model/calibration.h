@@ -29,6 +29,15 @@ struct ExitGrid {
   std::vector<double> solid_angle;
 };
 
+/* Exits the M network runs on at once on the host (model/mlp_lanes.h). */
+constexpr int kMLanes = 16;
+
+/* yarn_eval_M(p, l, w_o) at n <= kMLanes exits at once (x, y, z: their components, yarn frame), bit for bit
+ * what the kernel gives for each alone (its network's lanes sum in the kernel's order; a two-sided network's
+ * side is each exit's own). */
+void yarn_eval_M_lanes(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, int n, const float *x, const float *y,
+                       const float *z, ny::Rgb *out);
+
 /* The M lobe's energy (S_M |cos theta_o|, calibration included) by the midpoint rule on grid g: all in
  * `up`, or with `split` the upper hemisphere's (theta_o < 90 deg) in `up` and the lower's in `down`. Bit for
  * bit the sum of yarn_eval_M over the cells in row-major order (the network on 16 exits at once). */
