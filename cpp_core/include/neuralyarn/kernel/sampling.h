@@ -83,7 +83,6 @@ NY_KERNEL_FN TruncatedNormal make_truncated_normal(float mu, float sigma, float 
   return tn;
 }
 
-/* Density with respect to x. */
 /* The density at standard score z given normal_pdf(z) = g: one g serves every lobe of that mean and width. */
 NY_KERNEL_FN float truncated_normal_pdf_of(NY_PRIVATE const TruncatedNormal &tn, float z, float g)
 {
@@ -93,6 +92,7 @@ NY_KERNEL_FN float truncated_normal_pdf_of(NY_PRIVATE const TruncatedNormal &tn,
   return g / (tn.sigma * tn.mass);
 }
 
+/* Density with respect to x. */
 NY_KERNEL_FN float truncated_normal_pdf(NY_PRIVATE const TruncatedNormal &tn, float x)
 {
   const float z = (x - tn.mu) / tn.sigma;
