@@ -61,13 +61,14 @@ def main(argv: list[str]) -> int:
     os.makedirs(a.out, exist_ok=True)
     rows = []
     for n in a.stitches:
+        plies = {k: garment.garment_plies(n, n, k) for k in a.keys}
         # One camera for every keys count: the harness's framing of the first.
-        d = ev.garment_distance(garment.garment_plies(n, n, a.keys[0]), ev.GARMENT["width"] / ev.GARMENT["height"])
+        d = ev.garment_distance(plies[a.keys[0]], ev.GARMENT["width"] / ev.GARMENT["height"])
         images = {}
         for k in a.keys:
             out = os.path.join(a.out, f"{n}x{n}_k{k}")
             os.makedirs(out, exist_ok=True)
-            framed = ev.framed_plies_args(os.path.join(out, "plies.json"), garment.garment_plies(n, n, k), d)
+            framed = ev.framed_plies_args(os.path.join(out, "plies.json"), plies[k], d)
             for seed in (1, 2):
                 cost, images[k, seed] = render(a, out, framed, seed, f"{n}x{n}, {k} keys per turn")
                 if seed == 1:

@@ -62,9 +62,9 @@ std::vector<float> fit_view_weights(const ny::YarnBsdfParams &p, const std::vect
   for (int k = 0; k < K; k++) {
     albedo[size_t(k)] = fallback_lobe_albedo(lobes[size_t(k)], v);
   }
-  /* The normal equations' lower triangles, [channel][k][r <= k] with r contiguous (each entry sums the cells
-   * in grid order, as one Eigen entry did). */
-  std::vector<double> G(size_t(3) * size_t(K) * size_t(K), 0.0);
+  /* The normal equations per channel, lower triangle, row-major so that a row's entries are contiguous. */
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  std::vector<RowMajor> G(3, RowMajor::Zero(K, K));
   std::vector<Eigen::VectorXd> b(3, Eigen::VectorXd::Zero(K));
   double eps[3];
   for (int c = 0; c < 3; c++) {
@@ -111,7 +111,7 @@ std::vector<float> fit_view_weights(const ny::YarnBsdfParams &p, const std::vect
           for (int k = 0; k < K; k++) {
             const double wb = wt * Bj[k];
             b[size_t(c)][k] += wb * s[c];
-            double *Gk = &G[(size_t(c) * size_t(K) + size_t(k)) * size_t(K)];
+            double *Gk = &G[size_t(c)](k, 0);
             for (int r = 0; r <= k; r++) {
               Gk[r] += wb * Bj[r];
             }
@@ -129,12 +129,7 @@ std::vector<float> fit_view_weights(const ny::YarnBsdfParams &p, const std::vect
     if (!(E[c] > 0.0)) {
       continue;
     }
-    Eigen::MatrixXd Gc(K, K);
-    for (int k = 0; k < K; k++) {
-      for (int r = 0; r <= k; r++) {
-        Gc(k, r) = Gc(r, k) = G[(size_t(c) * size_t(K) + size_t(k)) * size_t(K) + size_t(r)];
-      }
-    }
+    Eigen::MatrixXd Gc = G[size_t(c)].selfadjointView<Eigen::Lower>();
     /* The energy constraint as a row weighing 10^4 times the whole fit. */
     const double lambda = 1e4 * Gc.trace() / std::max(A.squaredNorm(), 1e-300);
     Gc += lambda * A * A.transpose();
