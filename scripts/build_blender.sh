@@ -7,7 +7,10 @@
 #   bash scripts/build_blender.sh          # -> build/blender-full/bin/blender
 #
 # Off, as Debian 12 cannot provide them or they are not needed to render: OSL, USD, MaterialX, Hydra,
-# Vulkan, OpenVDB, audio, FFmpeg, OpenImageDenoise (renders must turn denoising off), GPU devices.
+# Vulkan, OpenVDB, audio, FFmpeg, OpenImageDenoise (renders must turn denoising off), GPU devices; and, as
+# Blender's own lite configuration (build_files/cmake/config/blender_lite.cmake) turns them off, physics
+# (Bullet, fluids, ocean), the CPU compositor, Freestyle, motion tracking, remeshers, OpenSubdiv, file
+# formats other than .blend and images, translations.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 NYB="${NY_BUILD_DIR:-$ROOT/build}"
@@ -34,8 +37,9 @@ LAUNCHER=()
 if command -v ccache > /dev/null; then
   LAUNCHER=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 fi
-if [[ ! -f "$BUILD/build.ninja" ]]; then
-  cmake -S "$SRC" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release "${LAUNCHER[@]}" \
+# Configured every time (seconds when nothing changed), so that a change of these options reaches a build
+# directory made before it.
+cmake -S "$SRC" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release "${LAUNCHER[@]}" \
     -DWITH_HEADLESS=ON -DWITH_GHOST_X11=OFF -DWITH_GHOST_WAYLAND=OFF -DWITH_GHOST_SDL=OFF \
     -DWITH_CYCLES=ON -DWITH_CYCLES_OSL=OFF -DWITH_CYCLES_EMBREE=ON -DWITH_CYCLES_NATIVE_ONLY=ON \
     -DWITH_CYCLES_PATH_GUIDING=OFF -DWITH_CYCLES_DEVICE_CUDA=OFF -DWITH_CYCLES_DEVICE_OPTIX=OFF \
@@ -47,8 +51,13 @@ if [[ ! -f "$BUILD/build.ninja" ]]; then
     -DWITH_INSTALL_PORTABLE=ON -DWITH_PYTHON_INSTALL=OFF -DWITH_PYTHON_INSTALL_NUMPY=OFF \
     -DWITH_PYTHON_INSTALL_ZSTANDARD=OFF -DWITH_LIBS_PRECOMPILED=OFF -DWITH_STRICT_BUILD_OPTIONS=OFF \
     -DEMBREE_LIBRARIES="$EMBREE_LIB" -DCMAKE_CXX_FLAGS="-DEMBREE_MAJOR_VERSION=3" \
-    -DCMAKE_INSTALL_PREFIX="$PREFIX"
-fi
+    -DWITH_BULLET=OFF -DWITH_MOD_FLUID=OFF -DWITH_MOD_OCEANSIM=OFF -DWITH_MOD_REMESH=OFF -DWITH_QUADRIFLOW=OFF \
+    -DWITH_COMPOSITOR_CPU=OFF -DWITH_FREESTYLE=OFF -DWITH_LIBMV=OFF -DWITH_OPENSUBDIV=OFF -DWITH_FFTW3=OFF \
+    -DWITH_IK_ITASC=OFF -DWITH_UV_SLIM=OFF -DWITH_ALEMBIC=OFF -DWITH_OPENCOLLADA=OFF -DWITH_IO_PLY=OFF \
+    -DWITH_IO_STL=OFF -DWITH_IO_WAVEFRONT_OBJ=OFF -DWITH_IO_GREASE_PENCIL=OFF -DWITH_DRACO=OFF \
+    -DWITH_POTRACE=OFF -DWITH_HARU=OFF -DWITH_INTERNATIONAL=OFF -DWITH_INPUT_NDOF=OFF \
+    -DCMAKE_INSTALL_PREFIX="$PREFIX" > "$NYB/blender-full-configure.log" ||
+  { echo "build_blender: cmake failed (see $NYB/blender-full-configure.log)" >&2; exit 1; }
 start=$(date +%s)
 cmake --build "$BUILD" --target install
 echo "build_blender: $PREFIX/blender built in $(( $(date +%s) - start )) s"
