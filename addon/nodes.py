@@ -28,6 +28,9 @@ from bpy.app.handlers import persistent
 from . import fallback_nodes, model_io, resources
 
 NODE_IDNAME = "ShaderNodeNeuralYarnBsdf"
+#: Blender's own Neural Yarn BSDF node, in a Blender built with cycles_patch/ (0003); stock Blender has none.
+#: It holds the model (a packed Text) and the tint; the add-on's node also has the presets and the fallback.
+BUILTIN_IDNAME = "ShaderNodeBsdfNeuralYarn"
 ERROR_COLOR = (1.0, 0.0, 1.0, 1.0)  # Cycles' missing-resource magenta
 PRESET_ITEMS = [(p, p.title(), f"The shipped '{p}' model (the paper's {p} fibers)") for p in resources.PRESETS]
 PRESET_ITEMS.append(("CUSTOM", "Custom", "A model file made with `neuralyarn bake` (Load Model File)"))
@@ -300,6 +303,78 @@ class NeuralYarnBsdfNode(bpy.types.ShaderNodeCustomGroup):
         return "Neural Yarn BSDF"
 
 
+def builtin_available() -> bool:
+    """Whether this Blender has the built-in Neural Yarn BSDF node (a patched Blender)."""
+    return hasattr(bpy.types, BUILTIN_IDNAME)
+
+
+def _preset_of(text) -> tuple[str, str] | None:
+    """(preset, level) when a Text holds a shipped preset's model exactly as `pack_preset` packs it."""
+    stem = text.name.split(".json")[0]
+    if not stem.startswith("NY model "):
+        return None
+    name = stem[len("NY model "):]
+    preset, level = (name[:-len("_yarn")], "yarns") if name.endswith("_yarn") else (name, "plies")
+    if preset not in resources.PRESETS:
+        return None
+    try:
+        shipped = _packed_json(model_io.load_model_file(resources.preset_model_path(preset, level)))
+    except (OSError, ValueError):
+        return None
+    return (preset, level) if text.as_string() == shipped else None
+
+
+def convert_node(node, to: str):
+    """Replaces a Neural Yarn BSDF node by the other kind and returns (new node, warnings): "BUILTIN",
+    Blender's own node (a patched Blender only; a file with it renders the yarn only there), or "ADDON",
+    this add-on's node (renders everywhere: natively in a patched Blender, its fallback elsewhere). Both
+    render with the same closure in a patched Cycles: the model Text, tint, links, place and name carry
+    over. Raises ValueError, changing nothing, when the conversion cannot be made."""
+    if to not in ("BUILTIN", "ADDON"):
+        raise ValueError(f"unknown node kind '{to}' (BUILTIN or ADDON)")
+    kinds = {NODE_IDNAME: "ADDON", BUILTIN_IDNAME: "BUILTIN"}
+    if node.bl_idname not in kinds:
+        raise ValueError(f"'{node.name}' is not a Neural Yarn BSDF node")
+    if kinds[node.bl_idname] == to:
+        return node, []
+    if to == "BUILTIN" and not builtin_available():
+        raise ValueError("this Blender has no built-in Neural Yarn BSDF node (a Blender built with "
+                         "cycles_patch/ has it)")
+    if node.model is None:
+        raise ValueError(f"'{node.name}' has no model to carry over")
+    tree, text, warnings = node.id_data, node.model, []
+    if to == "BUILTIN" and node.twist_override:
+        warnings.append("the built-in node renders the model's own twist (the override was fallback-only)")
+    if to == "ADDON" and node.inputs["Normal"].is_linked:
+        warnings.append("the Normal input's link is dropped (the add-on's node has no Normal input)")
+    tint = node.inputs[fallback_nodes.GROUP_INPUT_TINT]
+    links_in = [l.from_socket for l in tint.links]
+    links_out = [l.to_socket for l in node.outputs[fallback_nodes.GROUP_OUTPUT].links]
+    state = (node.name, node.label, node.location.copy(), node.width, node.parent, tuple(tint.default_value))
+    if to == "BUILTIN":
+        _eevee_output(node, False)  # the OSL-era EEVEE output goes with the node that made it
+    new = tree.nodes.new(BUILTIN_IDNAME if to == "BUILTIN" else NODE_IDNAME)
+    if to == "BUILTIN":
+        new.model = text
+    else:
+        shipped = _preset_of(text)
+        if shipped is not None:  # the preset menu again, with the same packed Text
+            new["level"] = 1 if shipped[1] == "yarns" else 0
+            new["preset"] = [i[0] for i in PRESET_ITEMS].index(shipped[0])
+        else:
+            new["preset"] = len(resources.PRESETS)  # CUSTOM
+        new.model = text  # the update builds the fallback for it
+    tree.nodes.remove(node)
+    name, new.label, new.location, new.width, parent, default = state
+    new.name, new.parent = name, parent
+    new.inputs[fallback_nodes.GROUP_INPUT_TINT].default_value = default
+    for socket in links_in:
+        tree.links.new(socket, new.inputs[fallback_nodes.GROUP_INPUT_TINT])
+    for socket in links_out:
+        tree.links.new(new.outputs[fallback_nodes.GROUP_OUTPUT], socket)
+    return new, warnings
+
+
 def iter_nodes():
     """Every Neural Yarn BSDF node in materials, worlds' and lights' trees and node groups."""
     trees = [m.node_tree for m in bpy.data.materials if m.node_tree is not None]
@@ -330,6 +405,8 @@ def purge_unused() -> int:
         for n in tree.nodes:
             if n.bl_idname == "ShaderNodeScript" and n.script is not None:
                 used.add(n.script)
+            elif n.bl_idname == BUILTIN_IDNAME and n.model is not None:
+                used.add(n.model)
     removed = 0
     for text in list(bpy.data.texts):
         if text.name.startswith("NY ") and text not in used:

@@ -311,6 +311,20 @@ class NEURALYARN_OT_assign_preset(bpy.types.Operator):
         return {"FINISHED"}
 
 
+NEURAL_YARN_NODES = (nodes.NODE_IDNAME, nodes.BUILTIN_IDNAME)
+
+
+def _context_node(context, idnames):
+    """The node an operator acts on: the UI's `node` (a panel's context pointer), else the edited tree's
+    active node; None unless its bl_idname is one of `idnames`."""
+    node = getattr(context, "node", None)
+    if node is None:
+        space = getattr(context, "space_data", None)
+        tree = getattr(space, "edit_tree", None)
+        node = tree.nodes.active if tree is not None else None
+    return node if node is not None and node.bl_idname in idnames else None
+
+
 class NEURALYARN_OT_load_model(bpy.types.Operator, ImportHelper):
     """Load a model file made with `neuralyarn bake` into a Neural Yarn BSDF node (packed into the .blend)"""
 
@@ -321,17 +335,8 @@ class NEURALYARN_OT_load_model(bpy.types.Operator, ImportHelper):
     filename_ext = ".json"
     filter_glob: bpy.props.StringProperty(default="*.json", options={"HIDDEN"})
 
-    @staticmethod
-    def _target(context):
-        node = getattr(context, "node", None)
-        if node is None:
-            space = getattr(context, "space_data", None)
-            tree = getattr(space, "edit_tree", None)
-            node = tree.nodes.active if tree is not None else None
-        return node if node is not None and node.bl_idname == nodes.NODE_IDNAME else None
-
     def execute(self, context):
-        node = self._target(context)
+        node = _context_node(context, (nodes.NODE_IDNAME,))
         if node is None:
             self.report({"ERROR"}, "no active Neural Yarn BSDF node")
             return {"CANCELLED"}
@@ -371,6 +376,41 @@ class NEURALYARN_OT_frame_render(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class NEURALYARN_OT_convert_node(bpy.types.Operator):
+    """Swap the active Neural Yarn BSDF node for the other kind: Blender's built-in node (a patched Blender
+    only: files with it render the yarn only there) or the add-on's node (renders everywhere, natively in a
+    patched Blender); the model, tint, links and name carry over"""
+
+    bl_idname = "neural_yarn.convert_node"
+    bl_label = "Convert Neural Yarn Node"
+    bl_options = {"REGISTER", "UNDO"}
+
+    to: bpy.props.EnumProperty(
+        name="To", default="BUILTIN",
+        items=(("BUILTIN", "Built-in Node", "Blender's own Neural Yarn BSDF (a Blender built with cycles_patch/)"),
+               ("ADDON", "Add-on Node", "The add-on's Neural Yarn BSDF: presets, and a fallback for stock Blender")),
+        description="The kind of node the active Neural Yarn BSDF node becomes")
+
+    @classmethod
+    def poll(cls, context):
+        return nodes.builtin_available() and _context_node(context, NEURAL_YARN_NODES) is not None
+
+    def execute(self, context):
+        node = _context_node(context, NEURAL_YARN_NODES)
+        if node is None:
+            self.report({"ERROR"}, "no active Neural Yarn BSDF node")
+            return {"CANCELLED"}
+        try:
+            new, warnings = nodes.convert_node(node, self.to)
+        except ValueError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        new.id_data.nodes.active = new
+        for w in warnings:
+            self.report({"WARNING"}, f"{new.name}: {w}")
+        return {"FINISHED"}
+
+
 CLASSES = (
     NEURALYARN_OT_import_bcc,
     NEURALYARN_OT_import_leaf,
@@ -380,6 +420,7 @@ CLASSES = (
     NEURALYARN_OT_assign_preset,
     NEURALYARN_OT_load_model,
     NEURALYARN_OT_frame_render,
+    NEURALYARN_OT_convert_node,
 )
 
 
@@ -394,14 +435,27 @@ def _add_menu(self, context):
     self.layout.operator(NEURALYARN_OT_add_weave.bl_idname, icon="OUTLINER_OB_CURVES")
 
 
+def _node_context_menu(self, context):
+    node = _context_node(context, NEURAL_YARN_NODES)
+    if node is None or not nodes.builtin_available():
+        return
+    self.layout.separator()
+    to = "ADDON" if node.bl_idname == nodes.BUILTIN_IDNAME else "BUILTIN"
+    op = self.layout.operator(NEURALYARN_OT_convert_node.bl_idname,
+                              text="Convert to Add-on Node" if to == "ADDON" else "Convert to Built-in Node")
+    op.to = to
+
+
 def register():
     for cls in CLASSES:
         bpy.utils.register_class(cls)
     bpy.types.TOPBAR_MT_file_import.append(_import_menu)
     bpy.types.VIEW3D_MT_add.append(_add_menu)
+    bpy.types.NODE_MT_context_menu.append(_node_context_menu)
 
 
 def unregister():
+    bpy.types.NODE_MT_context_menu.remove(_node_context_menu)
     bpy.types.VIEW3D_MT_add.remove(_add_menu)
     bpy.types.TOPBAR_MT_file_import.remove(_import_menu)
     for cls in reversed(CLASSES):

@@ -41,6 +41,13 @@ class VIEW3D_PT_neural_yarn(bpy.types.Panel):
                     box.context_pointer_set("node", node)
                     node.draw_buttons(context, box)
                     break
+                if node.bl_idname == nodes.BUILTIN_IDNAME:
+                    box = layout.box()
+                    box.label(text=f"Material '{mat.name}' (built-in node: a patched Blender only)")
+                    box.prop(node, "model", text="")
+                    box.context_pointer_set("node", node)
+                    box.operator("neural_yarn.convert_node", text="Convert to Add-on Node").to = "ADDON"
+                    break
         scene = context.scene
         if scene.render.engine == "CYCLES" and bpy.app.build_options.cycles_osl and not scene.cycles.shading_system:
             layout.label(text="Tip: Open Shading Language (CPU) gives the OSL fallback", icon="INFO")

@@ -5,7 +5,7 @@ fallback instead of the native closure, the baselines and the diffuse check with
 camera, pixel filter, integrator, lights and curves are the description's, as in the scene's Cycles XML:
 
     .venv/bin/python scripts/fallback_render.py SCENE.json OUT.exr --body osl|nodes [--samples N]
-                     [--threads T] [--save-blend B.blend]
+                     [--threads T] [--save-blend B.blend] [--node addon|builtin]
     .venv/bin/python scripts/fallback_render.py B.blend OUT.exr --open-blend
 
 OUT.exr is in the standalone Cycles' handedness (Blender's image mirrored back). Exits 1 with one line on a
@@ -35,6 +35,9 @@ def main() -> None:
     ap.add_argument("out")
     ap.add_argument("--body", choices=("osl", "nodes"), default="nodes",
                     help="the neural yarn node's fallback body (default nodes)")
+    ap.add_argument("--node", choices=("addon", "builtin"), default="addon",
+                    help="the neural yarn material's node: the add-on's (default) or Blender's built-in one "
+                         "(a patched Blender only)")
     ap.add_argument("--samples", type=int, default=64)
     ap.add_argument("--threads", type=int, default=0, help="render threads (0: all cores)")
     ap.add_argument("--save-blend", help="also save the scene as this .blend (models and images packed)")
@@ -51,7 +54,10 @@ def main() -> None:
         try:
             desc = ny.scene_description.load_scene(args.scene)
             scene = ny.scene_bpy.build(desc, fallback=args.body.upper(), samples=args.samples)
-        except ny.scene_description.SceneDescriptionError as e:
+            if args.node == "builtin":
+                for node in list(ny.nodes.iter_nodes()):
+                    ny.nodes.convert_node(node, "BUILTIN")
+        except (ny.scene_description.SceneDescriptionError, ValueError) as e:
             raise SystemExit(str(e))
         if args.save_blend:
             bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.save_blend))

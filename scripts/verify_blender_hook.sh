@@ -10,6 +10,9 @@
 # .blend (models packed), rendered there; the .blend reopened and rendered by the bpy 4.5 wheel. Prints
 # SSIM and mean colour difference of both Blender renders against the standalone one: the patched Blender
 # must match it (same closure code; goal SSIM >= 0.98, mean within 2 %), the stock one shows the fallback.
+# The scene is also built with Blender's built-in Neural Yarn BSDF node instead of the add-on's
+# (fallback_render.py --node builtin): the same closure from the same packed model, so its render must
+# equal the add-on node's to float rounding (largest pixel difference <= 1e-5).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD="${NY_BUILD_DIR:-$ROOT/build}"
@@ -30,6 +33,9 @@ rm -f "$OUT/$P.blend"
   "$OUT/${P}_patched.exr" --body nodes --samples "$SPP" --save-blend "$OUT/$P.blend" \
   > "$OUT/${P}_patched.log" 2>&1 || { cat "$OUT/${P}_patched.log" >&2; exit 1; }
 grep "fallback_render: Blender" "$OUT/${P}_patched.log"
+"$BLENDER" -b --factory-startup --python-exit-code 1 -P "$ROOT/scripts/fallback_render.py" -- "$OUT/$P.json" \
+  "$OUT/${P}_builtin.exr" --node builtin --samples "$SPP" --save-blend "$OUT/${P}_builtin.blend" \
+  > "$OUT/${P}_builtin.log" 2>&1 || { cat "$OUT/${P}_builtin.log" >&2; exit 1; }
 if grep -i "neural yarn model.*:" "$OUT/${P}_patched.log"; then echo "verify_blender_hook: the closure reported a model problem" >&2; exit 1; fi
 "$PY" "$ROOT/scripts/fallback_render.py" "$OUT/$P.blend" "$OUT/${P}_stock.exr" --open-blend \
   > "$OUT/${P}_stock.log" 2>&1 || { cat "$OUT/${P}_stock.log" >&2; exit 1; }
@@ -39,6 +45,16 @@ read -r s_p s_s d_s < <("$PY" "$ROOT/scripts/bench_render.py" "$OUT/${P}_standal
 read -r _ _ d_p < <("$PY" "$ROOT/scripts/bench_render.py" "$OUT/${P}_standalone.exr" "$OUT/${P}_stock.exr" \
   "$OUT/${P}_patched.exr")
 echo "| $P | patched Blender: SSIM $s_p, mean diff $d_p | stock Blender 4.5 (fallback): SSIM $s_s, mean diff $d_s |"
+"$PY" - "$OUT/${P}_patched.exr" "$OUT/${P}_builtin.exr" "$ROOT/scripts" <<'PYEOF' ||
+import sys, numpy as np
+sys.path.insert(0, sys.argv[3])
+from images import read_exr
+a, b = read_exr(sys.argv[1]), read_exr(sys.argv[2])
+d = float(np.abs(a - b).max())
+print(f"built-in node vs add-on node, patched Blender: largest pixel difference {d:.3g} (image mean {a.mean():.4g})")
+sys.exit(0 if d <= 1e-5 else 1)
+PYEOF
+  { echo "verify_blender_hook: the built-in node does not render as the add-on's node" >&2; exit 1; }
 awk -v s="$s_p" -v d="$d_p" 'BEGIN { exit !(s >= 0.98 && d <= 0.02) }' ||
   { echo "verify_blender_hook: the patched Blender does not render the native closure" >&2; exit 1; }
 echo "verify_blender_hook: ok"

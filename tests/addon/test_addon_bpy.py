@@ -937,3 +937,82 @@ def test_eevee_sees_stock_nodes_while_the_node_holds_osl(bpy, addon, empty):
     assert images and all(name.startswith("NY cotton") for name in images)
     node.fallback = "NODES"
     assert outputs() == ["ALL"]
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Blender's built-in Neural Yarn BSDF node (issue 22 (b); a Blender built with cycles_patch/ has it). In
+# stock Blender the conversion is refused and changes nothing; the rest runs inside the patched Blender:
+#     build/blender-full/blender -b --factory-startup --python-exit-code 1 -P tests/addon/run_in_blender.py \
+#         -- -q -k builtin tests/addon/test_addon_bpy.py
+
+
+@pytest.fixture
+def needs_builtin(bpy, addon):
+    if not addon.nodes.builtin_available():
+        pytest.skip(f"Blender {bpy.app.version_string} has no built-in Neural Yarn BSDF node (patched Blender only)")
+
+
+def test_builtin_node_conversion_is_refused_where_there_is_none(bpy, addon, empty):
+    if addon.nodes.builtin_available():
+        pytest.skip("this Blender has the built-in node")
+    mat, node = addon.nodes.make_material("m", preset="silk")
+    before = snapshot(bpy)
+    with pytest.raises(ValueError, match="no built-in Neural Yarn BSDF node"):
+        addon.nodes.convert_node(node, "BUILTIN")
+    assert snapshot(bpy) == before
+    assert [n.bl_idname for n in mat.node_tree.nodes].count(addon.nodes.NODE_IDNAME) == 1
+    assert not bpy.ops.neural_yarn.convert_node.poll()
+
+
+def test_builtin_node_preset_is_recognised_by_content_not_name(bpy, addon, empty):
+    """Converting back to the add-on's node restores the preset menu only for a Text that holds the
+    shipped model exactly; an edited one stays a custom model."""
+    text = addon.nodes.pack_preset("silk")
+    assert addon.nodes._preset_of(text) == ("silk", "plies")
+    edited = bpy.data.texts.new(text.name)  # "NY model silk.json.001"
+    edited.from_string(text.as_string() + " ")  # the same JSON values, not the shipped file
+    assert addon.nodes._preset_of(edited) is None
+    other = bpy.data.texts.new("my model.json")
+    other.from_string(text.as_string())
+    assert addon.nodes._preset_of(other) is None
+
+
+def test_builtin_node_round_trip_keeps_model_tint_links_and_name(bpy, addon, empty, needs_builtin):
+    mat, node = addon.nodes.make_material("m", preset="silk")
+    tree = mat.node_tree
+    rgb = tree.nodes.new("ShaderNodeRGB")
+    tree.links.new(rgb.outputs[0], node.inputs["Tint"])
+    node.name, text = "Yarn", node.model
+    built, warnings = addon.nodes.convert_node(node, "BUILTIN")
+    assert built.bl_idname == addon.nodes.BUILTIN_IDNAME and built.name == "Yarn" and not warnings
+    assert built.model == text
+    assert built.inputs["Tint"].links[0].from_node == rgb
+    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    assert out.inputs["Surface"].links[0].from_node == built
+    back, _ = addon.nodes.convert_node(built, "ADDON")
+    assert back.bl_idname == addon.nodes.NODE_IDNAME and back.name == "Yarn"
+    assert (back.preset, back.level, back.model) == ("silk", "PLIES", text) and back.built == "NODES"
+    assert back.inputs["Tint"].links[0].from_node == rgb
+    assert out.inputs["Surface"].links[0].from_node == back
+
+
+def test_builtin_node_renders_as_the_addon_node_and_keeps_its_model_in_the_file(bpy, addon, empty, tmp_path,
+                                                                               needs_builtin):
+    """Both nodes compile to the same closure from the same packed model: the same pixels. Saving purges the
+    add-on's unused Texts, never the model a built-in node uses."""
+    bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="cotton")
+    bpy.ops.neural_yarn.frame_render()
+    scene = bpy.context.scene
+    addon_px = render(bpy, scene, tmp_path / "addon.exr", osl=False)
+    node = next(addon.nodes.iter_nodes())
+    addon.nodes.convert_node(node, "BUILTIN")
+    builtin_px = render(bpy, scene, tmp_path / "builtin.exr", osl=False)
+    assert yarn_luminance(builtin_px) > 1e-3 and magenta_fraction(builtin_px) == 0.0
+    assert float(np.abs(builtin_px - addon_px).max()) <= 1e-5
+    path = str(tmp_path / "builtin.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    builtin = [n for m in bpy.data.materials if m.node_tree for n in m.node_tree.nodes
+               if n.bl_idname == addon.nodes.BUILTIN_IDNAME]
+    assert len(builtin) == 1 and builtin[0].model is not None
+    assert builtin[0].model.name == "NY model cotton.json"
