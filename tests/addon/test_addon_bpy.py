@@ -91,10 +91,14 @@ def yarn_luminance(px) -> float:
 
 
 def magenta_fraction(px) -> float:
+    """The share of the lit yarn pixels in the error colour: magenta with no green at all, which both error
+    paths give and no model does — stock Blender's emission (1, 0, 1) inside the add-on's node, and a patched
+    Cycles' magenta diffuse, lit by the scene (a brightness threshold took its shaded side for a model)."""
     mask = px[..., 3] > 0.5
     rgb = px[mask][:, :3]
-    magenta = (rgb[:, 0] > 0.5) & (rgb[:, 2] > 0.5) & (rgb[:, 1] < 0.1)
-    return float(magenta.mean())
+    lit = rgb.max(axis=1) > 0.0
+    magenta = (rgb[:, 0] > 0.0) & (rgb[:, 2] > 0.0) & (rgb[:, 1] == 0.0)
+    return float(magenta[lit].mean())
 
 
 # ---------------------------------------------------------------------------------------------------------
