@@ -302,6 +302,10 @@ def run(argv: list[str]) -> str:
             continue
         obj.data.materials.clear()
         obj.data.materials.append(mat)
+    used = {slot.material for obj in scene.objects for slot in obj.material_slots}
+    found = ny.nodes.unrenderable_builtin_nodes(used)
+    if found:
+        raise BatchError(ny.nodes.builtin_node_message(found))
     if (demo and not framed) or scene.camera is None:
         ny.scene_setup.frame(scene, yarns)
     if args.samples:

@@ -385,6 +385,34 @@ def iter_nodes():
                 yield node
 
 
+#: A built-in node in a Blender without it (a file from a patched Blender): undefined, its sockets kept.
+_BUILTIN_SOCKETS = (["Tint", "Normal", "Weight"], ["BSDF"])
+
+
+def unrenderable_builtin_nodes(materials=None) -> list[str]:
+    """"material 'M', node 'N'" for each built-in Neural Yarn BSDF node that this Blender cannot render: it has
+    no such node, so a file saved in a patched Blender loads it as an undefined node, and the material renders
+    without the yarn (black or transparent, with no message from Blender). Recognised by the sockets the
+    undefined node keeps. `materials`: those to look in (default: all)."""
+    if builtin_available():
+        return []
+    found = []
+    for mat in bpy.data.materials if materials is None else materials:
+        if mat is None or mat.node_tree is None:
+            continue
+        for node in mat.node_tree.nodes:
+            if node.bl_idname == "NodeUndefined" and \
+                    ([s.name for s in node.inputs], [s.name for s in node.outputs]) == _BUILTIN_SOCKETS:
+                found.append(f"material '{mat.name}', node '{node.name}'")
+    return found
+
+
+def builtin_node_message(found: list[str]) -> str:
+    return (f"{'; '.join(found)}: Blender's built-in Neural Yarn BSDF node, which only a patched Blender has; "
+            "here the yarn would render black. Open the file in a patched Blender and convert the node to the "
+            "add-on's (node editor, right click: Convert to Add-on Node), which renders everywhere")
+
+
 def sync(scene) -> int:
     """Rebuilds the nodes whose inside does not match what the scene can render; returns how many."""
     count = 0
@@ -422,6 +450,9 @@ def purge_unused() -> int:
 @persistent
 def _render_pre(scene, *_args):
     sync(scene)
+    found = unrenderable_builtin_nodes()
+    if found:  # a render_pre handler cannot stop the render; batch.py refuses before it
+        print(f"Neural Yarn: warning: {builtin_node_message(found)}")
 
 
 @persistent

@@ -33,6 +33,11 @@ class VIEW3D_PT_neural_yarn(bpy.types.Panel):
         obj = context.active_object
         mat = obj.active_material if obj is not None else None
         if mat is not None and mat.node_tree is not None:
+            found = nodes.unrenderable_builtin_nodes([mat])
+            if found:
+                box = layout.box()
+                box.label(text=f"'{mat.name}': built-in Neural Yarn node of a patched Blender", icon="ERROR")
+                box.label(text="It renders black here: convert it to the add-on's node there")
             for node in mat.node_tree.nodes:
                 if node.bl_idname == nodes.NODE_IDNAME:
                     box = layout.box()

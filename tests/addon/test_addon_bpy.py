@@ -1020,3 +1020,28 @@ def test_builtin_node_renders_as_the_addon_node_and_keeps_its_model_in_the_file(
                if n.bl_idname == addon.nodes.BUILTIN_IDNAME]
     assert len(builtin) == 1 and builtin[0].model is not None
     assert builtin[0].model.name == "NY model cotton.json"
+
+
+BUILTIN_BLEND = os.path.join(os.path.dirname(__file__), os.pardir, "data", "builtin_neural_yarn_node.blend")
+
+
+def test_a_builtin_node_from_a_patched_blender_is_named_and_a_batch_render_refused(bpy, addon, empty, tmp_path):
+    """A file saved in a patched Blender with its built-in node (tests/data/builtin_neural_yarn_node.blend, written
+    by tests/addon/make_builtin_node_blend.py) opened in a Blender without it: the node is undefined there and
+    its material would render black without a word from Blender. The add-on names it, and a batch render
+    refuses instead of writing a wrong image."""
+    if addon.nodes.builtin_available():
+        pytest.skip("this Blender has the built-in node")
+    if bpy.app.version < (4, 3, 0):
+        pytest.skip(f"Blender {bpy.app.version_string} cannot read a file of Blender 4.3")
+    import importlib
+    batch = importlib.import_module("neural_yarn.batch")
+    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(BUILTIN_BLEND))
+    assert addon.nodes.unrenderable_builtin_nodes() == ["material 'built-in yarn', node 'Neural Yarn BSDF'"]
+    out = tmp_path / "x.png"
+    with pytest.raises(batch.BatchError, match="material 'built-in yarn'.*only a patched Blender has"):
+        batch.run(["--blend", os.path.abspath(BUILTIN_BLEND), "--keep-materials", "--samples", "1", "--out", str(out)])
+    assert not out.exists()
+    bpy.ops.wm.read_factory_settings(use_empty=True)  # the add-on's own node is not taken for it
+    addon.nodes.make_material("m", preset="silk")
+    assert addon.nodes.unrenderable_builtin_nodes() == []
