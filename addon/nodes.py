@@ -397,13 +397,20 @@ def unrenderable_builtin_nodes(materials=None) -> list[str]:
     if builtin_available():
         return []
     found = []
-    for mat in bpy.data.materials if materials is None else materials:
-        if mat is None or mat.node_tree is None:
-            continue
-        for node in mat.node_tree.nodes:
+
+    def look(tree, where, seen):
+        for node in tree.nodes:
             if node.bl_idname == "NodeUndefined" and \
                     ([s.name for s in node.inputs], [s.name for s in node.outputs]) == _BUILTIN_SOCKETS:
-                found.append(f"material '{mat.name}', node '{node.name}'")
+                found.append(f"{where}, node '{node.name}'")
+            group = getattr(node, "node_tree", None)  # inside node groups too, each once
+            if node.bl_idname == "ShaderNodeGroup" and group is not None and group not in seen:
+                seen.add(group)
+                look(group, f"{where}, group '{group.name}'", seen)
+
+    for mat in bpy.data.materials if materials is None else materials:
+        if mat is not None and mat.node_tree is not None:
+            look(mat.node_tree, f"material '{mat.name}'", set())
     return found
 
 

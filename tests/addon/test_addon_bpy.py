@@ -1037,7 +1037,9 @@ def test_a_builtin_node_from_a_patched_blender_is_named_and_a_batch_render_refus
     import importlib
     batch = importlib.import_module("neural_yarn.batch")
     bpy.ops.wm.open_mainfile(filepath=os.path.abspath(BUILTIN_BLEND))
-    assert addon.nodes.unrenderable_builtin_nodes() == ["material 'built-in yarn', node 'Neural Yarn BSDF'"]
+    assert addon.nodes.unrenderable_builtin_nodes() == [
+        "material 'built-in yarn', node 'Neural Yarn BSDF'",
+        "material 'grouped yarn', group 'yarn group', node 'Neural Yarn BSDF'"]
     out = tmp_path / "x.png"
     with pytest.raises(batch.BatchError, match="material 'built-in yarn'.*only a patched Blender has"):
         batch.run(["--blend", os.path.abspath(BUILTIN_BLEND), "--keep-materials", "--samples", "1", "--out", str(out)])
