@@ -13,37 +13,39 @@ import sys
 import bpy
 
 OUT = sys.argv[sys.argv.index("--") + 1]
+
+
+def plane_with_surface(material: str, make_node):
+    """A plane (one more along x) whose material's surface is the BSDF output of `make_node(tree)`."""
+    mat = bpy.data.materials.new(material)
+    mat.use_nodes = True
+    mat.node_tree.nodes.clear()
+    bsdf = make_node(mat.node_tree).outputs["BSDF"]
+    mat.node_tree.links.new(bsdf, mat.node_tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+    bpy.ops.mesh.primitive_plane_add(location=(3.0 * len(bpy.data.materials), 0.0, 0.0))
+    bpy.context.active_object.data.materials.append(mat)
+
+
+def builtin_node(tree):
+    node = tree.nodes.new("ShaderNodeBsdfNeuralYarn")
+    node.model = txt
+    return node
+
+
+def group_node(tree):
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    return node
+
+
 bpy.ops.wm.read_factory_settings(use_empty=True)
-mat = bpy.data.materials.new("built-in yarn")
-mat.use_nodes = True
-t = mat.node_tree
-for n in list(t.nodes):
-    t.nodes.remove(n)
-node = t.nodes.new("ShaderNodeBsdfNeuralYarn")
-out = t.nodes.new("ShaderNodeOutputMaterial")
-t.links.new(node.outputs["BSDF"], out.inputs["Surface"])
 txt = bpy.data.texts.new("NY model stand-in.json")
 txt.from_string("{}\n")
-node.model = txt
-bpy.ops.mesh.primitive_plane_add()
-bpy.context.active_object.data.materials.append(mat)
+plane_with_surface("built-in yarn", builtin_node)
 # The same node inside a node group, which a second material uses.
 group = bpy.data.node_groups.new("yarn group", "ShaderNodeTree")
 group.interface.new_socket("BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
-inner = group.nodes.new("ShaderNodeBsdfNeuralYarn")
-inner.model = txt
-g_out = group.nodes.new("NodeGroupOutput")
-group.links.new(inner.outputs["BSDF"], g_out.inputs["BSDF"])
-mat2 = bpy.data.materials.new("grouped yarn")
-mat2.use_nodes = True
-t2 = mat2.node_tree
-for n in list(t2.nodes):
-    t2.nodes.remove(n)
-g = t2.nodes.new("ShaderNodeGroup")
-g.node_tree = group
-out2 = t2.nodes.new("ShaderNodeOutputMaterial")
-t2.links.new(g.outputs["BSDF"], out2.inputs["Surface"])
-bpy.ops.mesh.primitive_plane_add(location=(3.0, 0.0, 0.0))
-bpy.context.active_object.data.materials.append(mat2)
+group.links.new(builtin_node(group).outputs["BSDF"], group.nodes.new("NodeGroupOutput").inputs["BSDF"])
+plane_with_surface("grouped yarn", group_node)
 bpy.ops.wm.save_as_mainfile(filepath=OUT, compress=True)
 os._exit(0)
