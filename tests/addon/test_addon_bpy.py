@@ -956,9 +956,13 @@ def needs_builtin(bpy, addon):
         pytest.skip(f"Blender {bpy.app.version_string} has no built-in Neural Yarn BSDF node (patched Blender only)")
 
 
-def test_builtin_node_conversion_is_refused_where_there_is_none(bpy, addon, empty):
+@pytest.fixture
+def without_builtin(addon):
     if addon.nodes.builtin_available():
         pytest.skip("this Blender has the built-in node")
+
+
+def test_builtin_node_conversion_is_refused_where_there_is_none(bpy, addon, empty, without_builtin):
     mat, node = addon.nodes.make_material("m", preset="silk")
     before = snapshot(bpy)
     with pytest.raises(ValueError, match="no built-in Neural Yarn BSDF node"):
@@ -1025,13 +1029,12 @@ def test_builtin_node_renders_as_the_addon_node_and_keeps_its_model_in_the_file(
 BUILTIN_BLEND = os.path.join(os.path.dirname(__file__), os.pardir, "data", "builtin_neural_yarn_node.blend")
 
 
-def test_a_builtin_node_from_a_patched_blender_is_named_and_a_batch_render_refused(bpy, addon, empty, tmp_path):
+def test_a_builtin_node_from_a_patched_blender_is_named_and_a_batch_render_refused(bpy, addon, empty, tmp_path,
+                                                                                   without_builtin):
     """A file saved in a patched Blender with its built-in node (tests/data/builtin_neural_yarn_node.blend, written
     by tests/addon/make_builtin_node_blend.py) opened in a Blender without it: the node is undefined there and
     its material would render black without a word from Blender. The add-on names it, and a batch render
     refuses instead of writing a wrong image."""
-    if addon.nodes.builtin_available():
-        pytest.skip("this Blender has the built-in node")
     if bpy.app.version < (4, 3, 0):
         pytest.skip(f"Blender {bpy.app.version_string} cannot read a file of Blender 4.3")
     import importlib
