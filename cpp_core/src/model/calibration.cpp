@@ -102,23 +102,22 @@ void yarn_eval_M_lanes(const ny::YarnBsdfParams &p, const ny::YarnLobes &l, int 
     std::fill_n(out, n, ny::make_rgb(0.0f)); /* yarn_eval_M's zero */
     return;
   }
-  /* The input (w_e, w_o) lane-minor; lanes past n repeat the last exit and are left out. */
+  /* The input (w_e, w_o): w_e shared by every lane, w_o lane-minor; lanes past n repeat the last exit and are
+   * left out. */
   constexpr int L = kMLanes;
-  float in[6 * L], o[6 * L];
+  const float we[3] = {l.we.x, l.we.y, l.we.z};
+  float in[3 * L], o[6 * L];
   for (int k = 0; k < L; k++) {
     const int e = std::min(k, n - 1);
-    in[0 * L + k] = l.we.x;
-    in[1 * L + k] = l.we.y;
-    in[2 * L + k] = l.we.z;
-    in[3 * L + k] = x[e];
-    in[4 * L + k] = y[e];
-    in[5 * L + k] = z[e];
+    in[0 * L + k] = x[e];
+    in[1 * L + k] = y[e];
+    in[2 * L + k] = z[e];
   }
   if (p.m_two_sided) {
-    mlp_forward_io_lanes<6, 6, L>(p.net_M, in, o);
+    mlp_forward_io_lanes<6, 6, L, 3>(p.net_M, we, in, o);
   }
   else {
-    mlp_forward_io_lanes<6, 3, L>(p.net_M, in, o);
+    mlp_forward_io_lanes<6, 3, L, 3>(p.net_M, we, in, o);
   }
   for (int k = 0; k < n; k++) {
     const int side = p.m_two_sided && !(z[k] >= 0.0f) ? 3 : 0; /* as yarn_eval_M: wo.z >= 0 the upper outputs */
