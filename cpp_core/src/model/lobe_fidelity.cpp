@@ -10,6 +10,7 @@
 #include <tbb/parallel_for.h>
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
+#include "neuralyarn/model/calibration.h" /* yarn_eval_M_lanes */
 #include "neuralyarn/presets.h" /* ParameterError */
 #include "neuralyarn/train/dataset.h"
 #include "neuralyarn/units.h"
@@ -257,6 +258,20 @@ LobeGrid model_lobe_grid(const YarnModel &model, const rdm::MapResolution &b, Lo
   const std::vector<int> per_group = group_sizes(g);
   rdm::RdmMaps geometry; /* only for its solid angles */
   geometry.bins = b;
+  /* The outgoing bins' centres, row-major, as direction() gives them. */
+  struct {
+    std::vector<float> x, y, z;
+  } exits;
+  if (lobe == Lobe::kM) {
+    for (int to = 0; to < b.theta_o; to++) {
+      for (int po = 0; po < b.phi_o; po++) {
+        const ny::Vec3 wo = direction(rdm::bin_center(to, 0.0, kPi, b.theta_o), rdm::bin_center(po, -kPi, kPi, b.phi_o));
+        exits.x.push_back(wo.x);
+        exits.y.push_back(wo.y);
+        exits.z.push_back(wo.z);
+      }
+    }
+  }
   tbb::parallel_for(0, b.theta_i, [&](int ti) {
     for (int pi = 0; pi < b.phi_i; pi++) {
       const double w_group = 1.0 / per_group[size_t(cell_of(pi, b.phi_i, g.phi_i_groups))];
@@ -267,16 +282,22 @@ LobeGrid model_lobe_grid(const YarnModel &model, const rdm::MapResolution &b, Lo
         });
         continue;
       }
-      /* M (tens of degrees wide): at every map bin centre, for 2 x 2 incident directions inside the bin. */
+      /* M (tens of degrees wide): at every map bin centre, for 2 x 2 incident directions inside the bin; the
+       * network on a row's exits kMLanes at a time (each lane bit for bit yarn_eval_M). */
       constexpr int n_sub = 2;
+      ny::Rgb v[kMLanes];
       for (int s = 0; s < n_sub * n_sub; s++) {
         const ny::YarnLobes l = ny::yarn_lobes(p, incident_sub_direction(b, ti, pi, s, n_sub));
         for (int to = 0; to < b.theta_o; to++) {
-          const double th = rdm::bin_center(to, 0.0, kPi, b.theta_o), dO = geometry.outgoing_solid_angle(to);
-          for (int po = 0; po < b.phi_o; po++) {
-            const ny::Rgb v = ny::yarn_eval_M(p, l, direction(th, rdm::bin_center(po, -kPi, kPi, b.phi_o)));
-            const double e[3] = {v.r * dO, v.g * dO, v.b * dO};
-            add_to_lobe_grid(&g, ti, pi, to, po, e, w_group / (n_sub * n_sub));
+          const double dO = geometry.outgoing_solid_angle(to);
+          for (int po0 = 0; po0 < b.phi_o; po0 += kMLanes) {
+            const int n = std::min(kMLanes, b.phi_o - po0);
+            const size_t q = size_t(to) * size_t(b.phi_o) + size_t(po0);
+            yarn_eval_M_lanes(p, l, n, &exits.x[q], &exits.y[q], &exits.z[q], v);
+            for (int k = 0; k < n; k++) {
+              const double e[3] = {v[k].r * dO, v[k].g * dO, v[k].b * dO};
+              add_to_lobe_grid(&g, ti, pi, to, po0 + k, e, w_group / (n_sub * n_sub));
+            }
           }
         }
       }
