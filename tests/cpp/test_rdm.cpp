@@ -1085,5 +1085,12 @@ TEST(OutgoingBinner, PutsEveryDirectionWhereOutgoingBinDoes)
     }
     check(-1.0, 0.0, 0.0);
     check(-1.0, -0.0, 0.0);
+    /* Next to the -x half-line, where the azimuth's guess must stay on y's side of pi / -pi: y far below what
+     * the pseudo-angle resolves (it rounds to exactly -x there), and subnormal. */
+    for (double y : {1e-17, -1e-17, 1e-300, -1e-300, 4.9e-324, -4.9e-324}) {
+      for (double z : {0.0, 0.6, -0.6}) {
+        check(-std::sqrt(1.0 - z * z), y, z);
+      }
+    }
   }
 }

@@ -446,6 +446,28 @@ void outgoing_bin(const MapResolution &b, double x, double y, double z, int *to,
   *po = bin_of(std::atan2(y, x), -kPi, kPi, b.phi_o);
 }
 
+namespace {
+
+/* A pseudo-angle of (x, y) in [0, 4), increasing with atan2(y, x) taken in [0, 2 pi): 1 at +y, 2 at -x, 3 at -y
+ * (the "diamond angle", one division instead of an arc tangent). */
+double diamond_angle(double x, double y)
+{
+  if (y >= 0.0) {
+    return x >= 0.0 ? y / (x + y) : 1.0 - x / (y - x);
+  }
+  return x < 0.0 ? 2.0 - y / (-x - y) : 3.0 + x / (x - y);
+}
+
+/* Its inverse on the unit circle (for the table's cell centres only). */
+double angle_of_diamond(double d)
+{
+  const int q = std::clamp(int(d), 0, 3);
+  const double f = d - q; /* within the quadrant: y / (x + y) for x, y >= 0 */
+  return 0.5 * kPi * q + std::atan2(f, 1.0 - f);
+}
+
+}  // namespace
+
 OutgoingBinner::OutgoingBinner(const MapResolution &b) : n_theta_(b.theta_o), n_phi_(b.phi_o)
 {
   for (int t = 0; t <= n_theta_; t++) {
@@ -455,15 +477,21 @@ OutgoingBinner::OutgoingBinner(const MapResolution &b) : n_theta_(b.theta_o), n_
     phi_edge_c_.push_back(std::cos(-kPi + 2.0 * kPi * k / n_phi_));
     phi_edge_s_.push_back(std::sin(-kPi + 2.0 * kPi * k / n_phi_));
   }
+  for (int c = 0; c < kGuessCells; c++) {
+    const double z = -1.0 + 2.0 * (c + 0.5) / kGuessCells;
+    theta_guess_.push_back(bin_of(std::acos(z), 0.0, kPi, n_theta_));
+    /* The cell's centre as an angle in [0, 2 pi), then as atan2's in [-pi, pi). */
+    double a = angle_of_diamond(4.0 * (c + 0.5) / kGuessCells);
+    a = a >= kPi ? a - 2.0 * kPi : a;
+    phi_guess_.push_back(bin_of(a, -kPi, kPi, n_phi_));
+  }
 }
 
 void OutgoingBinner::operator()(double x, double y, double z, int *to, int *po) const
 {
   /* theta_o is in bin t when cos(pi (t + 1) / n) < z <= cos(pi t / n). */
   const double zc = std::clamp(z, -1.0, 1.0);
-  /* The guesses by the kernel's fast_atan2 (a few float ulps, far below a bin), not libm's acos and atan2. */
-  const float zf = float(zc), sf = std::sqrt(std::max(0.0f, 1.0f - zf * zf));
-  int t = std::clamp(int(ny::fast_atan2(sf, zf) * float(n_theta_ / kPi)), 0, n_theta_ - 1);
+  int t = theta_guess_[size_t(std::clamp(int((zc + 1.0) * (0.5 * kGuessCells)), 0, kGuessCells - 1))];
   while (t + 1 < n_theta_ && zc <= cos_theta_edge_[size_t(t + 1)]) {
     t++;
   }
@@ -479,7 +507,11 @@ void OutgoingBinner::operator()(double x, double y, double z, int *to, int *po) 
   }
   /* phi_o >= edge k (within pi of it, as the guess is) when the edge's direction turns left onto (x, y). */
   auto at_or_past = [&](int k) { return phi_edge_c_[size_t(k)] * y - phi_edge_s_[size_t(k)] * x >= 0.0; };
-  int k = std::clamp(int((ny::fast_atan2(float(y), float(x)) + float(kPi)) * float(n_phi_ / (2.0 * kPi))), 0, n_phi_ - 1);
+  /* The guess's cell on the side of the -x half-line that y's sign says (the pseudo-angle may round onto it):
+   * settling moves at most one bin and cannot cross from pi to -pi. */
+  constexpr int half = kGuessCells / 2;
+  const int cell = int(diamond_angle(x, y) * (0.25 * kGuessCells));
+  int k = phi_guess_[size_t(y > 0.0 ? std::clamp(cell, 0, half - 1) : std::clamp(cell, half, kGuessCells - 1))];
   while (k + 1 < n_phi_ && at_or_past(k + 1)) {
     k++;
   }

@@ -153,18 +153,24 @@ double bin_center(int index, double lo, double hi, int n);
 void incident_bin(const MapResolution &b, double x, double y, double z, int *ti, int *pi);
 void outgoing_bin(const MapResolution &b, double x, double y, double z, int *to, int *po);
 
-/* outgoing_bin for many directions: a first guess in float (ny::fast_atan2), settled against the bins' edges
- * (precomputed) so that the bin is the one of the exact angle, as outgoing_bin's, at a fraction of its double
- * acos and atan2 (the R lobe's quadrature bins ~10^8 samples per bake). */
+/* outgoing_bin for many directions: a first guess from a table (over cos theta_o, and over a pseudo-angle of the
+ * azimuth that needs one division), settled against the bins' edges (precomputed) so that the bin is the one of
+ * the exact angle, as outgoing_bin's, at a fraction of its double acos and atan2 (the R lobe's quadrature bins
+ * ~10^8 samples per bake). */
 class OutgoingBinner {
  public:
   explicit OutgoingBinner(const MapResolution &b);
   void operator()(double x, double y, double z, int *to, int *po) const;
 
  private:
+  /* Table cells: fine enough that no cell holds more than one bin edge at the paper's resolution (a theta_o bin
+   * is 0.0024 wide in cos theta_o at the poles, an azimuth bin 0.087 in the pseudo-angle), so a guess is at
+   * most one bin off; any guess settles to the same bin. */
+  static constexpr int kGuessCells = 4096;
   int n_theta_, n_phi_;
   std::vector<double> cos_theta_edge_;       /* cos(pi t / n), t = 0..n            */
   std::vector<double> phi_edge_c_, phi_edge_s_; /* cos and sin of -pi + 2 pi k / n, k = 0..n */
+  std::vector<int> theta_guess_, phi_guess_; /* the bin at each cell's centre */
 };
 
 }  // namespace neuralyarn::rdm
