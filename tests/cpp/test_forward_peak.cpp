@@ -157,7 +157,6 @@ rdm::RdmMaps synthetic_arc(double beta, double gamma, double w, int first_peak, 
   for (int ti = 0; ti < kArcBins.theta_i; ti++) {
     for (int pi = 0; pi < kArcBins.phi_i; pi++) {
       for (int to = 0; to < kArcBins.theta_o; to++) {
-        const double dO = m.outgoing_solid_angle(to);
         const double c0 = std::cos(kPi * to / kArcBins.theta_o), c1 = std::cos(kPi * (to + 1) / kArcBins.theta_o);
         for (int po = 0; po < kArcBins.phi_o; po++) {
           double lobe = 0.0;
