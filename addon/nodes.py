@@ -353,6 +353,7 @@ def convert_node(node, to: str):
     state = (node.name, node.label, node.location.copy(), node.width, node.parent, tuple(tint.default_value))
     if to == "BUILTIN":
         _eevee_output(node, False)  # the OSL-era EEVEE output goes with the node that made it
+    texts_before = set(bpy.data.texts)
     new = tree.nodes.new(BUILTIN_IDNAME if to == "BUILTIN" else NODE_IDNAME)
     if to == "BUILTIN":
         new.model = text
@@ -363,7 +364,9 @@ def convert_node(node, to: str):
             new["preset"] = [i[0] for i in PRESET_ITEMS].index(shipped[0])
         else:
             new["preset"] = len(resources.PRESETS)  # CUSTOM
+        packed = new.model  # the default preset the node's init packed
         new.model = text  # the update builds the fallback for it
+        _drop_unused_text(packed, texts_before)
     tree.nodes.remove(node)
     name, new.label, new.location, new.width, parent, default = state
     new.name, new.parent = name, parent
@@ -467,6 +470,14 @@ def _save_pre(*_args):
     purge_unused()
 
 
+def _drop_unused_text(text, texts_before) -> None:
+    """Removes `text` when a new node packed it (it is not among `texts_before`) and it has ended up unused: the
+    default preset a node's init packs before it is given its model, which would otherwise sit among the file's
+    Texts until a save purges it."""
+    if text is not None and text not in texts_before and text.users == 0:
+        bpy.data.texts.remove(text)
+
+
 def make_material(name: str, *, preset: str | None = None, model_text=None, level: str = "plies"):
     """A material whose surface is one Neural Yarn BSDF node (a preset's model at `level`, plies or yarns)."""
     mat = bpy.data.materials.new(name)
@@ -474,7 +485,9 @@ def make_material(name: str, *, preset: str | None = None, model_text=None, leve
     tree = mat.node_tree
     for n in list(tree.nodes):
         tree.nodes.remove(n)
+    texts_before = set(bpy.data.texts)
     node = tree.nodes.new(NODE_IDNAME)
+    packed = node.model  # the default preset, packed by the node's init
     if model_text is not None:
         node.preset = "CUSTOM"
         node.model = model_text
@@ -484,6 +497,7 @@ def make_material(name: str, *, preset: str | None = None, model_text=None, leve
             node.preset = preset
         elif level == "yarns":
             _apply_preset(node, bpy.context)
+    _drop_unused_text(packed, texts_before)
     out = tree.nodes.new("ShaderNodeOutputMaterial")
     out.location = (300.0, 0.0)
     tree.links.new(node.outputs[fallback_nodes.GROUP_OUTPUT], out.inputs["Surface"])

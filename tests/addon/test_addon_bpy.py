@@ -972,6 +972,18 @@ def test_builtin_node_conversion_is_refused_where_there_is_none(bpy, addon, empt
     assert not bpy.ops.neural_yarn.convert_node.poll()
 
 
+def test_material_of_a_preset_packs_that_preset_only(bpy, addon, empty):
+    """A new node packs the default preset in its init; a material made for another preset (or a custom model)
+    does not leave that Text behind among the file's Texts."""
+    addon.nodes.make_material("a", preset="silk")
+    assert {t.name for t in bpy.data.texts} == {"NY model silk.json"}
+    addon.nodes.make_material("b", preset="cotton", level="yarns")
+    assert {t.name for t in bpy.data.texts} == {"NY model silk.json", "NY model cotton_yarn.json"}
+    fleece = addon.nodes.pack_preset("fleece")  # packed before, unused: not the node's to remove
+    addon.nodes.make_material("c", preset="gabardine")
+    assert fleece.name in bpy.data.texts and fleece.users == 0
+
+
 def test_builtin_node_preset_is_recognised_by_content_not_name(bpy, addon, empty):
     """Converting back to the add-on's node restores the preset menu only for a Text that holds the
     shipped model exactly; an edited one stays a custom model."""
@@ -991,6 +1003,8 @@ def test_builtin_node_round_trip_keeps_model_tint_links_and_name(bpy, addon, emp
     rgb = tree.nodes.new("ShaderNodeRGB")
     tree.links.new(rgb.outputs[0], node.inputs["Tint"])
     node.name, text = "Yarn", node.model
+    texts = {t.name for t in bpy.data.texts}
+    assert texts == {"NY model silk.json"}  # not the default preset the node packed before it took silk
     built, warnings = addon.nodes.convert_node(node, "BUILTIN")
     assert built.bl_idname == addon.nodes.BUILTIN_IDNAME and built.name == "Yarn" and not warnings
     assert built.model == text
@@ -1002,6 +1016,7 @@ def test_builtin_node_round_trip_keeps_model_tint_links_and_name(bpy, addon, emp
     assert (back.preset, back.level, back.model) == ("silk", "PLIES", text) and back.built == "NODES"
     assert back.inputs["Tint"].links[0].from_node == rgb
     assert out.inputs["Surface"].links[0].from_node == back
+    assert {t.name for t in bpy.data.texts} == texts  # no default preset packed on the way
 
 
 def test_builtin_node_renders_as_the_addon_node_and_keeps_its_model_in_the_file(bpy, addon, empty, tmp_path,
