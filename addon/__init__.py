@@ -23,8 +23,8 @@ if "bpy" in locals():  # script reload (F8 / Reload Scripts)
     import importlib
 
     for _m in (fallback.lobes, fallback.schema, fallback.osl, model_io, resources, viewport_display,  # noqa: F821
-               curves_bpy, fallback_nodes, nodes, scene_setup, scene_description, scene_bpy, operators,  # noqa: F821
-               ui):  # noqa: F821
+               curves_bpy, fallback_nodes, nodes, level_of_detail, scene_setup, scene_description, scene_bpy,  # noqa: F821
+               operators, ui):  # noqa: F821
         importlib.reload(_m)
 
 import bpy  # noqa: E402
@@ -32,7 +32,7 @@ import bpy  # noqa: E402
 from . import (curves_bpy, fallback_nodes, level_of_detail, model_io, nodes, operators, resources,  # noqa: E402,F401
                scene_bpy, scene_description, scene_setup, ui, viewport_display)
 
-_MODULES = (viewport_display, nodes, operators, ui)
+_MODULES = (viewport_display, nodes, level_of_detail, operators, ui)
 
 
 def register():

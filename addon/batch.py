@@ -63,8 +63,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
                    help="auto (the file's Curves objects, else a knit), knit, weave, bcc:FILE, leaf:FILE")
     p.add_argument("--plies", type=int, default=1,
                    help="demo scenes: twist each yarn into this many plies (Twist Plies), 1: one curve per yarn")
-    p.add_argument("--lod", default="auto", choices=("auto", "fibers", "plies", "yarns", "surface"),
-                   help="demo scenes with --plies: the level of detail (auto: from the camera, docs/decisions.md D27); "
+    p.add_argument("--lod", default=None, choices=("auto", "fibers", "plies", "yarns", "surface"),
+                   help="the level of detail (auto: from the camera, docs/decisions.md D27) of demo scenes with --plies "
+                        "(default auto) and of the file's yarn objects that had a level applied (default: their own); "
                         "one line 'level of detail: <object>: <level>' per object")
     p.add_argument("--keep-materials", action="store_true",
                    help="only give the material to Curves objects without a Neural Yarn material")
@@ -231,6 +232,17 @@ def _check_preset(args, ny) -> None:
         raise BatchError(f"unknown preset '{args.preset}' ({', '.join(ny.resources.PRESETS)})")
 
 
+def _apply_level(ny, obj, requested) -> tuple:
+    """Applies a yarn object's level of detail (addon/level_of_detail.py), prints the batch log's line for it and
+    returns (the object that renders it: its plies or itself, the level)."""
+    try:
+        level = ny.level_of_detail.apply_level(bpy.context, obj, requested).level
+    except ny.geometry.GeometryError as e:
+        raise BatchError(f"{obj.name}: the level of detail could not be built: {e}") from None
+    print(f"level of detail: {obj.name}: {obj.neural_yarn.chosen}")
+    return ny.level_of_detail.rendered_object(obj), level
+
+
 def run(argv: list[str]) -> str:
     args = parse_args(argv)
     _check(args)
@@ -255,53 +267,53 @@ def run(argv: list[str]) -> str:
         scene.render.resolution_x = args.resolution[0]
         scene.render.resolution_y = args.resolution[-1]
         scene.render.resolution_percentage = 100
-    level, framed = "plies", False
+    levels, framed = {}, False  # each rendered yarn object's level: its material's level follows it
     if demo:
         yarns = _demo_geometry("knit" if args.scene == "auto" else args.scene)
         if args.plies > 1:
             ny.scene_setup.frame(scene, yarns)  # the camera the level is chosen for
             framed = True
             bpy.context.view_layer.update()  # its matrix_world
-            made = []
-            for obj in yarns:
-                choice = ny.level_of_detail.choose_for_yarns(obj, scene, args.plies, args.lod)
-                px = f" (ply {choice.ply_pixels:.3g} px wide)" if choice.ply_pixels is not None else ""
-                print(f"level of detail: {obj.name}: {choice.level}{px}"
-                      + (f"; warning: {choice.warning}" if choice.warning else ""))
-                level = choice.level
-                if level == "yarns":  # geometry only at the level used: no ply curves
-                    made.append(obj)
-                    continue
-                bpy.context.view_layer.objects.active = obj
-                r = bpy.ops.neural_yarn.make_plies(plies=args.plies, preset="KEEP")
-                if "FINISHED" not in r:
-                    raise BatchError("--plies: the plies could not be made (see the error above)")
-                made.append(bpy.context.active_object)
-            yarns = made
+            for obj in yarns:  # geometry only at the level used: no ply curves for yarns
+                obj.neural_yarn.plies = args.plies
+                shown, level = _apply_level(ny, obj, args.lod or "auto")
+                levels[shown] = level
+            yarns = list(levels)
         else:
             print(f"level of detail: {', '.join(o.name for o in yarns)}: plies (--plies 1: the curves are plies)")
+    else:
+        # The yarn objects an artist applied a level of detail to, again for this render's camera and size (--lod,
+        # when given, over their own settings); what they hide is not rendered.
+        for obj in [o for o in yarns if o.neural_yarn.chosen]:
+            shown, level = _apply_level(ny, obj, args.lod)
+            levels[shown] = level
+        yarns = [o for o in yarns if not o.hide_render]
+    levels = {obj: levels.get(obj, "plies") for obj in yarns}
     if args.model:
         try:
             text = ny.nodes.pack_model_file(args.model)
         except ny.model_io.ModelFileError as e:
             raise BatchError(str(e)) from None
         model_level = ny.nodes.parse_text(text).level
-        if model_level != level:
-            raise BatchError(f"--model {args.model} is a {model_level}-level model; the level of detail is {level}")
-        mat, node = ny.nodes.make_material("Neural Yarn " + os.path.basename(args.model), model_text=text)
+        other = sorted({lv for lv in levels.values() if lv != model_level})
+        if other:
+            raise BatchError(f"--model {args.model} is a {model_level}-level model; the level of detail is "
+                             f"{' and '.join(other)}")
+        mats = {model_level: ny.nodes.make_material("Neural Yarn " + os.path.basename(args.model), model_text=text)[0]}
     else:
-        mat = ny.operators.preset_material(args.preset, level)
+        mats = {lv: ny.operators.preset_material(args.preset, lv) for lv in sorted(set(levels.values()) or {"plies"})}
+    for mat in mats.values():
         node = next(n for n in mat.node_tree.nodes if n.bl_idname == ny.nodes.NODE_IDNAME)
-    node.fallback = args.fallback.upper()
-    if node.error:
-        raise BatchError(node.error)
+        node.fallback = args.fallback.upper()
+        if node.error:
+            raise BatchError(node.error)
     for obj in yarns:
         has = obj.active_material is not None and obj.active_material.node_tree is not None and any(
             n.bl_idname == ny.nodes.NODE_IDNAME for n in obj.active_material.node_tree.nodes)
         if args.keep_materials and has:
             continue
         obj.data.materials.clear()
-        obj.data.materials.append(mat)
+        obj.data.materials.append(mats[levels[obj]])
     used = {slot.material for obj in scene.objects for slot in obj.material_slots}
     found = ny.nodes.unrenderable_builtin_nodes(used)
     if found:
@@ -325,8 +337,8 @@ def run(argv: list[str]) -> str:
     bpy.ops.render.render(write_still=True)
     if not os.path.isfile(out):
         raise BatchError(f"the render did not write '{out}'")
-    print(f"neural_yarn batch: wrote {out} ({len(yarns)} yarn object(s), material '{mat.name}', "
-          f"fallback {node.built})")
+    print(f"neural_yarn batch: wrote {out} ({len(yarns)} yarn object(s), material "
+          + ", ".join(f"'{m.name}'" for m in mats.values()) + f", fallback {node.built})")
     return out
 
 

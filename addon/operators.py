@@ -8,7 +8,7 @@ from __future__ import annotations
 import bpy
 from bpy_extras.io_utils import ImportHelper
 
-from . import curves_bpy, geometry, model_io, nodes, resources, scene_setup
+from . import curves_bpy, geometry, level_of_detail, model_io, nodes, resources, scene_setup
 
 PRESET_OR_NONE = [("NONE", "None", "Do not assign a material")] + [
     (p, p.title(), f"Assign the '{p}' neural yarn material") for p in resources.PRESETS]
@@ -264,23 +264,68 @@ class NEURALYARN_OT_make_plies(bpy.types.Operator):
     def execute(self, context):
         src = context.active_object
         try:
-            yarns = curves_bpy.read_curves_object(src)
-            plies = []
-            with _Progress(context, len(yarns)) as progress:
-                for k, yarn in enumerate(yarns):
-                    plies += geometry.twist_plies(yarn, self.plies, alpha_yarn=self.ply_twist,
-                                                  samples_per_turn=self.samples_per_turn)
-                    progress.update(k + 1)
-            obj = curves_bpy.create_curves_object(context, f"{src.name} plies", plies,
-                                                  material=src.active_material if self.preset == "KEEP" else None)
+            obj = make_plies_object(context, src, self.plies, self.ply_twist, self.samples_per_turn,
+                                    src.active_material if self.preset == "KEEP" else None)
             if self.preset != "KEEP":
                 _give_preset_material(obj, self.preset)
         except (geometry.GeometryError, model_io.ModelFileError, OSError, ValueError, MemoryError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
+        src.neural_yarn.plies_object, src.neural_yarn.plies = obj, self.plies
         src.hide_set(True)
         src.hide_render = True
-        self.report({"INFO"}, f"{obj.name}: {len(plies)} plies from {len(yarns)} yarns")
+        self.report({"INFO"}, f"{obj.name}: {len(obj.data.curves)} plies from {len(src.data.curves)} yarns")
+        return {"FINISHED"}
+
+
+def make_plies_object(context, src, plies: int, ply_twist: float, samples_per_turn: int, material):
+    """A new Curves object "<src> plies": each yarn of `src` replaced by `plies` plies S-twisted around it, with
+    `material` (or none); `src` itself is left as it is. Raises GeometryError (nothing is created)."""
+    yarns = curves_bpy.read_curves_object(src)
+    out = []
+    with _Progress(context, len(yarns)) as progress:
+        for k, yarn in enumerate(yarns):
+            out += geometry.twist_plies(yarn, plies, alpha_yarn=ply_twist, samples_per_turn=samples_per_turn)
+            progress.update(k + 1)
+    return curves_bpy.create_curves_object(context, f"{src.name} plies", out, material=material)
+
+
+class NEURALYARN_OT_apply_lod(bpy.types.Operator):
+    """Build each selected yarn object at its level of detail from the scene camera: ply curves where a ply is
+    wide on screen, the yarns themselves with the yarn-level model where it is not (geometry only at the level
+    used)"""
+
+    bl_idname = "neural_yarn.apply_lod"
+    bl_label = "Apply Level of Detail"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        if any(o.type == "CURVES" for o in context.selected_objects):
+            return True
+        if hasattr(cls, "poll_message_set"):
+            cls.poll_message_set("Select the yarn Curves objects (the yarns, or their plies)")
+        return False
+
+    def execute(self, context):
+        # A selected plies object stands for its yarns; each yarn object once.
+        targets = list(dict.fromkeys(level_of_detail.yarn_object_of(o, context.scene)
+                                     for o in context.selected_objects if o.type == "CURVES"))
+        lines, failed = [], []
+        for obj in targets:
+            try:  # each object whole or not at all: apply_level changes nothing before its plies exist
+                choice = level_of_detail.apply_level(context, obj)
+            except (geometry.GeometryError, model_io.ModelFileError, OSError, ValueError, MemoryError) as e:
+                failed.append(f"{obj.name}: {e}")
+                continue
+            lines.append(f"{obj.name}: {obj.neural_yarn.chosen}")
+            if choice.warning:
+                self.report({"WARNING"}, f"{obj.name}: {choice.warning}")
+        if failed:
+            self.report({"ERROR"}, "level of detail not applied to " + "; ".join(failed))
+        if not lines:
+            return {"CANCELLED"}
+        self.report({"INFO"}, "level of detail: " + "; ".join(lines))
         return {"FINISHED"}
 
 
@@ -417,6 +462,7 @@ CLASSES = (
     NEURALYARN_OT_add_knit,
     NEURALYARN_OT_add_weave,
     NEURALYARN_OT_make_plies,
+    NEURALYARN_OT_apply_lod,
     NEURALYARN_OT_assign_preset,
     NEURALYARN_OT_load_model,
     NEURALYARN_OT_frame_render,

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import nodes
+from . import level_of_detail, nodes
 
 
 class VIEW3D_PT_neural_yarn(bpy.types.Panel):
@@ -27,6 +27,7 @@ class VIEW3D_PT_neural_yarn(bpy.types.Panel):
         col.label(text="Plies and Material")
         col.operator("neural_yarn.make_plies", icon="MOD_SCREW")
         col.operator_menu_enum("neural_yarn.assign_preset", "preset", icon="MATERIAL")
+        self.draw_level_of_detail(context, layout)
         col = layout.column(align=True)
         col.label(text="Render")
         col.operator("neural_yarn.frame_render", icon="CAMERA_DATA")
@@ -56,6 +57,23 @@ class VIEW3D_PT_neural_yarn(bpy.types.Panel):
         scene = context.scene
         if scene.render.engine == "CYCLES" and bpy.app.build_options.cycles_osl and not scene.cycles.shading_system:
             layout.label(text="Tip: Open Shading Language (CPU) gives the OSL fallback", icon="INFO")
+
+
+    @staticmethod
+    def draw_level_of_detail(context, layout):
+        col = layout.column(align=True)
+        col.label(text="Level of Detail")
+        col.prop(context.scene, "neural_yarn_lod", text="Scene")
+        obj = context.active_object
+        if obj is not None and obj.type == "CURVES":
+            obj = level_of_detail.yarn_object_of(obj, context.scene)  # plies are set through their yarns
+            row = col.row(align=True)
+            row.active = context.scene.neural_yarn_lod == "OBJECT"
+            row.prop(obj.neural_yarn, "level", text=obj.name)
+            col.prop(obj.neural_yarn, "plies")
+            if obj.neural_yarn.chosen:
+                col.label(text=f"Applied: {obj.neural_yarn.chosen}", icon="INFO")
+        col.operator("neural_yarn.apply_lod", icon="MOD_DECIM")
 
 
 def register():

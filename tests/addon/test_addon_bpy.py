@@ -295,6 +295,129 @@ def test_operators_register_as_undo_steps(bpy, addon, empty):
 
 
 # ---------------------------------------------------------------------------------------------------------
+# level of detail (addon/level_of_detail.py)
+
+
+def _knit_seen_from(bpy, addon, distance_factor: float):
+    """A 2 x 2 knit with the fleece material, framed by the add-on's camera and then moved `distance_factor`
+    times as far along its view; returns the knit."""
+    bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="fleece")
+    knit = bpy.context.active_object
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 320, 240, 100
+    addon.scene_setup.frame(scene, [knit])
+    cam, centre = scene.camera, sum((knit.matrix_world @ type(scene.camera.location)(c) for c in knit.bound_box),
+                                    type(scene.camera.location)()) / 8
+    cam.location = centre + (cam.location - centre) * distance_factor
+    bpy.context.view_layer.update()
+    return knit
+
+
+def _apply_lod(bpy, obj):
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    obj.hide_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.neural_yarn.apply_lod() == {"FINISHED"}
+
+
+def test_level_of_detail_builds_the_level_the_camera_needs(bpy, addon, empty):
+    """Near: ply curves with the preset's ply material, the yarns hidden; far: the yarns themselves with the
+    yarn-level material, the plies hidden (kept, not rebuilt when the camera comes back)."""
+    knit = _knit_seen_from(bpy, addon, 1.0)
+    _apply_lod(bpy, knit)
+    plies = knit.neural_yarn.plies_object
+    assert knit.neural_yarn.chosen.startswith("plies (ply ") and plies is not None
+    assert len(plies.data.curves) == 3 * len(knit.data.curves)
+    assert plies.active_material.name == "Neural Yarn fleece" and not plies.hide_render and knit.hide_render
+    bpy.context.scene.camera.location *= 60.0  # the knit a few pixels wide
+    bpy.context.view_layer.update()
+    _apply_lod(bpy, plies)  # the plies stand for their yarns
+    assert knit.neural_yarn.chosen.startswith("yarns (ply ")
+    assert knit.active_material.name == "Neural Yarn fleece yarn" and not knit.hide_render and plies.hide_render
+    node = next(n for n in knit.active_material.node_tree.nodes if n.bl_idname == addon.nodes.NODE_IDNAME)
+    assert (node.preset, node.level, node.error) == ("fleece", "YARNS", "")
+    bpy.context.scene.camera.location /= 60.0
+    bpy.context.view_layer.update()
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.plies_object == plies and not plies.hide_render and knit.hide_render
+    assert sum(o.name.startswith(knit.name + " plies") for o in bpy.data.objects) == 1
+
+
+class _Recorder:
+    """A UILayout stand-in that records what is drawn: (kind, data, name or text)."""
+
+    def __init__(self):
+        self.drawn, self.active = [], True
+
+    def column(self, **kw):
+        return self
+
+    row = column
+
+    def prop(self, data, name, **kw):
+        self.drawn.append(("prop", data, name))
+
+    def label(self, text="", **kw):
+        self.drawn.append(("label", None, text))
+
+    def operator(self, idname, **kw):
+        self.drawn.append(("operator", None, idname))
+
+
+def test_level_of_detail_panel_shows_the_yarns_settings_for_their_plies(bpy, addon, empty):
+    knit = _knit_seen_from(bpy, addon, 1.0)
+    _apply_lod(bpy, knit)
+    bpy.context.view_layer.objects.active = knit.neural_yarn.plies_object
+    layout = _Recorder()
+    addon.ui.VIEW3D_PT_neural_yarn.draw_level_of_detail(bpy.context, layout)
+    props = [(d, n) for kind, d, n in layout.drawn if kind == "prop"]
+    assert (bpy.context.scene, "neural_yarn_lod") in props
+    assert (knit.neural_yarn, "level") in props and (knit.neural_yarn, "plies") in props
+    assert ("label", None, f"Applied: {knit.neural_yarn.chosen}") in layout.drawn
+    assert ("operator", None, "neural_yarn.apply_lod") in layout.drawn
+
+
+def test_level_of_detail_builds_no_plies_for_a_far_knit(bpy, addon, empty):
+    knit = _knit_seen_from(bpy, addon, 60.0)
+    before = len(bpy.data.objects)
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.chosen.startswith("yarns") and knit.neural_yarn.plies_object is None
+    assert len(bpy.data.objects) == before
+
+
+def test_level_of_detail_scene_override_and_fixed_levels(bpy, addon, empty):
+    knit = _knit_seen_from(bpy, addon, 1.0)
+    scene = bpy.context.scene
+    scene.neural_yarn_lod = "YARNS"  # over the object's Auto, near as it is
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.chosen == "yarns" and knit.neural_yarn.plies_object is None
+    scene.neural_yarn_lod = "OBJECT"
+    knit.neural_yarn.level = "SURFACE"  # not built by the add-on: yarns, and it says so
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.chosen.startswith("yarns;") and "surface" in knit.neural_yarn.chosen
+    knit.neural_yarn.level, knit.neural_yarn.plies = "PLIES", 1  # the curves are plies themselves
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.chosen == "plies" and knit.neural_yarn.plies_object is None
+    assert knit.active_material.name == "Neural Yarn fleece" and not knit.hide_render
+
+
+def test_level_of_detail_keeps_an_edited_material_at_the_ply_level(bpy, addon, empty):
+    """A material with an artist's edit (here its tint) has no yarn-level twin the add-on could swap in without
+    losing the edit: the object stays at the ply level, says why, and its material is untouched."""
+    knit = _knit_seen_from(bpy, addon, 60.0)
+    mat = knit.active_material
+    node = next(n for n in mat.node_tree.nodes if n.bl_idname == addon.nodes.NODE_IDNAME)
+    node.inputs["Tint"].default_value = (0.5, 0.8, 1.0, 1.0)
+    _apply_lod(bpy, knit)
+    chosen = knit.neural_yarn.chosen
+    assert chosen.startswith("plies") and "not a plain preset material" in chosen
+    assert knit.active_material == mat and knit.neural_yarn.plies_object.active_material == mat
+    assert tuple(node.inputs["Tint"].default_value) == pytest.approx((0.5, 0.8, 1.0, 1.0))
+
+
+# ---------------------------------------------------------------------------------------------------------
 # materials
 
 
@@ -807,6 +930,31 @@ def test_batch_plies_twists_the_demo_yarns(bpy, addon, empty, tmp_path):
     plied = bpy.context.active_object
     assert len(plied.data.curves) == 3 * single
     assert plied.active_material is not None and plied.active_material.name.startswith("Neural Yarn fleece")
+
+
+def test_batch_applies_a_files_level_of_detail_for_its_own_camera(bpy, addon, empty, tmp_path, capsys):
+    """A file whose knit had its level applied (plies, near) is rendered far away by batch: the level is applied
+    again for the render's camera and size (yarns, the yarn-level material of --preset), the plies hidden; with
+    --lod plies the file's Auto is overridden."""
+    import importlib
+    batch = importlib.import_module("neural_yarn.batch")
+    knit = _knit_seen_from(bpy, addon, 1.0)
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.chosen.startswith("plies")
+    bpy.context.scene.camera.location *= 60.0
+    path = str(tmp_path / "knit.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    out = str(tmp_path / "far.png")
+    common = ["--blend", path, "--out", out, "--resolution", "32", "--samples", "1", "--preset", "silk"]
+    batch.run(common)
+    assert "level of detail: knit: yarns (ply " in capsys.readouterr().out
+    knit = bpy.data.objects["knit"]
+    assert knit.active_material.name == "Neural Yarn silk yarn" and not knit.hide_render
+    assert knit.neural_yarn.plies_object.hide_render
+    batch.run(common + ["--lod", "plies"])
+    assert "level of detail: knit: plies\n" in capsys.readouterr().out
+    knit = bpy.data.objects["knit"]
+    assert knit.hide_render and knit.neural_yarn.plies_object.active_material.name == "Neural Yarn silk"
 
 
 # ---------------------------------------------------------------------------------------------------------
