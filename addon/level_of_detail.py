@@ -76,6 +76,7 @@ class NeuralYarnObjectSettings(bpy.types.PropertyGroup):
                                  description="Plies per yarn at the ply level (1: the curves are plies already)")
     plies_object: bpy.props.PointerProperty(name="Plies Object", type=bpy.types.Object,
                                             description="The ply curves built from this object's yarns")
+    applied: bpy.props.StringProperty(name="Applied", description="The level last applied (plies or yarns)")
     chosen: bpy.props.StringProperty(name="Chosen", description="The level last applied, and why")
 
 
@@ -126,26 +127,34 @@ def _set_material(obj, mat) -> None:
         obj.data.materials.append(mat)
 
 
+def decide_level(obj, scene, requested: str | None = None) -> lod.LevelChoice:
+    """The level apply_level would build for a yarn object now (`requested`, else the scene's override or the
+    object's own), with its notes; changes nothing."""
+    choice = choose_for_yarns(obj, scene, obj.neural_yarn.plies, requested or requested_level(obj, scene))
+    notes = [choice.warning] if choice.warning else []
+    level, mat = choice.level, obj.active_material
+    ours = mat is not None and mat.node_tree is not None and any(
+        n.bl_idname == nodes.NODE_IDNAME for n in mat.node_tree.nodes)
+    if level == "yarns" and ours and _plain_preset(mat) is None:
+        notes.append(f"material '{mat.name}' is not a plain preset material, whose yarn-level model the add-on "
+                     "knows: drawing plies")
+        level = "plies"
+    return lod.LevelChoice(level, choice.ply_pixels, "; ".join(notes) or None)
+
+
 def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
-    """Chooses the level of a yarn object (`requested`, else the scene's override or the object's own) and builds
-    it: at the ply level the object's plies object (made once, with the preset's ply material; the yarns hidden),
-    at the yarn level the yarns themselves with the preset's yarn-level material (the plies hidden, not deleted).
-    Only a material that is nothing but a preset's node is exchanged between levels; any other keeps the ply
-    level with a note. Records what it chose in obj.neural_yarn.chosen and returns it."""
+    """Decides the level of a yarn object (decide_level) and builds it: at the ply level the object's plies object
+    (made once, with the preset's ply material; the yarns hidden), at the yarn level the yarns themselves with the
+    preset's yarn-level material (the plies hidden, not deleted). Only a material that is nothing but a preset's
+    node is exchanged between levels. Records the level in obj.neural_yarn (applied, chosen: with why) and
+    returns the decision."""
     from . import operators  # noqa: PLC0415 (operators imports this module)
 
     scene = context.scene
     s = obj.neural_yarn
-    choice = choose_for_yarns(obj, scene, s.plies, requested or requested_level(obj, scene))
-    notes = [choice.warning] if choice.warning else []
+    choice = decide_level(obj, scene, requested)
     level, mat = choice.level, obj.active_material
     preset = _plain_preset(mat)
-    ours = mat is not None and mat.node_tree is not None and any(
-        n.bl_idname == nodes.NODE_IDNAME for n in mat.node_tree.nodes)
-    if level == "yarns" and ours and preset is None:
-        notes.append(f"material '{mat.name}' is not a plain preset material, whose yarn-level model the add-on "
-                     "knows: drawing plies")
-        level = "plies"
     plies_obj = s.plies_object if s.plies_object is not None and s.plies_object.name in scene.objects else None
     if level == "plies" and s.plies > 1:
         if plies_obj is None:
@@ -163,8 +172,28 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
             _set_material(obj, operators.preset_material(preset, level))
         _show(obj, True)
     px = f" (ply {choice.ply_pixels:.3g} px wide)" if choice.ply_pixels is not None else ""
-    s.chosen = level + px + "".join(f"; warning: {n}" for n in notes)
-    return lod.LevelChoice(level, choice.ply_pixels, "; ".join(notes) or None)
+    s.applied = level
+    s.chosen = level + px + (f"; warning: {choice.warning}" if choice.warning else "")
+    return choice
+
+
+def stale_levels(scene) -> list[str]:
+    """"<object>: <applied> applied, the camera now asks for <level>" for each yarn object whose applied level is
+    no longer what its setting gives for the scene's camera and render size."""
+    out = []
+    for obj in scene.objects:
+        if obj.type == "CURVES" and obj.neural_yarn.applied:
+            now = decide_level(obj, scene).level
+            if now != obj.neural_yarn.applied:
+                out.append(f"{obj.name}: {obj.neural_yarn.applied} applied, the camera now asks for {now}")
+    return out
+
+
+@bpy.app.handlers.persistent
+def _render_pre(scene, *_args):
+    stale = stale_levels(scene)
+    if stale:  # a render_pre handler must not rebuild geometry: it says so instead
+        print("Neural Yarn: warning: level of detail out of date (Apply Level of Detail): " + "; ".join(stale))
 
 
 def register():
@@ -173,9 +202,13 @@ def register():
     bpy.types.Scene.neural_yarn_lod = bpy.props.EnumProperty(
         name="Level of Detail", items=OVERRIDE_ITEMS, default="OBJECT",
         description="Scene-wide level of detail for every yarn object (Per Object: each object's own)")
+    if _render_pre not in bpy.app.handlers.render_pre:
+        bpy.app.handlers.render_pre.append(_render_pre)
 
 
 def unregister():
+    if _render_pre in bpy.app.handlers.render_pre:
+        bpy.app.handlers.render_pre.remove(_render_pre)
     del bpy.types.Scene.neural_yarn_lod
     del bpy.types.Object.neural_yarn
     bpy.utils.unregister_class(NeuralYarnObjectSettings)

@@ -331,9 +331,13 @@ def test_level_of_detail_builds_the_level_the_camera_needs(bpy, addon, empty):
     assert knit.neural_yarn.chosen.startswith("plies (ply ") and plies is not None
     assert len(plies.data.curves) == 3 * len(knit.data.curves)
     assert plies.active_material.name == "Neural Yarn fleece" and not plies.hide_render and knit.hide_render
+    assert addon.level_of_detail.stale_levels(bpy.context.scene) == []
     bpy.context.scene.camera.location *= 60.0  # the knit a few pixels wide
     bpy.context.view_layer.update()
+    assert addon.level_of_detail.stale_levels(bpy.context.scene) == [
+        "knit: plies applied, the camera now asks for yarns"]  # said before a render (render_pre)
     _apply_lod(bpy, plies)  # the plies stand for their yarns
+    assert addon.level_of_detail.stale_levels(bpy.context.scene) == []
     assert knit.neural_yarn.chosen.startswith("yarns (ply ")
     assert knit.active_material.name == "Neural Yarn fleece yarn" and not knit.hide_render and plies.hide_render
     node = next(n for n in knit.active_material.node_tree.nodes if n.bl_idname == addon.nodes.NODE_IDNAME)
