@@ -78,6 +78,74 @@ def _material(name: str, m: dict, fallback: str):
     return mat
 
 
+def _cloth_surface_material(name: str, m: dict):
+    """The surface level's material (docs/decisions.md D44) as the XML's: each closure weighted by an RGB curve of
+    x = front |N.I| + back_start Backfacing, summed. The curves pass through the description's samples (vector
+    handles: straight between them) and are not clipped (weights may exceed 1)."""
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    tree = mat.node_tree
+    for n in list(tree.nodes):
+        tree.nodes.remove(n)
+    new, link = tree.nodes.new, tree.links.new
+    geo = new("ShaderNodeNewGeometry")
+    dot = new("ShaderNodeVectorMath")
+    dot.operation = "DOT_PRODUCT"
+    link(geo.outputs["Normal"], dot.inputs[0])
+    link(geo.outputs["Incoming"], dot.inputs[1])
+    cos_v = new("ShaderNodeMath")
+    cos_v.operation = "ABSOLUTE"
+    link(dot.outputs["Value"], cos_v.inputs[0])
+    back = new("ShaderNodeMath")
+    back.operation = "MULTIPLY"
+    link(geo.outputs["Backfacing"], back.inputs[0])
+    back.inputs[1].default_value = m["back_start"]
+    x = new("ShaderNodeMath")
+    x.operation = "MULTIPLY_ADD"
+    link(cos_v.outputs[0], x.inputs[0])
+    x.inputs[1].default_value = m["front"]
+    link(back.outputs[0], x.inputs[2])
+    xxx = new("ShaderNodeCombineColor")
+    for k in range(3):
+        link(x.outputs[0], xxx.inputs[k])
+    total = None
+    for c in m["closures"]:
+        curves = new("ShaderNodeRGBCurve")
+        curves.inputs["Fac"].default_value = 1.0
+        mapping = curves.mapping
+        mapping.use_clip = False
+        n = len(c["weight"])
+        for ch in range(3):  # curves[0..2]: R, G, B (curves[3], the combined one, stays the identity)
+            points = mapping.curves[ch].points
+            points[0].location = (0.0, c["weight"][0][ch])
+            points[1].location = (1.0, c["weight"][-1][ch])
+            for i in range(1, n - 1):
+                points.new(i / (n - 1), c["weight"][i][ch])
+            for p in points:
+                p.handle_type = "VECTOR"
+        mapping.update()
+        link(xxx.outputs[0], curves.inputs["Color"])
+        kind = c["closure"]
+        if kind == "ggx":
+            bsdf = new("ShaderNodeBsdfGlossy")
+            bsdf.distribution = "GGX"
+            bsdf.inputs["Roughness"].default_value = math.sqrt(c["alpha"])
+        else:
+            bsdf = new({"transparent": "ShaderNodeBsdfTransparent", "diffuse": "ShaderNodeBsdfDiffuse",
+                        "translucent": "ShaderNodeBsdfTranslucent"}[kind])
+        link(curves.outputs["Color"], bsdf.inputs["Color"])
+        if total is None:
+            total = bsdf.outputs[0]
+        else:
+            add = new("ShaderNodeAddShader")
+            link(total, add.inputs[0])
+            link(bsdf.outputs[0], add.inputs[1])
+            total = add.outputs[0]
+    out = new("ShaderNodeOutputMaterial")
+    link(total, out.inputs["Surface"])
+    return mat
+
+
 def build(desc: dict, *, fallback: str = "NODES", samples: int = 64):
     """Builds the description into the current (empty) file's scene and returns the scene. Raises
     SceneDescriptionError for what stock Blender cannot render."""
@@ -146,6 +214,14 @@ def build(desc: dict, *, fallback: str = "NODES", samples: int = 64):
         data = curves_bpy._new_curves_data(o["name"], keys, np.asarray(cv["points"], dtype=np.float32).reshape(-1, 3),
                                            radii)
         data.materials.append(mat)
+        scene.collection.objects.link(bpy.data.objects.new(o["name"], data))
+    for o in desc.get("meshes", []):
+        v = np.asarray(o["mesh"]["vertices"], dtype=np.float64).reshape(-1, 3)
+        t = np.asarray(o["mesh"]["triangles"], dtype=np.int64).reshape(-1, 3)
+        data = bpy.data.meshes.new(o["name"])
+        data.from_pydata(v.tolist(), [], t.tolist())  # flat shaded, as the XML's triangles
+        data.update()
+        data.materials.append(_cloth_surface_material(o["name"], o["material"]))
         scene.collection.objects.link(bpy.data.objects.new(o["name"], data))
     return scene
 

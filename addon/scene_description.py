@@ -11,6 +11,10 @@ import math
 import os
 
 FORMAT = "neuralyarn-scene 1"
+#: Version 2: also `meshes` (the surface level's cloth), which a reader of version 1 would drop.
+FORMAT_MESHES = "neuralyarn-scene 2"
+#: The surface level's closures (docs/decisions.md D44).
+SURFACE_CLOSURES = ("transparent", "diffuse", "translucent", "ggx")
 
 #: Integrator settings, as the file names them (Cycles' own names) and their type.
 INTEGRATOR = {
@@ -106,6 +110,41 @@ def _material(m, where: str, base: str) -> dict:
     return out
 
 
+def _cloth_surface(m, where: str) -> dict:
+    """The surface level's material: closures weighted by RGB curves of x = front |N.I| + back_start Backfacing."""
+    out = {"type": "cloth_surface",
+           "front": _number(_field(m, "front", where), f"{where}.front", float, 0.0, 1.0),
+           "back_start": _number(_field(m, "back_start", where), f"{where}.back_start", float, 0.0, 1.0)}
+    closures = _field(m, "closures", where)
+    if not isinstance(closures, list) or not closures:
+        _reject(f"{where}.closures", "expected a non-empty list")
+    out["closures"] = []
+    for i, c in enumerate(closures):
+        w = f"{where}.closures[{i}]"
+        kind = _field(c, "closure", w)
+        if kind not in SURFACE_CLOSURES:
+            _reject(f"{w}.closure", f"unknown closure '{kind}' (known: {', '.join(SURFACE_CLOSURES)})")
+        weight = _field(c, "weight", w)
+        if not isinstance(weight, list) or len(weight) < 2:
+            _reject(f"{w}.weight", "expected at least two RGB samples")
+        out["closures"].append({
+            "closure": kind, "alpha": _number(_field(c, "alpha", w), f"{w}.alpha", float, 0.0, 1.0),
+            "weight": [_vector(v, f"{w}.weight[{k}]", 3, 0.0) for k, v in enumerate(weight)]})
+    return out
+
+
+def _mesh(m, where: str) -> dict:
+    vertices, triangles = _field(m, "vertices", where), _field(m, "triangles", where)
+    if not isinstance(vertices, list) or not vertices or len(vertices) % 3 or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in vertices):
+        _reject(f"{where}.vertices", "expected x y z triples of finite numbers")
+    n = len(vertices) // 3
+    if not isinstance(triangles, list) or not triangles or len(triangles) % 3 or not all(
+            isinstance(i, int) and not isinstance(i, bool) and 0 <= i < n for i in triangles):
+        _reject(f"{where}.triangles", f"expected vertex index triples, each index in [0, {n})")
+    return {"vertices": vertices, "triangles": triangles}
+
+
 def _light(light, where: str) -> dict:
     kind = _field(light, "type", where)
     out = {"type": kind,
@@ -128,8 +167,10 @@ def _light(light, where: str) -> dict:
 
 def parse_scene(data, where: str, base: str) -> dict:
     """The checked description of a parsed JSON document; model paths resolved against `base` (a directory)."""
-    if _field(data, "format", where) != FORMAT:
-        _reject(where, f"not a scene description (format {data.get('format')!r}, expected '{FORMAT}')")
+    version = _field(data, "format", where)
+    if version not in (FORMAT, FORMAT_MESHES):
+        _reject(where, f"not a scene description (format {data.get('format')!r}, expected '{FORMAT}' or "
+                       f"'{FORMAT_MESHES}')")
     cam = _field(data, "camera", where)
     camera = {"width": _number(_field(cam, "width", f"{where}.camera"), f"{where}.camera.width", int, 1, 65536),
               "height": _number(_field(cam, "height", f"{where}.camera"), f"{where}.camera.height", int, 1, 65536),
@@ -162,11 +203,28 @@ def parse_scene(data, where: str, base: str) -> dict:
             _reject(f"{w}.name", "expected a name")
         out_objects.append({"name": name, "material": _material(_field(o, "material", w), f"{w}.material", base),
                             "curves": _curves(_field(o, "curves", w), f"{w}.curves")})
+    meshes = []
+    if version == FORMAT_MESHES:
+        listed = _field(data, "meshes", where)
+        if not isinstance(listed, list) or not listed:
+            _reject(f"{where}.meshes", "expected a non-empty list (version 2 is a scene with meshes)")
+        for i, o in enumerate(listed):
+            w = f"{where}.meshes[{i}]"
+            name = _field(o, "name", w)
+            if not isinstance(name, str) or not name:
+                _reject(f"{w}.name", "expected a name")
+            material = _field(o, "material", w)
+            if _field(material, "type", f"{w}.material") != "cloth_surface":
+                _reject(f"{w}.material.type", "a mesh's material is a cloth_surface")
+            meshes.append({"name": name, "material": _cloth_surface(material, f"{w}.material"),
+                           "mesh": _mesh(_field(o, "mesh", w), f"{w}.mesh")})
+    elif "meshes" in data:
+        _reject(f"{where}.meshes", f"meshes need format '{FORMAT_MESHES}'")
     title = data.get("title", "")
     return {"title": title if isinstance(title, str) else "", "camera": camera, "film": film,
             "integrator": integrator, "background": background,
             "lights": [_light(light, f"{where}.lights[{i}]") for i, light in enumerate(lights)],
-            "objects": out_objects}
+            "objects": out_objects, "meshes": meshes}
 
 
 def load_scene(path: str) -> dict:

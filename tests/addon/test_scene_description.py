@@ -97,3 +97,49 @@ def test_not_json_nan_and_a_missing_file_are_refused(written, tmp_path):
             sd.load_scene(str(bad))
     with pytest.raises(sd.SceneDescriptionError, match="cannot read the file"):
         sd.load_scene(str(tmp_path / "missing.json"))
+
+
+def _surface_mesh():
+    """A version-2 description's one mesh: a quad of the surface level's material."""
+    return {"name": "cloth", "material": {"type": "cloth_surface", "front": 0.49, "back_start": 0.51, "closures": [
+        {"closure": "transparent", "alpha": 0.0, "weight": [[0.1, 0.1, 0.1], [0.2, 0.2, 0.2]]},
+        {"closure": "ggx", "alpha": 0.25, "weight": [[0.5, 0.4, 0.3], [0.6, 0.5, 0.4], [1.5, 1.2, 0.9]]}]},
+        "mesh": {"vertices": [0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0], "triangles": [0, 1, 2, 0, 2, 3]}}
+
+
+def test_meshes_need_version_2_and_version_2_needs_meshes(written, tmp_path):
+    """The surface level's cloth is a mesh: a reader of version 1 would drop it and render the scene without its
+    cloth, so a file with meshes says version 2, and either version with the other's content is refused."""
+    _, data = written
+    ok = tmp_path / "ok.json"
+    ok.write_text(json.dumps({**data, "format": "neuralyarn-scene 2", "meshes": [_surface_mesh()]}))
+    d = sd.load_scene(str(ok))
+    (m,) = d["meshes"]
+    assert m["material"]["closures"][1] == {"closure": "ggx", "alpha": 0.25, "weight": [
+        (0.5, 0.4, 0.3), (0.6, 0.5, 0.4), (1.5, 1.2, 0.9)]}
+    assert m["mesh"]["triangles"] == [0, 1, 2, 0, 2, 3] and sd.load_scene(str(written[0]))["meshes"] == []
+    for doc, message in (({**data, "meshes": [_surface_mesh()]}, "meshes need format 'neuralyarn-scene 2'"),
+                         ({**data, "format": "neuralyarn-scene 2"}, "missing 'meshes'")):
+        bad = tmp_path / "bad.json"
+        bad.write_text(json.dumps(doc))
+        with pytest.raises(sd.SceneDescriptionError, match=message):
+            sd.load_scene(str(bad))
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("material.type", "diffuse", "a mesh's material is a cloth_surface"),
+    ("material.closures.0.closure", "velvet", "unknown closure 'velvet'"),
+    ("material.closures.1.weight", [[1, 1, 1]], "expected at least two RGB samples"),
+    ("material.closures.1.weight.2", [1, -1, 1], "not in [0, inf]"),
+    ("material.front", None, "missing 'front'"),
+    ("mesh.triangles", [0, 1, 4], "each index in [0, 4)"),
+    ("mesh.vertices", [0, 0, 0, 1], "expected x y z triples"),
+])
+def test_a_damaged_mesh_is_refused_naming_the_field(written, tmp_path, field, value, message):
+    _, data = written
+    doc = {**data, "format": "neuralyarn-scene 2", "meshes": [_edit(_surface_mesh(), field, value)]}
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(sd.SceneDescriptionError) as e:
+        sd.load_scene(str(bad))
+    assert "meshes[0]" in str(e.value) and message in str(e.value), str(e.value)

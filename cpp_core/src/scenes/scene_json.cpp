@@ -4,6 +4,8 @@
 #include <charconv>
 #include <cstdlib>
 
+#include "neuralyarn/model/surface_fit.h" /* kSurfaceFront, kSurfaceBackStart */
+
 namespace neuralyarn::scenes {
 
 namespace {
@@ -58,10 +60,37 @@ json material(const Material &m, const std::string &scene_path)
       j["C_TT"] = {m.C_TT[0], m.C_TT[1], m.C_TT[2]};
       j["beta_R"] = m.beta_R, j["beta_TT"] = m.beta_TT, j["gamma_TT"] = m.gamma_TT;
       break;
+    case Material::Kind::cloth_surface: {
+      /* The closures' weight curves as the XML's rgb_curves hold them, read at x = front |N.I| + back_start
+       * Backfacing. */
+      j["front"] = model::kSurfaceFront, j["back_start"] = model::kSurfaceBackStart;
+      json closures = json::array();
+      for (const Material::SurfaceClosure &c : m.surface) {
+        json w = json::array();
+        for (const auto &v : c.weight) {
+          w.push_back({v[0], v[1], v[2]});
+        }
+        closures.push_back({{"closure", c.closure}, {"alpha", c.alpha}, {"weight", std::move(w)}});
+      }
+      j["closures"] = std::move(closures);
+      break;
+    }
     default:
       j["colour"] = rgb(m.colour);
   }
   return j;
+}
+
+json mesh(const MeshObject &o)
+{
+  json v = json::array(), t = json::array();
+  for (const Eigen::Vector3f &q : o.vertices) {
+    v.push_back(shortest(q.x())), v.push_back(shortest(q.y())), v.push_back(shortest(q.z()));
+  }
+  for (int i : o.triangles) {
+    t.push_back(i);
+  }
+  return {{"vertices", std::move(v)}, {"triangles", std::move(t)}};
 }
 
 json curves(const geometry::CurveSet &c)
@@ -83,9 +112,6 @@ json curves(const geometry::CurveSet &c)
 
 json scene_json(const Scene &scene, const std::string &scene_path)
 {
-  if (!scene.meshes.empty()) { /* refused, not dropped: a scene without its cloth would render silently wrong */
-    throw std::runtime_error("the surface level's meshes are written as Cycles XML only (not yet for Blender)");
-  }
   const Integrator &in = scene.integrator;
   json lights = json::array();
   for (const Light &l : scene.lights) {
@@ -104,8 +130,12 @@ json scene_json(const Scene &scene, const std::string &scene_path)
   for (const CurveObject &o : scene.objects) {
     objects.push_back({{"name", o.name}, {"material", material(o.material, scene_path)}, {"curves", curves(o.curves)}});
   }
-  return {
-      {"format", kSceneFormat},
+  json meshes = json::array();
+  for (const MeshObject &o : scene.meshes) {
+    meshes.push_back({{"name", o.name}, {"material", material(o.material, scene_path)}, {"mesh", mesh(o)}});
+  }
+  json j = {
+      {"format", scene.meshes.empty() ? kSceneFormat : kSceneFormatMeshes},
       {"title", scene.title},
       {"lighting", {{"name", scene.lighting}, {"description", scene.lighting_description}}},
       {"camera",
@@ -123,6 +153,10 @@ json scene_json(const Scene &scene, const std::string &scene_path)
       {"lights", std::move(lights)},
       {"objects", std::move(objects)},
   };
+  if (!scene.meshes.empty()) { /* a reader of version 1 would drop them silently: version 2 says they are there */
+    j["meshes"] = std::move(meshes);
+  }
+  return j;
 }
 
 }  // namespace neuralyarn::scenes

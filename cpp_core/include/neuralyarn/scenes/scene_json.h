@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 //
-// A scene description (scenes/scene.h) as the JSON file "neuralyarn-scene 1" (docs/file_formats.md), which the
+// A scene description (scenes/scene.h) as the JSON file "neuralyarn-scene 1" or 2 (docs/file_formats.md), which the
 // add-on's Blender builder (addon/scene_bpy.py, through addon/scene_description.py) turns into a Blender scene:
-// the same camera, pixel filter, integrator, lights, curves and materials as the Cycles XML of the scene.
+// the same camera, pixel filter, integrator, lights, curves, meshes and materials as the Cycles XML of the scene.
 #pragma once
 
 #include <string>
@@ -13,8 +13,10 @@
 
 namespace neuralyarn::scenes {
 
-/* The format name the file states ("format"). */
+/* The format name the file states ("format"): version 1 without meshes, 2 with the surface level's meshes (which a
+ * reader of version 1 would drop: it refuses the name instead). */
 constexpr const char *kSceneFormat = "neuralyarn-scene 1";
+constexpr const char *kSceneFormatMeshes = "neuralyarn-scene 2";
 
 /* The scene as JSON; a neural yarn material's model path relative to `scene_path`'s directory. */
 nlohmann::json scene_json(const Scene &scene, const std::string &scene_path);
