@@ -287,7 +287,9 @@ def make_plies_object(context, src, plies: int, ply_twist: float, samples_per_tu
         for k, yarn in enumerate(yarns):
             out += geometry.twist_plies(yarn, plies, alpha_yarn=ply_twist, samples_per_turn=samples_per_turn)
             progress.update(k + 1)
-    return curves_bpy.create_curves_object(context, f"{src.name} plies", out, material=material)
+    obj = curves_bpy.create_curves_object(context, f"{src.name} plies", out, material=material)
+    obj.neural_yarn.plies = 1  # its curves are plies: a level of detail applied to it never twists them again
+    return obj
 
 
 class NEURALYARN_OT_apply_lod(bpy.types.Operator):

@@ -383,6 +383,21 @@ def test_level_of_detail_panel_shows_the_yarns_settings_for_their_plies(bpy, add
     assert ("operator", None, "neural_yarn.apply_lod") in layout.drawn
 
 
+def test_level_of_detail_never_twists_plies_again(bpy, addon, empty):
+    """Plies made by Twist Plies and then cut loose from their yarns (the yarns deleted) are plies: applying a
+    level to them keeps their curves, it does not twist each ply into three more."""
+    knit = _knit_seen_from(bpy, addon, 1.0)
+    bpy.ops.neural_yarn.make_plies()
+    plies = bpy.context.active_object
+    n = len(plies.data.curves)
+    bpy.data.objects.remove(knit)
+    bpy.context.view_layer.update()
+    _apply_lod(bpy, plies)
+    assert plies.neural_yarn.chosen.startswith("plies (ply ") and plies.neural_yarn.plies_object is None
+    assert len(plies.data.curves) == n and not plies.hide_render
+    assert sum(o.type == "CURVES" for o in bpy.data.objects) == 1
+
+
 def test_level_of_detail_builds_no_plies_for_a_far_knit(bpy, addon, empty):
     knit = _knit_seen_from(bpy, addon, 60.0)
     before = len(bpy.data.objects)
