@@ -157,6 +157,9 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
     preset = _plain_preset(mat)
     plies_obj = s.plies_object if s.plies_object is not None and s.plies_object.name in scene.objects else None
     if level == "plies" and s.plies > 1:
+        if plies_obj is not None and len(plies_obj.data.curves) != s.plies * len(obj.data.curves):
+            _show(plies_obj, False)  # made for another number of plies: kept, hidden, and made anew
+            plies_obj = None
         if plies_obj is None:
             plies_obj = operators.make_plies_object(context, obj, s.plies, YARN_MODEL_PLY_TWIST, 24,
                                                     None if preset else mat)

@@ -347,6 +347,10 @@ def test_level_of_detail_builds_the_level_the_camera_needs(bpy, addon, empty):
     _apply_lod(bpy, knit)
     assert knit.neural_yarn.plies_object == plies and not plies.hide_render and knit.hide_render
     assert sum(o.name.startswith(knit.name + " plies") for o in bpy.data.objects) == 1
+    knit.neural_yarn.plies = 2  # another plying: new plies, the old ones hidden, not deleted
+    _apply_lod(bpy, knit)
+    two = knit.neural_yarn.plies_object
+    assert two != plies and len(two.data.curves) == 2 * len(knit.data.curves) and plies.hide_render
 
 
 class _Recorder:
