@@ -31,6 +31,7 @@
 #include "neuralyarn/scenes/ply_curves.h"
 #include "neuralyarn/scenes/closeup_prediction.h"
 #include "neuralyarn/scenes/ply_scene.h"
+#include "neuralyarn/scenes/scene_json.h"
 #include "neuralyarn/version.h"
 
 namespace fs = std::filesystem;
@@ -225,7 +226,7 @@ struct GatherCommand {
 /* `neuralyarn surface`: the surface level's BSDF (D44) from walks through a flat patch of a pattern's curves. */
 struct SurfaceCommand {
   CLI::App *cmd;
-  std::string plies, model_path, paths = "4e6", out, maps_out;
+  std::string plies, model_path, paths = "4e6", out, maps_out, material_out, pattern;
   uint64_t seed = 1;
   int threads = 0, view_bins = 8;
   bool quiet = false;
@@ -247,6 +248,12 @@ struct SurfaceCommand {
     cmd->add_flag("--quiet", quiet, "No progress bar");
     cmd->add_option("--out", out, "Surface BSDF file to write (.json)")->required();
     cmd->add_option("--maps-out", maps_out, "Also write the measured maps (JSON: D, tau, scattered and their layout)");
+    cmd->add_option("--material-out", material_out,
+                    "Also write the surface level's material as renderers draw it (\"neuralyarn-cloth-surface 1\": the "
+                    "closures' sampled weights; what the add-on draws a cloth surface with)");
+    cmd->add_option("--pattern", pattern,
+                    "With --material-out: a JSON object naming the pattern the patch is of, kept in the file (the add-on "
+                    "draws the material only on cloth of that pattern)");
   }
 
   int run() const
@@ -264,6 +271,19 @@ struct SurfaceCommand {
                                "(scripts/garment.py --flat)");
     }
     check_writable(out);
+    nlohmann::json pattern_json = nlohmann::json::object();
+    if (!material_out.empty()) {
+      check_writable(material_out);
+      try {
+        pattern_json = nlohmann::json::parse(pattern.empty() ? "{}" : pattern);
+      }
+      catch (const nlohmann::json::exception &) {
+        pattern_json = nullptr;
+      }
+      if (!pattern_json.is_object()) {
+        throw std::runtime_error("--pattern must be a JSON object, got '" + pattern + "'");
+      }
+    }
     const geometry::CurveSet curves = scenes::curve_set(yarns ? pc.yarns : pc.plies, yarns ? pc.yarn_radius : 1.0);
     Eigen::AlignedBox3f box;
     for (const Eigen::Vector3f &q : curves.points) {
@@ -285,6 +305,13 @@ struct SurfaceCommand {
                 {"paths_past_edges", maps.paths_past_edges}, {"paths_lost", maps.paths_lost},
                 {"code", std::string(kVersion) + "+" + kGitRevision}};
     model::save_surface(s, out);
+    if (!material_out.empty()) {
+      const nlohmann::json j = {{"format", scenes::kClothSurfaceFormat}, {"pattern", pattern_json},
+                                {"level", yarns ? "yarns" : "plies"},
+                                {"material", scenes::material_json(scenes::cloth_surface_material(s), material_out)},
+                                {"source", s.source}};
+      write_file_atomically(material_out, j.dump() + "\n", "");
+    }
     if (!maps_out.empty()) {
       const nlohmann::json j = {{"view_bins", maps.view_bins}, {"light_theta", maps.light_theta},
                                 {"light_phi", maps.light_phi}, {"D", maps.D}, {"tau", maps.tau},

@@ -248,15 +248,21 @@ def test_blender_renders_the_surface_level_as_the_standalone(tmp_path):
     two renderers' sampling noise; measured 0.1-0.2 % at 256 spp). Without the mesh the frame would be black."""
     import evaluate as ev
 
-    flat, surface = tmp_path / "flat.json", tmp_path / "surface.json"
+    flat, surface, material = tmp_path / "flat.json", tmp_path / "surface.json", tmp_path / "material.json"
     flat.write_text(json.dumps(ev.flat_knit_plies(ev.SURFACE_FIT["rows"], ev.SURFACE_FIT["stitches"])))
     r = subprocess.run([CLI, "surface", "--plies", flat, "--model", os.path.join(ROOT, "models", "fleece_yarn.json"),
-                        "--paths", "2e5", "--quiet", "--out", surface], capture_output=True, text=True, timeout=300)
+                        "--paths", "2e5", "--quiet", "--out", surface, "--material-out", material,
+                        "--pattern", '{"kind": "plain_knit"}'], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     os.makedirs(tmp_path / "scenes")
     framing = ev.garment_framing(str(tmp_path), 3, 96 / 64)
     a, b = (x[..., :3] for x in both_renderers(tmp_path, 96, 64, "--preset", "fleece", "--lights", "key-rim", *framing,
                                                "--level", "surface", "--surface", surface))
-    assert json.loads((tmp_path / "s.json").read_text())["format"] == "neuralyarn-scene 2"
+    desc = json.loads((tmp_path / "s.json").read_text())
+    assert desc["format"] == "neuralyarn-scene 2"
+    # The add-on's shipped form of the material (`--material-out`) is the description's, closure for closure.
+    shipped = json.loads(material.read_text())
+    assert shipped["format"] == "neuralyarn-cloth-surface 1" and shipped["pattern"] == {"kind": "plain_knit"}
+    assert shipped["material"] == desc["meshes"][0]["material"]
     assert a.mean() > 1e-3 and (a.sum(axis=-1) > 1e-4).mean() > 0.1  # the sleeve is lit and in the frame
     assert b.mean(axis=(0, 1)) == pytest.approx(a.mean(axis=(0, 1)), rel=0.03)

@@ -430,18 +430,10 @@ CurveObject aggregated(const PlySceneOptions &o, const std::string &model_path, 
 /* The plies file's cloth surface with the surface level's stock closures (D44). */
 MeshObject cloth_surface(const PlySceneOptions &o, const PlyCurves &curves_in)
 {
-  const model::SurfaceBsdf bsdf = model::load_surface(o.surface);
   MeshObject obj;
   obj.name = "cloth";
   obj.shader = "surface";
-  Material &m = obj.material;
-  m.kind = Material::Kind::cloth_surface;
-  /* 256 samples over both faces: 125 per face between cos theta_v = 0 and 1, finer than the view bins. */
-  constexpr int kSamples = 256;
-  m.surface.push_back({"transparent", 0.0, model::surface_curve(bsdf, -1, kSamples)});
-  for (size_t k = 0; k < bsdf.lobes.size(); k++) {
-    m.surface.push_back({bsdf.lobes[k].closure, bsdf.lobes[k].alpha, model::surface_curve(bsdf, int(k), kSamples)});
-  }
+  obj.material = cloth_surface_material(model::load_surface(o.surface));
   for (const Eigen::Vector3d &v : curves_in.surface_vertices) {
     obj.vertices.push_back((o.unit_scale * v).cast<float>());
   }
@@ -466,6 +458,19 @@ CurveObject fibers(const FiberPreset &preset, geometry::CurveSet curves)
 }
 
 }  // namespace
+
+Material cloth_surface_material(const model::SurfaceBsdf &bsdf)
+{
+  Material m;
+  m.kind = Material::Kind::cloth_surface;
+  /* 256 samples over both faces: 125 per face between cos theta_v = 0 and 1, finer than the view bins. */
+  constexpr int kSamples = 256;
+  m.surface.push_back({"transparent", 0.0, model::surface_curve(bsdf, -1, kSamples)});
+  for (size_t k = 0; k < bsdf.lobes.size(); k++) {
+    m.surface.push_back({bsdf.lobes[k].closure, bsdf.lobes[k].alpha, model::surface_curve(bsdf, int(k), kSamples)});
+  }
+  return m;
+}
 
 Scene ply_scene(const FiberPreset &preset, const PlySceneOptions &o)
 {

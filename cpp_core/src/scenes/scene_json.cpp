@@ -45,7 +45,9 @@ const char *material_type(Material::Kind k)
   return "";
 }
 
-json material(const Material &m, const std::string &scene_path)
+}  // namespace
+
+json material_json(const Material &m, const std::string &scene_path)
 {
   json j = {{"type", material_type(m.kind)}};
   switch (m.kind) {
@@ -80,6 +82,8 @@ json material(const Material &m, const std::string &scene_path)
   }
   return j;
 }
+
+namespace {
 
 json mesh(const MeshObject &o)
 {
@@ -128,11 +132,11 @@ json scene_json(const Scene &scene, const std::string &scene_path)
   }
   json objects = json::array();
   for (const CurveObject &o : scene.objects) {
-    objects.push_back({{"name", o.name}, {"material", material(o.material, scene_path)}, {"curves", curves(o.curves)}});
+    objects.push_back({{"name", o.name}, {"material", material_json(o.material, scene_path)}, {"curves", curves(o.curves)}});
   }
   json meshes = json::array();
   for (const MeshObject &o : scene.meshes) {
-    meshes.push_back({{"name", o.name}, {"material", material(o.material, scene_path)}, {"mesh", mesh(o)}});
+    meshes.push_back({{"name", o.name}, {"material", material_json(o.material, scene_path)}, {"mesh", mesh(o)}});
   }
   json j = {
       {"format", scene.meshes.empty() ? kSceneFormat : kSceneFormatMeshes},

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "neuralyarn/presets.h"
+#include "neuralyarn/model/surface_fit.h"
 #include "neuralyarn/scenes/scene.h"
 
 namespace neuralyarn::scenes {
@@ -109,6 +110,10 @@ constexpr int64_t kMaxExplicitKeys = 50'000'000;
 /* The scene the options describe; throws std::runtime_error naming what is wrong (a bad option, an unreadable or
  * refused plies file or model) before any work. */
 Scene ply_scene(const FiberPreset &preset, const PlySceneOptions &options);
+
+/* The surface level's material of a surface BSDF (`neuralyarn surface`, D44): its closures, each with its weight
+ * sampled as the renderers read it (256 RGB samples over x = front |N.I| + back_start Backfacing). */
+Material cloth_surface_material(const model::SurfaceBsdf &bsdf);
 
 /* ply_scene() written to `path` (write_scene(): .xml or .json). */
 void write_ply_scene(const FiberPreset &preset, const PlySceneOptions &options, const std::string &path);

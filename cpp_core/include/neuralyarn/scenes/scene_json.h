@@ -18,6 +18,14 @@ namespace neuralyarn::scenes {
 constexpr const char *kSceneFormat = "neuralyarn-scene 1";
 constexpr const char *kSceneFormatMeshes = "neuralyarn-scene 2";
 
+/* The format of a surface level's material on its own (`neuralyarn surface --material-out`): what the add-on draws
+ * its cloth surface with. */
+constexpr const char *kClothSurfaceFormat = "neuralyarn-cloth-surface 1";
+
+/* A material as the description writes it; a neural yarn material's model path relative to `scene_path`'s
+ * directory. */
+nlohmann::json material_json(const Material &m, const std::string &scene_path);
+
 /* The scene as JSON; a neural yarn material's model path relative to `scene_path`'s directory. */
 nlohmann::json scene_json(const Scene &scene, const std::string &scene_path);
 
