@@ -51,6 +51,18 @@ def resource_dir(sub: str) -> str:
                             f"reinstall the add-on from a zip made by scripts/package_addon.sh")
 
 
+def surface_material_path(name: str) -> str:
+    """Path of a preset's shipped surface-level material (<name>_surface_knit.json: the far field of the Knitted
+    Swatch at its default shape, scripts/make_surface_materials.py); ValueError for an unknown preset,
+    FileNotFoundError if it is missing."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset '{name}' (one of {', '.join(PRESETS)})")
+    path = os.path.join(resource_dir("models"), name + "_surface_knit.json")
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"the shipped surface material '{path}' is missing; reinstall the add-on")
+    return path
+
+
 def preset_model_path(name: str, level: str = "plies") -> str:
     """Path of a shipped model file: the ply level's <name>.json or the yarn level's <name>_yarn.json (3 plies at
     ply twist 0.5, the add-on's default plying); ValueError for an unknown preset or level, FileNotFoundError if

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Builds the installable add-on: addon/ plus the shipped models (models/*.json: ply and yarn level, one pair per preset)
+# Builds the installable add-on: addon/ plus the shipped models (models/*.json: ply and yarn level and the surface
+# level's knit material, three per preset)
 # and the preset list (cpp_core/data/presets.json), which live outside addon/, staged as one package, validated
 # with Blender's own extension tool (what `blender --command extension validate|build` runs) and zipped.
 #
@@ -31,7 +32,7 @@ cp "$ROOT/cpp_core/data/presets.json" "$STAGE/"
 mapfile -t PRESETS < <("$PY" -c 'import json, sys; print("\n".join(json.load(open(sys.argv[1]))["presets"]))' \
                        "$ROOT/cpp_core/data/presets.json")
 for p in "${PRESETS[@]}"; do
-  cp "$ROOT/models/$p.json" "$ROOT/models/${p}_yarn.json" "$STAGE/models/"
+  cp "$ROOT/models/$p.json" "$ROOT/models/${p}_yarn.json" "$ROOT/models/${p}_surface_knit.json" "$STAGE/models/"
 done
 cp "$ROOT/LICENSE" "$STAGE/" 2>/dev/null || true
 
