@@ -235,8 +235,10 @@ def _check_preset(args, ny) -> None:
 def _apply_level(ny, obj, requested) -> tuple:
     """Applies a yarn object's level of detail (addon/level_of_detail.py), prints the batch log's line for it and
     returns (the object that renders it: its plies or itself, the level)."""
+    if requested is not None:  # the scene-wide override for this render: what a later check compares against too
+        bpy.context.scene.neural_yarn_lod = requested.upper()
     try:
-        level = ny.level_of_detail.apply_level(bpy.context, obj, requested).level
+        level = ny.level_of_detail.apply_level(bpy.context, obj).level
     except ny.geometry.GeometryError as e:
         raise BatchError(f"{obj.name}: the level of detail could not be built: {e}") from None
     print(f"level of detail: {obj.name}: {obj.neural_yarn.chosen}")
@@ -276,6 +278,8 @@ def run(argv: list[str]) -> str:
             bpy.context.view_layer.update()  # its matrix_world
             for obj in yarns:  # geometry only at the level used: no ply curves for yarns
                 obj.neural_yarn.plies = args.plies
+                if not args.model:  # the preset's material first: the level's material follows from it
+                    obj.data.materials.append(ny.operators.preset_material(args.preset, "plies"))
                 shown, level = _apply_level(ny, obj, args.lod or "auto")
                 levels[shown] = level
             yarns = list(levels)
@@ -289,6 +293,8 @@ def run(argv: list[str]) -> str:
             levels[shown] = level
         yarns = [o for o in yarns if not o.hide_render]
     levels = {obj: levels.get(obj, "plies") for obj in yarns}
+    surfaces = [obj for obj in yarns if levels[obj] == "surface"]  # drawn with their own material
+    yarns = [obj for obj in yarns if levels[obj] != "surface"]
     if args.model:
         try:
             text = ny.nodes.pack_model_file(args.model)
@@ -319,7 +325,7 @@ def run(argv: list[str]) -> str:
     if found:
         raise BatchError(ny.nodes.builtin_node_message(found))
     if (demo and not framed) or scene.camera is None:
-        ny.scene_setup.frame(scene, yarns)
+        ny.scene_setup.frame(scene, yarns + surfaces)
     if args.samples:
         scene.cycles.samples = args.samples
         scene.cycles.use_adaptive_sampling = False
@@ -337,8 +343,9 @@ def run(argv: list[str]) -> str:
     bpy.ops.render.render(write_still=True)
     if not os.path.isfile(out):
         raise BatchError(f"the render did not write '{out}'")
-    print(f"neural_yarn batch: wrote {out} ({len(yarns)} yarn object(s), material "
-          + ", ".join(f"'{m.name}'" for m in mats.values()) + f", fallback {node.built})")
+    names = ([m.name for m in mats.values()] if yarns else []) + [o.active_material.name for o in surfaces]
+    print(f"neural_yarn batch: wrote {out} ({len(yarns) + len(surfaces)} yarn object(s), material "
+          + ", ".join(f"'{n}'" for n in dict.fromkeys(names)) + f", fallback {node.built})")
     return out
 
 

@@ -6,10 +6,14 @@ preset's material of that level. A scene-wide override stands above the objects'
 
 from __future__ import annotations
 
+import functools
+import json
+import math
+
 import bpy
 import numpy as np
 
-from . import fallback_nodes, nodes
+from . import fallback_nodes, nodes, resources, scene_bpy, scene_description
 from .geometry import lod, ply_center_distance
 from .geometry.lod import YARN_MODEL_PLIES, YARN_MODEL_PLY_TWIST
 
@@ -18,8 +22,13 @@ LEVEL_ITEMS = [
     ("FIBERS", "Fibers", "Explicit fibers (drawn by neuralyarn cycles-scene, not the add-on: plies here)"),
     ("PLIES", "Plies", "Each ply a curve with the preset's ply model"),
     ("YARNS", "Yarns", "Each yarn one curve with the preset's yarn-level model"),
-    ("SURFACE", "Surface", "A cloth surface (not built by the add-on yet: yarns here)"),
+    ("SURFACE", "Surface", "A cloth surface with the preset's fitted stock closures (a Knitted Swatch of the default "
+                           "shape only; never chosen by Auto: less accurate than the yarns)"),
 ]
+#: The object key under which a generated swatch keeps its pattern, size and face (operators.py writes it).
+SWATCH_KEY = "neural_yarn_swatch"
+#: The format of a shipped surface-level material (`neuralyarn surface --material-out`).
+CLOTH_SURFACE_FORMAT = "neuralyarn-cloth-surface 1"
 OVERRIDE_ITEMS = [("OBJECT", "Per Object", "Each yarn object's own level of detail")] + LEVEL_ITEMS
 
 
@@ -76,6 +85,8 @@ class NeuralYarnObjectSettings(bpy.types.PropertyGroup):
                                  description="Plies per yarn at the ply level (1: the curves are plies already)")
     plies_object: bpy.props.PointerProperty(name="Plies Object", type=bpy.types.Object,
                                             description="The ply curves built from this object's yarns")
+    surface_object: bpy.props.PointerProperty(name="Surface Object", type=bpy.types.Object,
+                                              description="The cloth surface built for this swatch")
     applied: bpy.props.StringProperty(name="Applied", description="The level last applied (plies or yarns)")
     chosen: bpy.props.StringProperty(name="Chosen", description="The level last applied, and why")
 
@@ -92,20 +103,103 @@ def yarn_object_of(obj, scene):
 
 
 def rendered_object(obj):
-    """What renders a yarn object after apply_level: its plies where they are shown in its place, else itself."""
-    p = obj.neural_yarn.plies_object
-    return p if obj.hide_render and p is not None and not p.hide_render else obj
+    """What renders a yarn object after apply_level: its plies or its surface where shown in its place, else itself."""
+    if obj.hide_render:
+        for other in (obj.neural_yarn.plies_object, obj.neural_yarn.surface_object):
+            if other is not None and not other.hide_render:
+                return other
+    return obj
+
+
+@functools.lru_cache(maxsize=None)
+def surface_material_of(preset: str) -> dict:
+    """A preset's shipped surface-level material, checked: {"pattern": the swatch shape it was fitted on, "material":
+    the description's cloth_surface material}. Raises ValueError naming the file and the problem, FileNotFoundError
+    when it is missing."""
+    path = resources.surface_material_path(preset)
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = json.load(f)
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path}: not JSON ({e})") from None
+    if not isinstance(data, dict) or data.get("format") != CLOTH_SURFACE_FORMAT:
+        raise ValueError(f"{path}: not a surface material (format '{CLOTH_SURFACE_FORMAT}')")
+    pattern = data.get("pattern")
+    if not isinstance(pattern, dict) or pattern.get("kind") != "plain_knit":
+        raise ValueError(f"{path}: 'pattern' must name the plain knit it was fitted on")
+    material = scene_description.parse_cloth_surface(data.get("material"), f"{path}: material")
+    return {"pattern": pattern, "material": material}
+
+
+def _swatch(obj) -> dict | None:
+    raw = obj.get(SWATCH_KEY)
+    try:
+        swatch = json.loads(raw) if isinstance(raw, str) else None
+    except ValueError:
+        return None
+    return swatch if isinstance(swatch, dict) and isinstance(swatch.get("pattern"), dict) else None
+
+
+def _surface_refusal(obj) -> str | None:
+    """Why the surface level cannot draw this object (None: it can): it is fitted on the Knitted Swatch of the
+    default shape, with 3-ply yarns, per preset; drawn on anything else it would render a fit of other cloth."""
+    swatch = _swatch(obj)
+    if swatch is None:
+        return "the surface level is fitted on the add-on's Knitted Swatch only"
+    if obj.neural_yarn.plies != YARN_MODEL_PLIES:
+        return f"the surface level is fitted on {YARN_MODEL_PLIES}-ply yarns, these have {obj.neural_yarn.plies}"
+    preset = _plain_preset(obj.active_material)
+    if preset is None:
+        return "the surface level is a preset's fit, and the material is not a plain preset material"
+    try:
+        shipped = surface_material_of(preset)
+    except (OSError, ValueError) as e:
+        return str(e)
+    fitted = {k: v for k, v in shipped["pattern"].items() if k not in ("plies", "ply_twist")}
+    if swatch["pattern"] != fitted:
+        return f"the surface level is fitted on the Knitted Swatch's default shape (yarn radius {fitted['yarn_radius']:g})"
+    return None
+
+
+def _surface_material(preset: str):
+    """The material "Neural Yarn <preset> surface" (reused while it is still the one this add-on made)."""
+    name = f"Neural Yarn {preset} surface"
+    for mat in bpy.data.materials:
+        if (mat.name == name or mat.name.startswith(name + ".")) and mat.get("neural_yarn_surface") == preset:
+            return mat
+    mat = scene_bpy.cloth_surface_material(name, surface_material_of(preset)["material"])
+    mat["neural_yarn_surface"] = preset
+    return mat
+
+
+def _make_surface_object(obj):
+    """A quad over the swatch's stitches and rows in its mid-plane (z = 0 of its object: one period per stitch and
+    per row, the area the fit holds for), facing the knit's face (its purl side flips it), parented to it."""
+    swatch, preset = _swatch(obj), _plain_preset(obj.active_material)
+    p, k = swatch["pattern"], swatch["scale"]
+    x1 = 2.0 * math.pi * swatch["stitches"] * k
+    y0, y1 = -0.5 * p["w"] * k, ((swatch["rows"] - 1) * p["w"] + 0.5 * p["w"]) * k
+    tris = [(0, 2, 1), (0, 3, 2)] if swatch["purl"] else [(0, 1, 2), (0, 2, 3)]
+    mesh = bpy.data.meshes.new(f"{obj.name} surface")
+    mesh.from_pydata([(0.0, y0, 0.0), (x1, y0, 0.0), (x1, y1, 0.0), (0.0, y1, 0.0)], [], tris)
+    mesh.update()
+    mesh.materials.append(_surface_material(preset))
+    surface = bpy.data.objects.new(f"{obj.name} surface", mesh)
+    surface.parent = obj  # follows the swatch; its own transform is the identity
+    for collection in obj.users_collection:
+        collection.objects.link(surface)
+    return surface
 
 
 def _plain_preset(mat) -> str | None:
-    """The preset of a material that is nothing but one preset's Neural Yarn node (white, unlinked tint) into the
-    material output, as the add-on makes it: only such a material can be exchanged for the same preset at another
-    level without losing an artist's edits."""
+    """The preset of a material that is nothing but one preset's Neural Yarn node (white, unlinked tint, the model's
+    own twist) into the material output, as the add-on makes it: only such a material can be exchanged for the same
+    preset at another level without losing an artist's edits."""
     if mat is None or mat.node_tree is None:
         return None
     ours = [n for n in mat.node_tree.nodes if n.bl_idname == nodes.NODE_IDNAME]
     others = [n for n in mat.node_tree.nodes if n.bl_idname not in (nodes.NODE_IDNAME, "ShaderNodeOutputMaterial")]
-    if len(ours) != 1 or others or ours[0].preset == "CUSTOM":
+    if len(ours) != 1 or others or ours[0].preset == "CUSTOM" or ours[0].twist_override:
         return None
     tint = ours[0].inputs[fallback_nodes.GROUP_INPUT_TINT]
     if tint.is_linked or tuple(tint.default_value)[:3] != (1.0, 1.0, 1.0):
@@ -133,6 +227,11 @@ def decide_level(obj, scene, requested: str | None = None) -> lod.LevelChoice:
     choice = choose_for_yarns(obj, scene, obj.neural_yarn.plies, requested or requested_level(obj, scene))
     notes = [choice.warning] if choice.warning else []
     level, mat = choice.level, obj.active_material
+    if level == "surface":
+        why = _surface_refusal(obj)
+        if why:
+            notes.append(why + ": drawing yarns")
+            level = "yarns"
     ours = mat is not None and mat.node_tree is not None and any(
         n.bl_idname == nodes.NODE_IDNAME for n in mat.node_tree.nodes)
     if level == "yarns" and ours and _plain_preset(mat) is None:
@@ -156,7 +255,17 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
     level, mat = choice.level, obj.active_material
     preset = _plain_preset(mat)
     plies_obj = s.plies_object if s.plies_object is not None and s.plies_object.name in scene.objects else None
-    if level == "plies" and s.plies > 1:
+    surface_obj = s.surface_object if s.surface_object is not None and s.surface_object.name in scene.objects else None
+    if surface_obj is not None and level != "surface":
+        _show(surface_obj, False)
+    if level == "surface":
+        if surface_obj is None:
+            surface_obj = s.surface_object = _make_surface_object(obj)
+        if plies_obj is not None:
+            _show(plies_obj, False)
+        _show(surface_obj, True)
+        _show(obj, False)
+    elif level == "plies" and s.plies > 1:
         if plies_obj is not None and len(plies_obj.data.curves) != s.plies * len(obj.data.curves):
             _show(plies_obj, False)  # made for another number of plies: kept, hidden, and made anew
             plies_obj = None

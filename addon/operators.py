@@ -5,6 +5,8 @@ naming the problem, CANCELLED, and an unchanged file (no half-made objects)."""
 
 from __future__ import annotations
 
+import json
+
 import bpy
 from bpy_extras.io_utils import ImportHelper
 
@@ -86,6 +88,10 @@ class _MakesYarn:
     def compute(self, context) -> tuple[str, list]:
         raise NotImplementedError
 
+    def swatch(self) -> dict | None:
+        """A generated swatch's pattern, size and face in its object's space, if the surface level may draw it."""
+        return None
+
     def execute(self, context):
         try:
             name, curves = self.compute(context)
@@ -94,6 +100,9 @@ class _MakesYarn:
             cursor = getattr(getattr(context, "scene", None), "cursor", None)
             location = tuple(cursor.location) if self.at_cursor and cursor is not None else None
             obj = curves_bpy.create_curves_object(context, name, curves, location=location)
+            swatch = self.swatch()
+            if swatch is not None:  # what the surface level needs to know of it (level_of_detail.py)
+                obj[level_of_detail.SWATCH_KEY] = json.dumps(swatch)
             if self.preset != "NONE":
                 _give_preset_material(obj, self.preset)
         except (geometry.GeometryError, model_io.ModelFileError, OSError, ValueError, MemoryError) as e:
@@ -188,6 +197,10 @@ class NEURALYARN_OT_add_knit(_MakesYarn, bpy.types.Operator):
     def compute(self, context):
         return "knit", geometry.plain_knit(self.rows, self.stitches, yarn_radius=self.yarn_radius, scale=self.scale,
                                            purl=self.purl, samples_per_loop=self.samples_per_loop)
+
+    def swatch(self):
+        return {"pattern": geometry.knit_pattern(yarn_radius=self.yarn_radius), "rows": self.rows,
+                "stitches": self.stitches, "scale": self.scale, "purl": self.purl}
 
 
 class NEURALYARN_OT_add_weave(_MakesYarn, bpy.types.Operator):

@@ -78,7 +78,7 @@ def _material(name: str, m: dict, fallback: str):
     return mat
 
 
-def _cloth_surface_material(name: str, m: dict):
+def cloth_surface_material(name: str, m: dict):
     """The surface level's material (docs/decisions.md D44) as the XML's: each closure weighted by an RGB curve of
     x = front |N.I| + back_start Backfacing, summed. The curves pass through the description's samples (vector
     handles: straight between them) and are not clipped (weights may exceed 1)."""
@@ -221,7 +221,7 @@ def build(desc: dict, *, fallback: str = "NODES", samples: int = 64):
         data = bpy.data.meshes.new(o["name"])
         data.from_pydata(v.tolist(), [], t.tolist())  # flat shaded, as the XML's triangles
         data.update()
-        data.materials.append(_cloth_surface_material(o["name"], o["material"]))
+        data.materials.append(cloth_surface_material(o["name"], o["material"]))
         scene.collection.objects.link(bpy.data.objects.new(o["name"], data))
     return scene
 

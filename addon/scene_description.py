@@ -110,7 +110,7 @@ def _material(m, where: str, base: str) -> dict:
     return out
 
 
-def _cloth_surface(m, where: str) -> dict:
+def parse_cloth_surface(m, where: str) -> dict:
     """The surface level's material: closures weighted by RGB curves of x = front |N.I| + back_start Backfacing."""
     out = {"type": "cloth_surface",
            "front": _number(_field(m, "front", where), f"{where}.front", float, 0.0, 1.0),
@@ -216,7 +216,7 @@ def parse_scene(data, where: str, base: str) -> dict:
             material = _field(o, "material", w)
             if _field(material, "type", f"{w}.material") != "cloth_surface":
                 _reject(f"{w}.material.type", "a mesh's material is a cloth_surface")
-            meshes.append({"name": name, "material": _cloth_surface(material, f"{w}.material"),
+            meshes.append({"name": name, "material": parse_cloth_surface(material, f"{w}.material"),
                            "mesh": _mesh(_field(o, "mesh", w), f"{w}.mesh")})
     elif "meshes" in data:
         _reject(f"{where}.meshes", f"meshes need format '{FORMAT_MESHES}'")

@@ -1,9 +1,9 @@
 # SPDX-License-Identifier: Apache-2.0
 """What building a knit's geometry costs in the add-on at each level of detail (issue 18: "geometry for a
 40 x 40-stitch garment at yarn level builds in the add-on in <= 5 s; ply level: report it"): a knitted swatch of
-ROWS x STITCHES stitches with a preset (Knitted Swatch), then Apply Level of Detail with the scene forced to the
-yarn level and, on a fresh swatch, to the ply level (3 plies); the wall time of each step, the curves and points
-it made, and the level the add-on reports. Runs in the bpy wheel (no window: no progress bar is drawn).
+ROWS x STITCHES stitches with a preset (Knitted Swatch), then Apply Level of Detail with the scene forced to one
+level (surface, yarns, plies: 3 plies), each on a fresh swatch; the wall time of each step, the curves and points (or
+vertices) it draws, and the level the add-on reports. Runs in the bpy wheel (no window: no progress bar is drawn).
 
     .venv/bin/python scripts/bench_lod_build.py [--rows 40] [--stitches 40] [--repeats 3]
 
@@ -34,9 +34,10 @@ def build(addon, rows: int, stitches: int, level: str) -> dict:
     t0 = time.perf_counter()
     assert bpy.ops.neural_yarn.apply_lod() == {"FINISHED"}
     lod_s = time.perf_counter() - t0
-    shown = [o for o in scene.objects if o.type == "CURVES" and not o.hide_render]
+    shown = [o for o in scene.objects if o.type in ("CURVES", "MESH") and not o.hide_render]
     return {"knit_s": knit_s, "lod_s": lod_s, "chosen": knit.neural_yarn.chosen,
-            "curves": sum(len(o.data.curves) for o in shown), "points": sum(len(o.data.points) for o in shown)}
+            "curves": sum(len(o.data.curves) for o in shown if o.type == "CURVES"),
+            "points": sum(len(o.data.points if o.type == "CURVES" else o.data.vertices) for o in shown)}
 
 
 def main() -> None:
@@ -50,7 +51,7 @@ def main() -> None:
 
     addon = batch.addon_module()
     print(f"{args.rows} x {args.stitches} stitches, fleece, {args.repeats} repeats (seconds: best / median)")
-    for level in ("YARNS", "PLIES"):
+    for level in ("SURFACE", "YARNS", "PLIES"):
         runs = [build(addon, args.rows, args.stitches, level) for _ in range(args.repeats)]
         knit = sorted(r["knit_s"] for r in runs)
         lod = sorted(r["lod_s"] for r in runs)
@@ -58,7 +59,7 @@ def main() -> None:
         r = runs[0]
         print(f"{level.lower():6s}: swatch {knit[0]:.2f} / {knit[len(knit) // 2]:.2f} s, apply level "
               f"{lod[0]:.2f} / {lod[len(lod) // 2]:.2f} s, together {total[0]:.2f} / {total[len(total) // 2]:.2f} s; "
-              f"rendered {r['curves']} curves, {r['points']} points; chosen: {r['chosen']}")
+              f"rendered {r['curves']} curves, {r['points']} points or vertices; chosen: {r['chosen']}")
     sys.stdout.flush()
     os._exit(0)
 

@@ -25,7 +25,7 @@ from .curves import (
     spline_curve,
     validate,
 )
-from .knit import crane_course, plain_knit
+from .knit import crane_course, knit_pattern, plain_knit
 from .leaf import estimate_period, read_leaf, read_leaf_sidecar, read_leaf_text, tile_pattern, weld_endpoints
 from .ply import (
     explicit_fiber_warning,
@@ -56,6 +56,7 @@ __all__ = [
     "yarn_radius_from_passes",
     "neighbour_ply_distance",
     "parallel_transport_frames",
+    "knit_pattern",
     "plain_knit",
     "ply_center_distance",
     "polyline",

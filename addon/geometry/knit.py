@@ -24,6 +24,13 @@ MAX_STITCHES = 2000
 MAX_KNIT_POINTS = 5_000_000
 
 
+def knit_pattern(yarn_radius: float = 0.5, a: float = 1.5, h: float = 4.0, d: float = 1.0,
+                 w: float | None = None) -> dict:
+    """The shape of a plain knit in knit units, without its size (rows, stitches, scale) or face (purl): what a
+    fit of its far field (the surface level, docs/decisions.md D44) holds for."""
+    return {"kind": "plain_knit", "a": a, "h": h, "d": d, "w": h + 0.5 if w is None else w, "yarn_radius": yarn_radius}
+
+
 def crane_course(t: np.ndarray, a: float = 1.5, h: float = 4.0, d: float = 1.0) -> np.ndarray:
     """Crane's course curve gamma(t) = (t + a sin 2t, h cos t, d cos 2t), shape (len(t), 3)."""
     t = np.asarray(t, dtype=np.float64)

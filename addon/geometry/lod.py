@@ -3,8 +3,9 @@
 
 Levels, finest first: `fibers` (explicit fibers, the reference), `plies` (each ply a thick curve with the ply
 model), `yarns` (each K-ply yarn one thick curve with the yarn-level model), `surface` (yarns below a pixel
-as a cloth surface with stock closures, D44: measured and fitted by `neuralyarn surface` and rendered by the
-evaluation harness, not yet built by the add-on: asking for it gives yarns and a warning). The choice is made from the
+as a cloth surface with stock closures, D44: measured and fitted by `neuralyarn surface`; the add-on draws it on
+its Knitted Swatch of the default shape, when asked for: Auto never chooses it, as the evaluation harness never
+measured it as accurate as the yarn level). The choice is made from the
 projected width of a ply in pixels at the object's nearest visible point, as Cycles' Principled Hair Huang
 switches near/far field from the curve radius against the pixel footprint. The thresholds are the ply widths
 below which the coarser level is as accurate as the finer in the evaluation harness's distance sweep
@@ -79,11 +80,11 @@ def choose_level(points: np.ndarray, ply_radius, view: View | None, *, fiber_rad
     """The level for one object: `requested` ("auto" or one of LEVELS) for the curve points `points` (n, 3)
     whose plies have radius `ply_radius` (a number or one per point; world units). Never raises for a bad
     camera: no camera, a zero resolution or a camera inside the cloth give plies (the look of fibers at any
-    size) with one warning; an object behind the camera gets yarns; `surface` gives yarns and a warning."""
+    size) with one warning; an object behind the camera gets yarns; `surface` only when asked for."""
     if requested not in ("auto",) + LEVELS:
         raise ValueError(f"level of detail must be auto or one of {', '.join(LEVELS)}, got {requested!r}")
-    if requested == "surface":
-        return LevelChoice("yarns", None, "the add-on does not build the surface level yet: drawing yarns")
+    if requested == "surface":  # asked for only: Auto never draws it (it is never as accurate as the yarn level)
+        return LevelChoice("surface", None, None)
     radii = np.atleast_1d(np.asarray(ply_radius, dtype=np.float64))
     warning = None
     if radii.size == 0 or not np.all(np.isfinite(radii)) or np.any(radii <= 0):

@@ -417,13 +417,51 @@ def test_level_of_detail_scene_override_and_fixed_levels(bpy, addon, empty):
     _apply_lod(bpy, knit)
     assert knit.neural_yarn.chosen == "yarns" and knit.neural_yarn.plies_object is None
     scene.neural_yarn_lod = "OBJECT"
-    knit.neural_yarn.level = "SURFACE"  # not built by the add-on: yarns, and it says so
-    _apply_lod(bpy, knit)
-    assert knit.neural_yarn.chosen.startswith("yarns;") and "surface" in knit.neural_yarn.chosen
     knit.neural_yarn.level, knit.neural_yarn.plies = "PLIES", 1  # the curves are plies themselves
     _apply_lod(bpy, knit)
     assert knit.neural_yarn.chosen == "plies" and knit.neural_yarn.plies_object is None
     assert knit.active_material.name == "Neural Yarn fleece" and not knit.hide_render
+
+
+def test_level_of_detail_draws_a_default_knit_as_its_surface(bpy, addon, empty, tmp_path):
+    """Asked for, the surface level draws a Knitted Swatch of the default shape as one quad over its stitches and
+    rows (its face toward the knit's face), with the preset's fitted stock closures, the yarns hidden; rendered, it
+    is lit, finite and covers about what the yarns cover."""
+    knit = _knit_seen_from(bpy, addon, 3.0)
+    scene = bpy.context.scene
+    yarn_px = render(bpy, scene, tmp_path / "yarns.exr", osl=False)
+    knit.neural_yarn.level = "SURFACE"
+    _apply_lod(bpy, knit)
+    surface = knit.neural_yarn.surface_object
+    assert knit.neural_yarn.chosen == "surface" and knit.hide_render and not surface.hide_render
+    assert surface.type == "MESH" and surface.parent == knit and len(surface.data.polygons) == 2
+    assert all(p.normal.z > 0.99 for p in surface.data.polygons)  # the knit's face is +z
+    mat = surface.active_material
+    assert mat.name == "Neural Yarn fleece surface"
+    curves = [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeRGBCurve"]
+    assert len(curves) == len(addon.level_of_detail.surface_material_of("fleece")["material"]["closures"]) >= 4
+    px = render(bpy, scene, tmp_path / "surface.exr", osl=False)
+    assert np.isfinite(px).all() and yarn_luminance(px) > 1e-3
+    covered, yarn_covered = (px[..., 3] > 0.5).mean(), (yarn_px[..., 3] > 0.5).mean()
+    assert 0.5 * yarn_covered < covered < 2.0 * yarn_covered, (covered, yarn_covered)
+    knit.neural_yarn.level = "AUTO"  # another level hides the surface
+    _apply_lod(bpy, knit)
+    assert surface.hide_render and not addon.level_of_detail.rendered_object(knit).hide_render
+
+
+def test_level_of_detail_surface_faces_the_purl_side_and_refuses_other_cloth(bpy, addon, empty):
+    bpy.ops.neural_yarn.add_knit(rows=2, stitches=2, preset="fleece", purl=True)
+    purl = bpy.context.active_object
+    purl.neural_yarn.level = "SURFACE"
+    _apply_lod(bpy, purl)
+    assert all(p.normal.z < -0.99 for p in purl.neural_yarn.surface_object.data.polygons)
+    for op, kw in (("add_knit", {"yarn_radius": 0.4}), ("add_weave", {"warps": 4, "wefts": 4})):
+        getattr(bpy.ops.neural_yarn, op)(preset="fleece", **kw)
+        other = bpy.context.active_object
+        other.neural_yarn.level = "SURFACE"
+        _apply_lod(bpy, other)
+        assert other.neural_yarn.chosen.startswith("yarns; warning: the surface level is fitted on"), op
+        assert other.neural_yarn.surface_object is None
 
 
 def test_level_of_detail_keeps_an_edited_material_at_the_ply_level(bpy, addon, empty):

@@ -42,10 +42,10 @@ def test_the_level_follows_the_footprint():
     d = 2 * r * 640 / (2 * lod.YARNS_BELOW_PLY_PIXELS * math.tan(0.5 * FOV))
     assert lod.choose_level(line(-10 + d * 0.999), r, view()).level == "plies"
     assert lod.choose_level(line(-10 + d * 1.001), r, view()).level == "yarns"
-    # A requested level is kept (no camera needed); surface is not built: yarns, with a warning.
+    # A requested level is kept (no camera needed), the surface level too; Auto never gives it, however far.
     assert lod.choose_level(line(), r, None, requested="plies") == lod.LevelChoice("plies", None, None)
-    s = lod.choose_level(line(), r, view(), requested="surface")
-    assert s.level == "yarns" and "surface" in s.warning
+    assert lod.choose_level(line(), r, view(), requested="surface") == lod.LevelChoice("surface", None, None)
+    assert lod.choose_level(line(1e6), r, view()).level == "yarns"
     with pytest.raises(ValueError):
         lod.choose_level(line(), r, view(), requested="atoms")
 
