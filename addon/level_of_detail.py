@@ -98,8 +98,9 @@ def requested_level(obj, scene) -> str:
 
 
 def yarn_object_of(obj, scene):
-    """The yarn object whose plies `obj` is, else `obj` itself: a plies object is set and applied through its yarns."""
-    return next((o for o in scene.objects if o.type == "CURVES" and o.neural_yarn.plies_object == obj), obj)
+    """The yarn object whose plies or surface `obj` is, else `obj` itself: they are set and applied through it."""
+    return next((o for o in scene.objects if o.type == "CURVES" and obj in (o.neural_yarn.plies_object,
+                                                                             o.neural_yarn.surface_object)), obj)
 
 
 def rendered_object(obj):

@@ -314,18 +314,22 @@ class NEURALYARN_OT_apply_lod(bpy.types.Operator):
     bl_label = "Apply Level of Detail"
     bl_options = {"REGISTER", "UNDO"}
 
+    @staticmethod
+    def targets(context) -> list:
+        """The selected yarn objects; a selected plies or surface object stands for its yarns; each once."""
+        found = (level_of_detail.yarn_object_of(o, context.scene) for o in context.selected_objects)
+        return list(dict.fromkeys(o for o in found if o.type == "CURVES"))
+
     @classmethod
     def poll(cls, context):
-        if any(o.type == "CURVES" for o in context.selected_objects):
+        if cls.targets(context):
             return True
         if hasattr(cls, "poll_message_set"):
-            cls.poll_message_set("Select the yarn Curves objects (the yarns, or their plies)")
+            cls.poll_message_set("Select the yarn Curves objects (the yarns, their plies or their surface)")
         return False
 
     def execute(self, context):
-        # A selected plies object stands for its yarns; each yarn object once.
-        targets = list(dict.fromkeys(level_of_detail.yarn_object_of(o, context.scene)
-                                     for o in context.selected_objects if o.type == "CURVES"))
+        targets = self.targets(context)
         lines, failed = [], []
         for obj in targets:
             try:  # each object whole or not at all: apply_level changes nothing before its plies exist

@@ -65,8 +65,8 @@ class VIEW3D_PT_neural_yarn(bpy.types.Panel):
         col.label(text="Level of Detail")
         col.prop(context.scene, "neural_yarn_lod", text="Scene")
         obj = context.active_object
+        obj = level_of_detail.yarn_object_of(obj, context.scene) if obj is not None else None  # plies, surface: yarns
         if obj is not None and obj.type == "CURVES":
-            obj = level_of_detail.yarn_object_of(obj, context.scene)  # plies are set through their yarns
             row = col.row(align=True)
             row.active = context.scene.neural_yarn_lod == "OBJECT"
             row.prop(obj.neural_yarn, "level", text=obj.name)

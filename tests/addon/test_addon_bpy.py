@@ -444,8 +444,8 @@ def test_level_of_detail_draws_a_default_knit_as_its_surface(bpy, addon, empty, 
     assert np.isfinite(px).all() and yarn_luminance(px) > 1e-3
     covered, yarn_covered = (px[..., 3] > 0.5).mean(), (yarn_px[..., 3] > 0.5).mean()
     assert 0.5 * yarn_covered < covered < 2.0 * yarn_covered, (covered, yarn_covered)
-    knit.neural_yarn.level = "AUTO"  # another level hides the surface
-    _apply_lod(bpy, knit)
+    knit.neural_yarn.level = "AUTO"  # another level hides the surface; the surface selected stands for its knit
+    _apply_lod(bpy, surface)
     assert surface.hide_render and not addon.level_of_detail.rendered_object(knit).hide_render
 
 
