@@ -87,7 +87,7 @@ class NeuralYarnObjectSettings(bpy.types.PropertyGroup):
                                             description="The ply curves built from this object's yarns")
     surface_object: bpy.props.PointerProperty(name="Surface Object", type=bpy.types.Object,
                                               description="The cloth surface built for this swatch")
-    applied: bpy.props.StringProperty(name="Applied", description="The level last applied (plies or yarns)")
+    applied: bpy.props.StringProperty(name="Applied", description="The level last applied (plies, yarns or surface)")
     chosen: bpy.props.StringProperty(name="Chosen", description="The level last applied, and why")
 
 
@@ -245,7 +245,8 @@ def decide_level(obj, scene, requested: str | None = None) -> lod.LevelChoice:
 def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
     """Decides the level of a yarn object (decide_level) and builds it: at the ply level the object's plies object
     (made once, with the preset's ply material; the yarns hidden), at the yarn level the yarns themselves with the
-    preset's yarn-level material (the plies hidden, not deleted). Only a material that is nothing but a preset's
+    preset's yarn-level material, at the surface level the swatch's surface quad with the preset's surface material
+    (what another level does not show is hidden, never deleted). Only a material that is nothing but a preset's
     node is exchanged between levels. Records the level in obj.neural_yarn (applied, chosen: with why) and
     returns the decision."""
     from . import operators  # noqa: PLC0415 (operators imports this module)
@@ -262,6 +263,7 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
     if level == "surface":
         if surface_obj is None:
             surface_obj = s.surface_object = _make_surface_object(obj)
+        _set_material(surface_obj, _surface_material(preset))  # the swatch's preset now, not when it was made
         if plies_obj is not None:
             _show(plies_obj, False)
         _show(surface_obj, True)

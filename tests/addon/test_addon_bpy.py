@@ -444,6 +444,11 @@ def test_level_of_detail_draws_a_default_knit_as_its_surface(bpy, addon, empty, 
     assert np.isfinite(px).all() and yarn_luminance(px) > 1e-3
     covered, yarn_covered = (px[..., 3] > 0.5).mean(), (yarn_px[..., 3] > 0.5).mean()
     assert 0.5 * yarn_covered < covered < 2.0 * yarn_covered, (covered, yarn_covered)
+    knit.hide_set(False)
+    knit.select_set(True)
+    bpy.ops.neural_yarn.assign_preset(preset="cotton")  # another preset: the same quad, that preset's fit
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.surface_object == surface and surface.active_material.name == "Neural Yarn cotton surface"
     knit.neural_yarn.level = "AUTO"  # another level hides the surface; the surface selected stands for its knit
     _apply_lod(bpy, surface)
     assert surface.hide_render and not addon.level_of_detail.rendered_object(knit).hide_render
