@@ -232,11 +232,9 @@ def _check_preset(args, ny) -> None:
         raise BatchError(f"unknown preset '{args.preset}' ({', '.join(ny.resources.PRESETS)})")
 
 
-def _apply_level(ny, obj, requested) -> tuple:
+def _apply_level(ny, obj) -> tuple:
     """Applies a yarn object's level of detail (addon/level_of_detail.py), prints the batch log's line for it and
-    returns (the object that renders it: its plies or itself, the level)."""
-    if requested is not None:  # the scene-wide override for this render: what a later check compares against too
-        bpy.context.scene.neural_yarn_lod = requested.upper()
+    returns (the object that renders it: its plies, surface or itself, the level)."""
     try:
         level = ny.level_of_detail.apply_level(bpy.context, obj).level
     except ny.geometry.GeometryError as e:
@@ -276,20 +274,24 @@ def run(argv: list[str]) -> str:
             ny.scene_setup.frame(scene, yarns)  # the camera the level is chosen for
             framed = True
             bpy.context.view_layer.update()  # its matrix_world
+            scene.neural_yarn_lod = (args.lod or "auto").upper()
             for obj in yarns:  # geometry only at the level used: no ply curves for yarns
                 obj.neural_yarn.plies = args.plies
                 if not args.model:  # the preset's material first: the level's material follows from it
                     obj.data.materials.append(ny.operators.preset_material(args.preset, "plies"))
-                shown, level = _apply_level(ny, obj, args.lod or "auto")
+                shown, level = _apply_level(ny, obj)
                 levels[shown] = level
             yarns = list(levels)
         else:
             print(f"level of detail: {', '.join(o.name for o in yarns)}: plies (--plies 1: the curves are plies)")
     else:
         # The yarn objects an artist applied a level of detail to, again for this render's camera and size (--lod,
-        # when given, over their own settings); what they hide is not rendered.
+        # when given, as the scene-wide override: what the render's stale-level check compares against too); what
+        # they hide is not rendered.
+        if args.lod is not None:
+            scene.neural_yarn_lod = args.lod.upper()
         for obj in [o for o in yarns if o.neural_yarn.chosen]:
-            shown, level = _apply_level(ny, obj, args.lod)
+            shown, level = _apply_level(ny, obj)
             levels[shown] = level
         yarns = [o for o in yarns if not o.hide_render]
     levels = {obj: levels.get(obj, "plies") for obj in yarns}

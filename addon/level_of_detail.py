@@ -25,11 +25,11 @@ LEVEL_ITEMS = [
     ("SURFACE", "Surface", "A cloth surface with the preset's fitted stock closures (a Knitted Swatch of the default "
                            "shape only; never chosen by Auto: less accurate than the yarns)"),
 ]
+OVERRIDE_ITEMS = [("OBJECT", "Per Object", "Each yarn object's own level of detail")] + LEVEL_ITEMS
 #: The object key under which a generated swatch keeps its pattern, size and face (operators.py writes it).
 SWATCH_KEY = "neural_yarn_swatch"
 #: The format of a shipped surface-level material (`neuralyarn surface --material-out`).
 CLOTH_SURFACE_FORMAT = "neuralyarn-cloth-surface 1"
-OVERRIDE_ITEMS = [("OBJECT", "Per Object", "Each yarn object's own level of detail")] + LEVEL_ITEMS
 
 
 def view_of(scene) -> lod.View | None:
@@ -175,8 +175,9 @@ def _surface_material(preset: str):
 
 def _make_surface_object(obj):
     """A quad over the swatch's stitches and rows in its mid-plane (z = 0 of its object: one period per stitch and
-    per row, the area the fit holds for), facing the knit's face (its purl side flips it), parented to it."""
-    swatch, preset = _swatch(obj), _plain_preset(obj.active_material)
+    per row, the area the fit holds for), facing the knit's face (its purl side flips it), parented to it; apply_level
+    gives it its material."""
+    swatch = _swatch(obj)
     p, k = swatch["pattern"], swatch["scale"]
     x1 = 2.0 * math.pi * swatch["stitches"] * k
     y0, y1 = -0.5 * p["w"] * k, ((swatch["rows"] - 1) * p["w"] + 0.5 * p["w"]) * k
@@ -184,7 +185,6 @@ def _make_surface_object(obj):
     mesh = bpy.data.meshes.new(f"{obj.name} surface")
     mesh.from_pydata([(0.0, y0, 0.0), (x1, y0, 0.0), (x1, y1, 0.0), (0.0, y1, 0.0)], [], tris)
     mesh.update()
-    mesh.materials.append(_surface_material(preset))
     surface = bpy.data.objects.new(f"{obj.name} surface", mesh)
     surface.parent = obj  # follows the swatch; its own transform is the identity
     for collection in obj.users_collection:
@@ -273,8 +273,8 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
             _show(plies_obj, False)  # made for another number of plies: kept, hidden, and made anew
             plies_obj = None
         if plies_obj is None:
-            plies_obj = operators.make_plies_object(context, obj, s.plies, YARN_MODEL_PLY_TWIST, 24,
-                                                    None if preset else mat)
+            plies_obj = operators.make_plies_object(context, obj, s.plies, YARN_MODEL_PLY_TWIST,
+                                                    operators.PLY_SAMPLES_PER_TURN, None if preset else mat)
             s.plies_object = plies_obj
         if preset:
             _set_material(plies_obj, operators.preset_material(preset, "plies"))

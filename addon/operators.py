@@ -23,6 +23,8 @@ UP_AXES = [("auto", "From File", "The BCC header's up axis"), ("Y", "Y Up", "Fil
 # Scene-unit defaults: Crane's knit units (a stitch is 2 pi wide, yarn radius 1/2) times 0.002 give a
 # chunky knit with 1 mm yarn radius and 12.6 mm stitches.
 KNIT_SCALE = 0.002
+#: Curve points per turn of a ply's helix about its yarn (Twist Plies' default, and the level of detail's plies).
+PLY_SAMPLES_PER_TURN = 24
 
 
 def preset_material(preset: str, level: str = "plies"):
@@ -260,7 +262,7 @@ class NEURALYARN_OT_make_plies(bpy.types.Operator):
     plies: bpy.props.IntProperty(name="Plies", default=3, min=1, max=16, description="Plies twisted into each yarn")
     ply_twist: bpy.props.FloatProperty(name="Ply Twist alpha", default=0.5, min=0.0, max=8.0,
                                        description="2 R_yarn x plies turns per unit length")
-    samples_per_turn: bpy.props.IntProperty(name="Samples per Turn", default=24, min=4, max=256,
+    samples_per_turn: bpy.props.IntProperty(name="Samples per Turn", default=PLY_SAMPLES_PER_TURN, min=4, max=256,
                                             description="Curve points per turn of each ply's helix")
     preset: bpy.props.EnumProperty(name="Material", items=KEEP_OR_PRESET, default="KEEP",
                                    description="The plies' material: the yarn's own, or a preset")

@@ -51,27 +51,31 @@ def resource_dir(sub: str) -> str:
                             f"reinstall the add-on from a zip made by scripts/package_addon.sh")
 
 
+def _check_preset(name: str) -> None:
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset '{name}' (one of {', '.join(PRESETS)})")
+
+
+def _shipped(file: str, what: str) -> str:
+    path = os.path.join(resource_dir("models"), file)
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"the shipped {what} '{path}' is missing; reinstall the add-on")
+    return path
+
+
 def surface_material_path(name: str) -> str:
     """Path of a preset's shipped surface-level material (<name>_surface_knit.json: the far field of the Knitted
     Swatch at its default shape, scripts/make_surface_materials.py); ValueError for an unknown preset,
     FileNotFoundError if it is missing."""
-    if name not in PRESETS:
-        raise ValueError(f"unknown preset '{name}' (one of {', '.join(PRESETS)})")
-    path = os.path.join(resource_dir("models"), name + "_surface_knit.json")
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"the shipped surface material '{path}' is missing; reinstall the add-on")
-    return path
+    _check_preset(name)
+    return _shipped(name + "_surface_knit.json", "surface material")
 
 
 def preset_model_path(name: str, level: str = "plies") -> str:
     """Path of a shipped model file: the ply level's <name>.json or the yarn level's <name>_yarn.json (3 plies at
     ply twist 0.5, the add-on's default plying); ValueError for an unknown preset or level, FileNotFoundError if
     it is missing."""
-    if name not in PRESETS:
-        raise ValueError(f"unknown preset '{name}' (one of {', '.join(PRESETS)})")
+    _check_preset(name)
     if level not in ("plies", "yarns"):
         raise ValueError(f"shipped models are of the plies and yarns levels, not '{level}'")
-    path = os.path.join(resource_dir("models"), name + ("_yarn" if level == "yarns" else "") + ".json")
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"the shipped model '{path}' is missing; reinstall the add-on")
-    return path
+    return _shipped(name + ("_yarn" if level == "yarns" else "") + ".json", "model")
