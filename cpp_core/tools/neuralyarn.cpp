@@ -167,6 +167,9 @@ struct YarnGeometryCommand {
   CLI::App *cmd;
   int plies = 3;
   std::vector<double> ply_twists{0.5};
+  int surface_frames = 0;
+  double spread = 1.0;
+  std::string preset = "fleece", params;
 
   explicit YarnGeometryCommand(CLI::App &app)
       : cmd(app.add_subcommand("yarn-geometry",
@@ -176,13 +179,35 @@ struct YarnGeometryCommand {
     cmd->add_option("--ply-twist", ply_twists, "Ply twist alpha_yarn (2 R_yarn turns per length); several give a line each")
         ->check(finite_range(0.0, 8.0))
         ->capture_default_str();
+    cmd->add_option("--surface-frames", surface_frames,
+                    "Also the fiber frames of the visible ply surface at this many quantiles (docs/decisions.md D51; "
+                    "the fibers' twist from --preset or --params)")
+        ->check(CLI::Range(1, 64));
+    cmd->add_option("--spread", spread, "--surface-frames: the central share of the visible surface they stand for")
+        ->check(finite_range(1e-6, 1.0))
+        ->capture_default_str();
+    add_preset_options(cmd, &preset, &params);
   }
   int run() const
   {
     for (const double alpha : ply_twists) {
       const double d = geometry::ply_center_distance(plies, 1.0, alpha);
-      std::printf("{\"plies\": %d, \"ply_twist\": %.17g, \"ply_distance\": %.17g, \"yarn_radius\": %.17g}\n",
-                  plies, alpha, d, d + 1.0);
+      nlohmann::json line = {{"plies", plies}, {"ply_twist", alpha}, {"ply_distance", d}, {"yarn_radius", d + 1.0}};
+      if (surface_frames > 0) {
+        const FiberPreset p = resolve_preset(preset, params);
+        geometry::YarnParams yp;
+        yp.K = plies;
+        yp.alpha_yarn = alpha;
+        yp.ply = geometry::PlyParams{p.N, p.rho, p.alpha, 1.0};
+        nlohmann::json frames = nlohmann::json::array();
+        for (const geometry::SurfaceFrame &f : geometry::visible_surface_frames(geometry::Yarn(yp, 1), surface_frames, spread)) {
+          frames.push_back({{"T", {f.T.x(), f.T.y(), f.T.z()}}, {"N", {f.N.x(), f.N.y(), f.N.z()}},
+                            {"turn_deg", f.turn * 180.0 / kPi}});
+        }
+        line["spread"] = spread;
+        line["surface_frames"] = frames;
+      }
+      std::printf("%s\n", line.dump().c_str());
     }
     return 0;
   }

@@ -86,6 +86,62 @@ TEST(YarnGeometry, SurfaceTwist)
   EXPECT_NEAR(geometry::surface_twist(geometry::Yarn(yp, 1)), a1, 0.15 * a1); /* untwisted plies: the fibers' own */
 }
 
+/* One ply on the axis: every point of its surface is visible, its normal is the yarn's radial, and its fibers
+ * run as the kernel's surface fiber of twist alpha (kernel/frames.h), which ties the geometry's frame to the
+ * kernel's convention (y = z x x, a Z twist tilts the tangent to -y). */
+TEST(YarnGeometry, SurfaceFramesOfOnePlyAreTheKernelsSurfaceFiber)
+{
+  const FiberPreset p = find_preset("polyester");
+  const ny::Vec3 t = ny::surface_fiber_tangent(ny::make_twist_rotation(float(p.alpha)));
+  for (const geometry::SurfaceFrame &f : geometry::visible_surface_frames(one_ply_yarn(p, 1), 4, 1.0)) {
+    EXPECT_NEAR(f.N.z(), 1.0, 1e-9);
+    EXPECT_NEAR(f.turn, 0.0, 1e-9);
+    EXPECT_NEAR(f.T.x(), t.x, 1e-5);
+    EXPECT_NEAR(f.T.y(), t.y, 1e-5);
+    EXPECT_NEAR(f.T.z(), t.z, 1e-5);
+  }
+}
+
+/* Three plies (the shipped plying): the frames are the ridges' flanks, mirror images about the crest (the
+ * surface's turn and the fibers' slope out of the envelope's plane change sign, their tilt in it does not); a
+ * narrower share of the surface keeps them closer to the crest, whose fibers have the yarn's surface twist
+ * (geometry::surface_twist averages the outermost fibers: 0.02 in alpha). */
+TEST(YarnGeometry, SurfaceFramesOfThreePliesAreTheRidgesFlanks)
+{
+  const FiberPreset p = find_preset("polyester");
+  geometry::YarnParams yp;
+  yp.K = 3;
+  yp.alpha_yarn = 0.5;
+  yp.ply = geometry::PlyParams{p.N, p.rho, p.alpha, 1.0};
+  const geometry::Yarn yarn(yp, 1);
+  const std::vector<geometry::SurfaceFrame> wide = geometry::visible_surface_frames(yarn, 4, 1.0);
+  const std::vector<geometry::SurfaceFrame> narrow = geometry::visible_surface_frames(yarn, 4, 0.2);
+  ASSERT_EQ(wide.size(), 4u);
+  for (int q = 0; q < 4; q++) {
+    const geometry::SurfaceFrame &a = wide[size_t(q)], &b = wide[size_t(3 - q)];
+    EXPECT_NEAR(a.turn, -b.turn, 0.02);
+    EXPECT_NEAR(a.T.z(), -b.T.z(), 0.02);
+    EXPECT_NEAR(a.T.y(), b.T.y(), 0.02);
+    EXPECT_NEAR(a.T.norm(), 1.0, 1e-9);
+    EXPECT_NEAR(a.N.norm(), 1.0, 1e-9);
+    EXPECT_NEAR(a.T.dot(a.N), 0.0, 1e-9);
+    EXPECT_LT(std::abs(narrow[size_t(q)].turn), std::abs(a.turn));
+  }
+  EXPECT_GT(wide[0].turn, -0.5 * kPi);
+  EXPECT_LT(wide[0].turn, -0.3); /* the outer quantiles of a ridge's flanks, not the crest */
+  const double crest_alpha = -narrow[1].T.y() / (kPi * narrow[1].T.x());
+  EXPECT_NEAR(crest_alpha, geometry::surface_twist(yarn), 0.02);
+}
+
+TEST(YarnGeometry, SurfaceFramesRefuseBadRequests)
+{
+  const geometry::Yarn yarn = one_ply_yarn(find_preset("silk"), 1);
+  EXPECT_THROW(geometry::visible_surface_frames(yarn, 0, 1.0), ParameterError);
+  EXPECT_THROW(geometry::visible_surface_frames(yarn, 4, 0.0), ParameterError);
+  EXPECT_THROW(geometry::visible_surface_frames(yarn, 4, 1.5), ParameterError);
+  EXPECT_THROW(geometry::visible_surface_frames(yarn, 4, std::nan("")), ParameterError);
+}
+
 TEST(YarnTracer, OnePlyYarnIsRefusedForTheYarnLevel)
 {
   geometry::YarnStructure s;

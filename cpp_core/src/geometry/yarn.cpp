@@ -125,12 +125,16 @@ Eigen::Vector3d Yarn::ply_tangent(int ply, double x) const
 
 Eigen::Vector3d Yarn::fiber_point(int ply, int fiber, double x) const
 {
+  const Eigen::Vector2d &c = sections_[ply].centers[fiber];
+  return ply_point(ply, c.norm(), std::atan2(c.y(), c.x()), x);
+}
+
+Eigen::Vector3d Yarn::ply_point(int ply, double rho, double psi0, double x) const
+{
   const double th = 2.0 * kPi * ply / params_.K - w_ * x;
   const Eigen::Vector3d e_r(0.0, std::cos(th), std::sin(th)); /* normal to the helix (and to the axis) */
   const Eigen::Vector3d e_b = ply_tangent(ply, x).cross(e_r);
-  const Eigen::Vector2d &c = sections_[ply].centers[fiber];
-  const double rho = c.norm();
-  const double psi = std::atan2(c.y(), c.x()) + fiber_rate_ * arc_per_x_ * x;
+  const double psi = psi0 + fiber_rate_ * arc_per_x_ * x;
   return ply_center(ply, x) + rho * (std::cos(psi) * e_r + std::sin(psi) * e_b);
 }
 
@@ -163,6 +167,109 @@ double surface_twist(const Yarn &yarn)
     }
   }
   return count > 0 ? sum / count / kPi : 0.0;
+}
+
+namespace {
+
+/* Whether q lies inside a ply other than `self` (its distance to that ply's centreline below R_ply): the
+ * squared distance to a helix is scanned over one yarn radius either side of q's x, where the nearest point
+ * of a centreline at most d + R_ply from q must lie, then refined by golden-section search. */
+bool inside_another_ply(const Yarn &yarn, int self, const Eigen::Vector3d &q)
+{
+  const double R = yarn.params().ply.R, reach = yarn.yarn_radius() + R;
+  for (int k = 0; k < yarn.num_plies(); k++) {
+    if (k == self) {
+      continue;
+    }
+    auto d2 = [&](double x) { return (yarn.ply_center(k, x) - q).squaredNorm(); };
+    const int n = 64;
+    int i_best = 0;
+    double best = INFINITY;
+    for (int i = 0; i <= n; i++) {
+      const double f = d2(q.x() - reach + 2.0 * reach * i / n);
+      if (f < best) {
+        best = f;
+        i_best = i;
+      }
+    }
+    double a = q.x() - reach + 2.0 * reach * std::max(0, i_best - 1) / n;
+    double b = q.x() - reach + 2.0 * reach * std::min(n, i_best + 1) / n;
+    const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+    for (int it = 0; it < 60; it++) {
+      const double x1 = b - g * (b - a), x2 = a + g * (b - a);
+      if (d2(x1) < d2(x2)) {
+        b = x2;
+      }
+      else {
+        a = x1;
+      }
+    }
+    if (std::min(best, d2(0.5 * (a + b))) < R * R) {
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+std::vector<SurfaceFrame> visible_surface_frames(const Yarn &yarn, int nodes, double spread)
+{
+  if (nodes < 1) {
+    throw ParameterError("nodes", "the number of surface frames must be at least 1, got " + std::to_string(nodes));
+  }
+  if (!(spread > 0.0 && spread <= 1.0)) {
+    std::ostringstream s;
+    s << spread;
+    throw ParameterError("spread", "the share of the visible surface must be in (0, 1], got " + s.str());
+  }
+  const double R = yarn.params().ply.R, h = 1e-5 * R;
+  const int samples = 360;
+  std::vector<SurfaceFrame> visible;
+  for (int i = 0; i < samples; i++) {
+    const double psi0 = -kPi + 2.0 * kPi * i / samples;
+    const Eigen::Vector3d p = yarn.ply_point(0, R, psi0, 0.0);
+    const Eigen::Vector3d n = (p - yarn.ply_center(0, 0.0)) / R; /* the tube's normal: the cross-section's radial */
+    const Eigen::Vector3d t = (yarn.ply_point(0, R, psi0, h) - yarn.ply_point(0, R, psi0, -h)).normalized();
+    const double rho = std::hypot(p.y(), p.z());
+    if (!(rho > 0.0)) {
+      continue;
+    }
+    const Eigen::Vector3d z(0.0, p.y() / rho, p.z() / rho), y = z.cross(Eigen::Vector3d::UnitX());
+    SurfaceFrame f;
+    f.T = Eigen::Vector3d(t.x(), t.dot(y), t.dot(z));
+    f.N = Eigen::Vector3d(n.x(), n.dot(y), n.dot(z));
+    f.N = (f.N - f.T * f.T.dot(f.N)).normalized(); /* the tangent of a screw line on the tube lies in its surface */
+    f.weight = f.N.z();
+    if (!(f.weight > 0.0)) {
+      continue;
+    }
+    bool hidden = false;
+    for (double s = 0.02 * R; s < 3.0 * R && !hidden; s += 0.03 * R) {
+      hidden = inside_another_ply(yarn, 0, p + s * z);
+    }
+    if (hidden) {
+      continue;
+    }
+    f.turn = std::atan2(-f.N.y(), f.N.z());
+    visible.push_back(f);
+  }
+  std::sort(visible.begin(), visible.end(), [](const SurfaceFrame &a, const SurfaceFrame &b) { return a.turn < b.turn; });
+  double total = 0.0;
+  for (const SurfaceFrame &f : visible) {
+    total += f.weight;
+  }
+  std::vector<SurfaceFrame> frames;
+  size_t i = 0;
+  double cdf = visible.empty() ? 0.0 : visible[0].weight / total;
+  for (int q = 0; q < nodes; q++) {
+    const double u = 0.5 + ((q + 0.5) / nodes - 0.5) * spread;
+    while (i + 1 < visible.size() && cdf < u) {
+      cdf += visible[++i].weight / total;
+    }
+    frames.push_back(visible[i]);
+  }
+  return frames;
 }
 
 CurveSet export_fibers(const Yarn &yarn, double x0, double x1, int segments_per_turn)

@@ -55,6 +55,9 @@ class Yarn {
   Eigen::Vector3d ply_center(int ply, double x) const;
   Eigen::Vector3d ply_tangent(int ply, double x) const;
   Eigen::Vector3d fiber_point(int ply, int fiber, double x) const;
+  /* The point at polar offset (rho, psi0) of ply `ply`'s cross-section at x, turned with the fibers as
+   * fiber_point() turns a fiber there: rho = R_ply is the ply's surface, which its outermost fibers follow. */
+  Eigen::Vector3d ply_point(int ply, double rho, double psi0, double x) const;
 
  private:
   YarnParams params_;
@@ -68,6 +71,22 @@ class Yarn {
  * angle of the fiber tangent from the yarn axis about the outward radial direction, positive for a
  * Z twist. For K = 1 it is the ply's alpha (times the outer fibers' rho / R_ply). */
 double surface_twist(const Yarn &yarn);
+
+/* Where single scattering meets a K-ply yarn (docs/decisions.md D51): a point of a ply's surface that a ray along
+ * the yarn's outward radial leaves without entering another ply, with the direction a fiber takes there (T) and
+ * the ply surface's normal (N), both in the yarn frame of the envelope point above it (x = yarn axis, z =
+ * outward radial, y = z x x: kernel/frames.h). `turn` is N's angle about x from z, `weight` its projected area
+ * N.z at normal incidence. */
+struct SurfaceFrame {
+  Eigen::Vector3d T, N;
+  double turn = 0.0, weight = 0.0;
+};
+
+/* `nodes` frames of the visible ply surface (samples of one ply's circumference, which by the screw symmetry
+ * stand for every ply and every x), at the midpoints of `nodes` equal quantiles of the central `spread` share
+ * of the weighted distribution of turns. One ply (K = 1): every point is visible, the frames turn about x
+ * alone. Throws ParameterError for nodes < 1 or spread outside (0, 1]. */
+std::vector<SurfaceFrame> visible_surface_frames(const Yarn &yarn, int nodes, double spread);
 
 /* Smallest 3D distance between the centerlines of neighbouring plies at centre distance d (by the screw
  * symmetry of the yarn, a 1-D minimisation). Exposed for tests. */
