@@ -58,7 +58,9 @@ def _fail(where: str, message: str) -> ModelFileError:
 
 
 # The kernel array's layout (cpp_core/include/neuralyarn/kernel/yarn_bsdf.h, YarnFlatField; mlp.h).
-_FLAT_HEADERS = {3: 24, 4: 26, 5: 27}  # layout 3: no TT fields, azimuth rows without the TT share; 4: no free path
+_FLAT_HEADERS = {3: 24, 4: 26, 5: 27, 6: 28}  # layout 3: no TT fields, azimuth rows without the TT share; 4: no
+# free path; 5: no R node frames
+_R_NODES, _R_FRAME_STRIDE = 4, 6  # kYarnRNodes, kYarnRFrameStride: a yarn's R nodes as its surface fibers (D51)
 _MAX_FREE_PATH = 2.0  # kYarnMaxFreePath: the R lobe's mean free path, ply radii
 _MLP_MAX_LAYERS, _MLP_MAX_WIDTH = 8, 64
 _HEAD_SIGMOID, _HEAD_EXP = 1, 2
@@ -82,11 +84,12 @@ def _network_ok(f: list, offset: int, end: int, inputs: int, outputs: int, head:
     return widths[0] == inputs and widths[L] == outputs and f[offset + L + 2] == head and offset + count <= end
 
 
-def kernel_flat_problem(f: list, layout: int = 5) -> str | None:
-    """What is wrong with a layout 5 kernel array (the native closure's input), or None: the same checks as
+def kernel_flat_problem(f: list, layout: int = 6) -> str | None:
+    """What is wrong with a layout 6 kernel array (the native closure's input), or None: the same checks as
     the C++ loader's yarn_flat_check, so that the add-on packs no model the patched Cycles would refuse.
-    Layout 4 (no R free path, which the C++ loader moves to layout 5 with the free path 0) and layout 3
-    (version 3 files, which it rebuilds with no TT share) get the checks they had."""
+    Layouts 4 and 5 (no R free path, no R node frames: the C++ loader and the Cycles patch move them to layout
+    6 with zeros there) and layout 3 (version 3 files, which it rebuilds with no TT share) get the checks they
+    had."""
     n = len(f)
     header = _FLAT_HEADERS[layout]
     if n < header:
@@ -101,6 +104,13 @@ def kernel_flat_problem(f: list, layout: int = 5) -> str | None:
             (layout == 3 or (f[24] > 0.0 and f[25] > 0.0)) and
             (layout < 5 or 0.0 <= f[26] <= _MAX_FREE_PATH)):
         return "has sampling parameters out of range"
+    if layout >= 6 and f[27] != 0.0:
+        frames = f[28:28 + _R_NODES * _R_FRAME_STRIDE]
+        if f[27] != 28.0 or f[26] != 0.0 or not f[14] >= 28 + _R_NODES * _R_FRAME_STRIDE:
+            return "has R node frames out of place"
+        if any(abs(frames[i] ** 2 + frames[i + 1] ** 2 - 1.0) > 1e-4 for i in range(0, len(frames), 2)):
+            return "has an R node frame that is not a rotation"
+        header += _R_NODES * _R_FRAME_STRIDE
     oT, oR, oM, oC, oA = f[14], f[15], f[16], f[17], f[20]
     if not (0.0 <= oT <= oR <= oM <= oC <= oA <= n) or oA != int(oA):
         return "has network offsets out of order"
@@ -180,22 +190,33 @@ def parse_model(text: str, source: str) -> YarnModel:
                 isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in flat):
             raise _fail(source, "'kernel_flat' is not a layout 2 array of finite numbers")
     else:
-        # Version 4 and 5 files hold layout 4 (no R free path) or 5 (this code's), as their array says.
-        layout = 3 if version == 3 else 5 if flat and flat[0] == 5.0 else 4
+        # Version 4 and 5 files hold layout 4 (no R free path), 5 (no R node frames) or 6 (this code's), as
+        # their array says.
+        layout = 3 if version == 3 else int(flat[0]) if flat and flat[0] in (5.0, 6.0) else 4
         problem = kernel_flat_problem(flat, layout)
         if problem:
             raise _fail(source, f"'kernel_flat' {problem}")
         free_path = data.get("r_free_path", 0.0 if layout < 5 else None)
         if layout < 5 and "r_free_path" in data:
             raise _fail(source, "'r_free_path' needs a layout 5 'kernel_flat'")
-        if layout == 5 and (not isinstance(free_path, (int, float)) or isinstance(free_path, bool) or
+        if "r_surface_frames" in data and (layout < 6 or level != "yarns"):
+            raise _fail(source, "'r_surface_frames' needs a yarn-level model with a layout 6 'kernel_flat'")
+        # The frames are the array's and the file's alike, or neither's (the C++ loader rebuilds the array).
+        surface = data.get("r_surface_frames")
+        frames = surface.get("frames") if isinstance(surface, dict) else None
+        in_flat = flat[28:28 + _R_NODES * _R_FRAME_STRIDE] if layout >= 6 and flat[27] != 0.0 else None
+        if (surface is not None or in_flat is not None) and (
+                not isinstance(frames, list) or in_flat is None or
+                [v for fr in frames for v in (fr if isinstance(fr, list) else [None])] != in_flat):
+            raise _fail(source, "'r_surface_frames' disagrees with the kernel array's R node frames")
+        if layout >= 5 and (not isinstance(free_path, (int, float)) or isinstance(free_path, bool) or
                             not math.isfinite(free_path) or not 0.0 <= free_path <= _MAX_FREE_PATH or
                             abs(flat[26] - free_path) > 1e-6 * max(1.0, free_path)):
             raise _fail(source, f"'r_free_path' must be a number in [0, {_MAX_FREE_PATH}] equal to the "
                                 f"kernel array's (got {free_path!r})")
     model = YarnModel(source=source, text=text, data=data, preset_name=preset["name"], alpha=float(alpha),
                       level=level, plies=int(plies), ply_twist=float(ply_twist))
-    if flat and flat[0] in (4.0, 5.0) and abs(flat[2] - model.alpha) > 1e-6 * max(1.0, abs(model.alpha)):
+    if flat and flat[0] in (4.0, 5.0, 6.0) and abs(flat[2] - model.alpha) > 1e-6 * max(1.0, abs(model.alpha)):
         raise _fail(source, "'kernel_flat' twist disagrees with the model's "
                             + ("surface twist" if level == "yarns" else "preset alpha"))
     model.fallback  # validates the tables now, so a bad file is reported when it is loaded, not at render time

@@ -19,6 +19,7 @@
 #include "neuralyarn/plots.h"
 #include "neuralyarn/rdm/map_file.h"
 #include "neuralyarn/units.h"
+#include "neuralyarn/version.h"
 
 namespace neuralyarn::cli {
 
@@ -77,6 +78,10 @@ void add_train_options(CLI::App *cmd, TrainModelOptions *o)
                   "The R lobe's mean free path to its fiber in ply radii (0: the surface fiber alone); default: "
                   "0 or 0.6 x pi / (2 sqrt(N rho)), whichever fits the R map better (0 for a yarn-level model)")
       ->check(finite_range(0.0, ny::kYarnMaxFreePath));
+  cmd->add_option("--r-surface-spread", o->r_surface_spread,
+                  "A yarn-level model's R nodes: the fibers of this central share of its visible ply surface (0: the "
+                  "surface fiber alone); default: 0 or 0.6, whichever fits the R map better (docs/decisions.md D51)")
+      ->check(finite_range(0.0, 1.0));
   cmd->add_option("--fit-samples", o->fit.samples, "M exits drawn for the proxy fit")
       ->check(CLI::Range(100, 100000000))
       ->capture_default_str();
@@ -280,6 +285,15 @@ class Commands : public ModelCommands {
                      "Set the R lobe's mean free path to its fiber (ply radii) before the R shape is re-fitted "
                      "(default: keep the model's)")
         ->check(finite_range(0.0, ny::kYarnMaxFreePath));
+    fit_->add_option("--check-maps", check_maps_,
+                     "Independent maps of the same ply or yarn (two: the lobes' noise removed): the model's fidelity "
+                     "numbers are measured again against them; without, the file drops the old ones (they were of "
+                     "the lobes before this fit)")
+        ->expected(1, 2);
+    fit_->add_option("--r-surface-spread", topt_.r_surface_spread,
+                     "A yarn-level model: set its R nodes to the fibers of this central share of its visible ply "
+                     "surface (0: the surface fiber alone) before the R shape is re-fitted (default: keep the model's)")
+        ->check(finite_range(0.0, 1.0));
 
     bake_ = app.add_subcommand("bake", "Gather maps, train, fit and check: a model from fiber parameters");
     add_preset_options(bake_, &preset_, &params_);
@@ -434,9 +448,35 @@ class Commands : public ModelCommands {
     if (topt_.r_free_path >= 0.0) {
       m.r_free_path = topt_.r_free_path;
     }
+    if (topt_.r_surface_spread >= 0.0) {
+      m.r_surface_spread = topt_.r_surface_spread;
+      m.r_frames = topt_.r_surface_spread > 0.0 ? model::r_surface_frames(m, topt_.r_surface_spread) : std::vector<float>();
+    }
+    if (m.r_free_path > 0.0 && !m.r_frames.empty()) {
+      throw ParameterError("r_free_path", "an R node is the free path's or a surface fiber, not both: set "
+                                          "--r-free-path 0 or --r-surface-spread 0");
+    }
     m.r_shape = model::fit_r_shape(m, maps);
     m.calibration = model::calibrate_energy(m, maps, threads_);
     refresh_fallback(&m);
+    m.provenance["refit"] = {{"maps", model::maps_provenance(maps)},
+                             {"created", utc_now()},
+                             {"code_version", std::string(kVersion) + "+" + kGitRevision}};
+    m.fidelity = nlohmann::json::object();
+    if (!check_maps_.empty()) {
+      const rdm::RdmMaps a = rdm::load_maps(check_maps_[0]);
+      require_same_preset(m, a);
+      std::optional<rdm::RdmMaps> b;
+      if (check_maps_.size() > 1) {
+        b = rdm::load_maps(check_maps_[1]);
+        require_same_preset(m, *b);
+      }
+      const model::FidelityReport r = model::check_model(m, a, {}, b ? &*b : nullptr);
+      m.fidelity = r.to_json();
+      m.fidelity["maps"] = "independent maps: " + check_maps_[0] + (b ? " and " + check_maps_[1] : std::string()) +
+                           " (" + std::to_string(a.paths) + " paths each, at the re-fit)";
+      print_fidelity(r);
+    }
     model::save_model(m, out);
     print_proxy(m);
     print_fallback(*m.fallback);
@@ -670,6 +710,7 @@ class Commands : public ModelCommands {
   TrainModelOptions topt_;
   model::FallbackOptions fbopt_;
   rdm::GatherOptions gopt_;
+  std::vector<std::string> check_maps_;
   std::string maps_, maps_b_, out_, model_, preset_ = "fleece", params_, paths_ = "4e7", check_paths_ = "0", bins_ = "22x90x45x90", maps_out_,
                                    image_;
   int threads_ = 0;

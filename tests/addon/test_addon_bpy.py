@@ -764,6 +764,11 @@ def _corruptions():
         ("R free path other than the kernel's", lambda data: json.dumps(dict(data, r_free_path=0.05))),
         ("an R free path with a layout 4 array", lambda data: json.dumps(dict(_as_layout4(data), r_free_path=0.0))),
         ("a kernel weight changed", flat(lambda f: f.__setitem__(60, f[60] + 0.25))),
+        ("R node frames in a ply's array", lambda data: json.dumps(_as_layout6(data, frames=[1.0, 0.0] * 12))),
+        ("R node frames in a ply's file", lambda data: json.dumps(dict(
+            _as_layout6(data, frames=[1.0, 0.0] * 12),
+            r_surface_frames={"spread": 0.6, "frames": [[1.0, 0.0] * 3] * 4}))),
+        ("an R node frame that is not a rotation", lambda data: json.dumps(_as_layout6(data, frames=[1.1, 0.0] * 12))),
         ("stale fallback tables", stale_tables),
         ("no fallback bins", lambda data: _edit(["fallback", "theta_bins"], 0)(data)),
         ("1025 fallback bins", lambda data: _edit(["fallback", "phi_bins"], 1025)(data)),
@@ -795,6 +800,21 @@ def _as_layout4(data, fnv=None):
     return out
 
 
+def _as_layout6(data, fnv=None, frames=None):
+    """The model with a layout 6 array (the R node frames' offset after the free path, offsets one more): as
+    the core writes a ply's model now; `frames` (24 numbers) puts R node frames in the array (and nowhere
+    else). Its fallback tables name the new array by its hash `fnv` (left as they are without one)."""
+    f = data["kernel_flat"]
+    new = f[:27] + [28.0 if frames else 0.0] + (frames or []) + f[27:]
+    for k in (14, 15, 16, 17, 20):
+        new[k] += 1 + len(frames or [])
+    new[0], new[1] = 6.0, float(len(new))
+    out = dict(data, kernel_flat=new)
+    if fnv:
+        out["fallback"] = dict(data["fallback"], kernel_flat_fnv1a64=fnv(new))
+    return out
+
+
 def _as_version3(data, version=3, fnv=None):
     """The model as a version 3 file wrote it: layout 3 (no TT fields in the header, azimuth rows without the
     TT share, the table under "r_azimuth"), the TT share dropped; its fallback tables name that array by its
@@ -816,7 +836,8 @@ def _as_version3(data, version=3, fnv=None):
 
 
 @pytest.mark.parametrize("case", [c[0] for c in _corruptions()] +
-                         ["the shipped model", "a version 3 file", "a layout 4 file", "1 x 1 fallback tables"])
+                         ["the shipped model", "a version 3 file", "a layout 4 file", "a layout 6 file",
+                          "1 x 1 fallback tables"])
 def test_model_files_the_core_refuses_are_refused(bpy, addon, tmp_path, case):
     if not os.path.isfile(_CLI):
         pytest.skip(f"the core's CLI is not built at {_CLI}")
@@ -827,6 +848,7 @@ def test_model_files_the_core_refuses_are_refused(bpy, addon, tmp_path, case):
     accepted = {"the shipped model": lambda: json.dumps(data),
                 "a version 3 file": lambda: json.dumps(_as_version3(data, fnv=fnv)),
                 "a layout 4 file": lambda: json.dumps(_as_layout4(data, fnv=fnv)),
+                "a layout 6 file": lambda: json.dumps(_as_layout6(data, fnv=fnv)),
                 "1 x 1 fallback tables": lambda: _core_fallback(shipped, tmp_path / "one.json", 1, 1)}
     text = accepted[case]() if case in accepted else dict(_corruptions())[case](data)
     path = tmp_path / "model.json"

@@ -78,4 +78,18 @@ inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, doubl
   return m;
 }
 
+/* The same for a 3-ply yarn (ply twist 0.5, the shipped plying) whose R nodes are the fibers of its visible
+ * ply surface (docs/decisions.md D51), the free path 0. */
+inline model::YarnModel synthetic_yarn_model(const char *preset, uint64_t seed)
+{
+  model::YarnModel m = synthetic_model(preset, seed);
+  m.structure.plies = 3;
+  m.structure.ply_twist = 0.5;
+  m.structure.surface_alpha = -0.1;
+  m.r_free_path = 0.0;
+  m.r_surface_spread = model::kRSurfaceSpread;
+  m.r_frames = model::r_surface_frames(m, m.r_surface_spread);
+  return m;
+}
+
 }  // namespace neuralyarn::testing

@@ -19,6 +19,7 @@
 
 #include <boost/math/distributions/chi_squared.hpp>
 
+#include "neuralyarn/geometry/yarn.h"
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/units.h"
@@ -29,6 +30,7 @@ using namespace neuralyarn;
 using neuralyarn::testing::FuzzResult;
 using neuralyarn::testing::fuzz_yarn_bsdf;
 using neuralyarn::testing::synthetic_model;
+using neuralyarn::testing::synthetic_yarn_model;
 namespace fs = std::filesystem;
 
 namespace {
@@ -43,8 +45,10 @@ ny::Vec3 from_polar(double theta, double phi)
 
 TEST(YarnBsdf, ReflectionLobeEnergyIsHalfTheFiberR)
 {
-  for (const char *preset : {"fleece", "polyester", "silk"}) {
-    const model::YarnModel m = synthetic_model(preset, 3);
+  /* The free path's nodes, and a yarn's nodes in the frames of its visible surface fibers (D51). */
+  for (const char *preset : {"fleece", "polyester", "silk", "polyester yarn"}) {
+    const bool yarn = std::string(preset) == "polyester yarn";
+    const model::YarnModel m = yarn ? synthetic_yarn_model("polyester", 3) : synthetic_model(preset, 3);
     const std::vector<float> flat = m.kernel_flat();
     const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
     for (double theta_i : {0.1, 0.7, 1.2, 1.5}) {
@@ -79,79 +83,126 @@ TEST(YarnBsdf, ReflectionLobeEnergyIsHalfTheFiberR)
 
 TEST(YarnBsdf, PdfIntegratesToOneAndSamplerMatchesIt)
 {
-  const model::YarnModel m = synthetic_model("fleece", 5);
-  const std::vector<float> flat = m.kernel_flat();
-  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
-  /* Bins over the surface-fiber frame's (theta~, phi~); expected counts by 24 x 24 sub-quadrature: the R
-   * nodes' horizons, where near-normal light puts the TT part's mass, cut these bins obliquely (8 x 8 read
-   * chi2 1996 for 1727 degrees of freedom there). */
-  const int nt = 36, np = 48, sub = 24;
-  for (double theta_i : {0.2, 0.9, 1.45}) {
-    const ny::Vec3 wi = from_polar(theta_i, 0.4);
-    const ny::YarnLobes l = ny::yarn_lobes(p, wi);
-    if (theta_i > 1.4) {
-      EXPECT_GT(l.q_TT, 0.1f) << "the sampler's TT part is not exercised";
-    }
-    std::vector<double> expected(size_t(nt * np), 0.0);
-    double total = 0.0;
-    for (int i = 0; i < nt; i++) {
-      for (int j = 0; j < np; j++) {
-        double s = 0.0;
-        for (int a = 0; a < sub; a++) {
-          const double th = -kPi / 2 + kPi * (i + (a + 0.5) / sub) / nt;
-          for (int b = 0; b < sub; b++) {
-            const double ph = -kPi + 2 * kPi * (j + (b + 0.5) / sub) / np;
-            const ny::Vec3 wo = ny::surface_fiber_to_yarn(p.twist, ny::direction_from_angles(float(th), float(ph)));
-            s += ny::yarn_pdf_lobes(p, l, wo) * std::cos(th);
+  /* The free path's R nodes, and a yarn's in the frames of its surface fibers (their own P_q turns). */
+  for (const bool yarn : {false, true}) {
+    SCOPED_TRACE(yarn ? "yarn with R node frames" : "ply");
+    const model::YarnModel m = yarn ? synthetic_yarn_model("fleece", 5) : synthetic_model("fleece", 5);
+    const std::vector<float> flat = m.kernel_flat();
+    const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    /* Bins over the surface-fiber frame's (theta~, phi~); expected counts by 24 x 24 sub-quadrature: the R
+     * nodes' horizons, where near-normal light puts the TT part's mass, cut these bins obliquely (8 x 8 read
+     * chi2 1996 for 1727 degrees of freedom there). */
+    const int nt = 36, np = 48, sub = 24;
+    for (double theta_i : {0.2, 0.9, 1.45}) {
+      const ny::Vec3 wi = from_polar(theta_i, 0.4);
+      const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+      if (theta_i > 1.4) {
+        EXPECT_GT(l.q_TT, 0.1f) << "the sampler's TT part is not exercised";
+      }
+      std::vector<double> expected(size_t(nt * np), 0.0);
+      double total = 0.0;
+      for (int i = 0; i < nt; i++) {
+        for (int j = 0; j < np; j++) {
+          double s = 0.0;
+          for (int a = 0; a < sub; a++) {
+            const double th = -kPi / 2 + kPi * (i + (a + 0.5) / sub) / nt;
+            for (int b = 0; b < sub; b++) {
+              const double ph = -kPi + 2 * kPi * (j + (b + 0.5) / sub) / np;
+              const ny::Vec3 wo = ny::surface_fiber_to_yarn(p.twist, ny::direction_from_angles(float(th), float(ph)));
+              s += ny::yarn_pdf_lobes(p, l, wo) * std::cos(th);
+            }
           }
+          expected[size_t(i * np + j)] = s * (kPi / nt / sub) * (2 * kPi / np / sub);
+          total += expected[size_t(i * np + j)];
         }
-        expected[size_t(i * np + j)] = s * (kPi / nt / sub) * (2 * kPi / np / sub);
-        total += expected[size_t(i * np + j)];
       }
-    }
-    EXPECT_NEAR(total, 1.0, 5e-3) << "theta_i " << theta_i;
-    const int n = 1000000;
-    std::vector<double> observed(expected.size(), 0.0);
-    std::mt19937 rng(17);
-    std::uniform_real_distribution<float> U(0.0f, 1.0f);
-    for (int k = 0; k < n; k++) {
-      ny::YarnSample s;
-      ASSERT_TRUE(ny::yarn_sample(p, wi, U(rng), U(rng), U(rng), false, &s));
-      ASSERT_FALSE(s.delta);
-      const ny::Vec3 wf = ny::yarn_to_surface_fiber(p.twist, s.wo);
-      const int i = std::min(nt - 1, int((ny::theta_of(wf) + kPi / 2) / kPi * nt));
-      const int j = std::min(np - 1, int((ny::phi_of(wf) + kPi) / (2 * kPi) * np));
-      observed[size_t(i * np + j)] += 1.0;
-      if (k < 2000) {
-        /* weight = eval / pdf, and the pdf is the one pdf() reports. */
-        float pdf;
-        const ny::Rgb f = ny::yarn_eval(p, wi, s.wo, &pdf);
-        ASSERT_NEAR(s.pdf, pdf, 1e-4f * pdf + 1e-6f);
-        ASSERT_NEAR(s.weight.g, f.g / pdf, 1e-3f * (f.g / pdf) + 1e-6f);
+      EXPECT_NEAR(total, 1.0, 5e-3) << "theta_i " << theta_i;
+      const int n = 1000000;
+      std::vector<double> observed(expected.size(), 0.0);
+      std::mt19937 rng(17);
+      std::uniform_real_distribution<float> U(0.0f, 1.0f);
+      for (int k = 0; k < n; k++) {
+        ny::YarnSample s;
+        ASSERT_TRUE(ny::yarn_sample(p, wi, U(rng), U(rng), U(rng), false, &s));
+        ASSERT_FALSE(s.delta);
+        const ny::Vec3 wf = ny::yarn_to_surface_fiber(p.twist, s.wo);
+        const int i = std::min(nt - 1, int((ny::theta_of(wf) + kPi / 2) / kPi * nt));
+        const int j = std::min(np - 1, int((ny::phi_of(wf) + kPi) / (2 * kPi) * np));
+        observed[size_t(i * np + j)] += 1.0;
+        if (k < 2000) {
+          /* weight = eval / pdf, and the pdf is the one pdf() reports. */
+          float pdf;
+          const ny::Rgb f = ny::yarn_eval(p, wi, s.wo, &pdf);
+          ASSERT_NEAR(s.pdf, pdf, 1e-4f * pdf + 1e-6f);
+          ASSERT_NEAR(s.weight.g, f.g / pdf, 1e-3f * (f.g / pdf) + 1e-6f);
+        }
       }
-    }
-    /* Pool bins with fewer than 5 expected samples (Cochran's rule), then chi-square. */
-    double chi2 = 0.0, pooled_e = 0.0, pooled_o = 0.0;
-    int dof = -1;
-    for (size_t b = 0; b < expected.size(); b++) {
-      const double e = expected[b] / total * n;
-      if (e < 5.0) {
-        pooled_e += e;
-        pooled_o += observed[b];
-        continue;
+      /* Pool bins with fewer than 5 expected samples (Cochran's rule), then chi-square. */
+      double chi2 = 0.0, pooled_e = 0.0, pooled_o = 0.0;
+      int dof = -1;
+      for (size_t b = 0; b < expected.size(); b++) {
+        const double e = expected[b] / total * n;
+        if (e < 5.0) {
+          pooled_e += e;
+          pooled_o += observed[b];
+          continue;
+        }
+        chi2 += (observed[b] - e) * (observed[b] - e) / e;
+        dof++;
       }
-      chi2 += (observed[b] - e) * (observed[b] - e) / e;
-      dof++;
+      if (pooled_e > 0.0) {
+        chi2 += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e;
+        dof++;
+      }
+      const double pval = boost::math::cdf(boost::math::complement(boost::math::chi_squared(dof), chi2));
+      /* A fixed seed; 1e-3 would be a false alarm once in a thousand seeds, a wrong sampler (e.g. the pdf
+       * missing its 1/cos theta) gives p ~ 0. */
+      EXPECT_GT(pval, 1e-3) << "theta_i " << theta_i << " chi2 " << chi2 << " dof " << dof;
     }
-    if (pooled_e > 0.0) {
-      chi2 += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e;
-      dof++;
-    }
-    const double pval = boost::math::cdf(boost::math::complement(boost::math::chi_squared(dof), chi2));
-    /* A fixed seed; 1e-3 would be a false alarm once in a thousand seeds, a wrong sampler (e.g. the pdf
-     * missing its 1/cos theta) gives p ~ 0. */
-    EXPECT_GT(pval, 1e-3) << "theta_i " << theta_i << " chi2 " << chi2 << " dof " << dof;
   }
+}
+
+/* A yarn model's R nodes are the fibers the geometry finds on its visible ply surface: node q's fiber frame
+ * has the tangent T_q along its x and the surface normal N_q along its z, exactly as
+ * geometry::visible_surface_frames gives them, and the node's rotation is inverted by r_node_to_yarn. */
+TEST(YarnBsdf, RNodeFramesAreTheVisibleSurfaceFibers)
+{
+  const model::YarnModel m = synthetic_yarn_model("cotton", 7);
+  const std::vector<float> flat = m.kernel_flat();
+  ASSERT_EQ(ny::yarn_flat_check(flat.data(), int(flat.size())), nullptr);
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  geometry::YarnParams yp;
+  yp.K = 3;
+  yp.alpha_yarn = 0.5;
+  yp.ply = geometry::PlyParams{m.preset.N, m.preset.rho, m.preset.alpha, 1.0};
+  const std::vector<geometry::SurfaceFrame> frames =
+      geometry::visible_surface_frames(geometry::Yarn(yp, 1), ny::kYarnRNodes, model::kRSurfaceSpread);
+  const ny::YarnLobes l = ny::yarn_lobes(p, from_polar(0.6, 0.3));
+  ASSERT_EQ(l.n_R, ny::kYarnRNodes);
+  double turn_spread = 0.0;
+  for (int q = 0; q < ny::kYarnRNodes; q++) {
+    const ny::Vec3 T = ny::r_node_to_yarn(l.node[q], ny::make_vec3(1.0f, 0.0f, 0.0f));
+    const ny::Vec3 N = ny::r_node_to_yarn(l.node[q], ny::make_vec3(0.0f, 0.0f, 1.0f));
+    const geometry::SurfaceFrame &f = frames[size_t(q)];
+    for (int c = 0; c < 3; c++) {
+      EXPECT_NEAR((&T.x)[c], f.T[c], 2e-6) << q << " " << c;
+      EXPECT_NEAR((&N.x)[c], f.N[c], 2e-6) << q << " " << c;
+    }
+    const ny::Vec3 w = ny::normalize(ny::make_vec3(0.3f, -0.5f, 0.8f));
+    const ny::Vec3 back = ny::r_node_to_yarn(l.node[q], ny::yarn_to_r_node(l.node[q], w));
+    EXPECT_NEAR(back.x, w.x, 1e-6f);
+    EXPECT_NEAR(back.y, w.y, 1e-6f);
+    EXPECT_NEAR(back.z, w.z, 1e-6f);
+    turn_spread = std::max(turn_spread, std::abs(f.turn));
+  }
+  EXPECT_GT(turn_spread, 0.2); /* the frames are the ridges' flanks, not one surface fiber */
+  /* A free path beside the frames is refused: each node's frame is one or the other. */
+  std::vector<float> both = flat;
+  both[ny::kYarnFlatFreePath] = 0.5f;
+  EXPECT_NE(ny::yarn_flat_check(both.data(), int(both.size())), nullptr);
+  std::vector<float> skewed = flat;
+  skewed[size_t(ny::kYarnFlatHeader)] *= 1.1f;
+  EXPECT_STREQ(ny::yarn_flat_check(skewed.data(), int(skewed.size())), "has an R node frame that is not a rotation");
 }
 
 TEST(YarnBsdf, CalibrationTableIsBilinearAndPeriodicInPhi)
@@ -322,8 +373,9 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
     EXPECT_EQ(o.kernel_flat(), no_tt.kernel_flat()) << "a layout 3 file must load as the same model without TT";
   }
   {
-    /* A layout 4 file (no R free path: the header one float shorter) loads as the same model with the free
-     * path 0, its fallback tables (computed for the layout 4 array, named by its hash) with it. */
+    /* A layout 4 file (no R free path and no R node frames: the header two floats shorter) loads as the same
+     * model with the free path 0, its fallback tables (computed for the layout 4 array, named by its hash) with
+     * it. */
     model::YarnModel surface = m;
     surface.r_free_path = 0.0;
     model::FallbackOptions fo;
@@ -332,10 +384,11 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
     surface.fallback = model::compute_fallback(surface, fo);
     nlohmann::json v4 = model::model_to_json(surface);
     std::vector<float> f = v4["kernel_flat"].get<std::vector<float>>();
-    f.erase(f.begin() + ny::kYarnFlatFreePath);
+    ASSERT_EQ(f[ny::kYarnFlatOffset_RFrames], 0.0f);
+    f.erase(f.begin() + ny::kYarnFlatFreePath, f.begin() + ny::kYarnFlatOffset_RFrames + 1);
     for (int k : {ny::kYarnFlatOffset_T, ny::kYarnFlatOffset_R, ny::kYarnFlatOffset_M, ny::kYarnFlatOffset_Cal,
                   ny::kYarnFlatOffset_Az}) {
-      f[size_t(k)] -= 1.0f;
+      f[size_t(k)] -= 2.0f;
     }
     f[0] = 4.0f;
     f[1] = float(f.size());
@@ -352,6 +405,37 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
     /* The free path needs the layout that holds it. */
     v4["r_free_path"] = 0.1;
     std::ofstream(old) << v4.dump();
+    EXPECT_THROW(model::load_model(old), model::ModelError);
+  }
+  {
+    /* A layout 5 file (no R node frames: the header one float shorter) loads as the same model, free path
+     * and fallback tables included. */
+    model::YarnModel five = m;
+    model::FallbackOptions fo;
+    fo.theta_bins = 4;
+    fo.phi_bins = 4;
+    five.fallback = model::compute_fallback(five, fo);
+    nlohmann::json v5 = model::model_to_json(five);
+    std::vector<float> f = v5["kernel_flat"].get<std::vector<float>>();
+    f.erase(f.begin() + ny::kYarnFlatOffset_RFrames);
+    for (int k : {ny::kYarnFlatOffset_T, ny::kYarnFlatOffset_R, ny::kYarnFlatOffset_M, ny::kYarnFlatOffset_Cal,
+                  ny::kYarnFlatOffset_Az}) {
+      f[size_t(k)] -= 1.0f;
+    }
+    f[0] = 5.0f;
+    f[1] = float(f.size());
+    v5["kernel_flat"] = f;
+    v5["fallback"]["kernel_flat_fnv1a64"] = model::fnv1a64_hex(f);
+    const std::string old = (dir / "v5.json").string();
+    std::ofstream(old) << v5.dump();
+    const model::YarnModel o = model::load_model(old);
+    EXPECT_EQ(o.kernel_flat(), five.kernel_flat()) << "a layout 5 file must load as the same model";
+    EXPECT_EQ(o.r_free_path, five.r_free_path);
+    ASSERT_TRUE(o.fallback.has_value());
+    EXPECT_EQ(o.fallback->kernel_flat_hash, model::fnv1a64_hex(five.kernel_flat()));
+    /* Node frames need the layout that holds them. */
+    v5["r_surface_frames"] = {{"spread", 0.6}, {"frames", nlohmann::json::array()}};
+    std::ofstream(old) << v5.dump();
     EXPECT_THROW(model::load_model(old), model::ModelError);
   }
 
@@ -474,6 +558,43 @@ std::vector<double> network_in_double(const model::NetworkRecord &net, const std
 
 }  // namespace
 
+/* A yarn model's R node frames survive the file, which must agree with its kernel array; a ply model carries
+ * none. */
+TEST(ModelFile, RNodeFramesRoundTripAndAreChecked)
+{
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "ny_r_frames";
+  std::filesystem::create_directories(dir);
+  const model::YarnModel m = synthetic_yarn_model("silk", 4);
+  const std::string path = (dir / "yarn.json").string();
+  model::save_model(m, path);
+  const model::YarnModel o = model::load_model(path);
+  EXPECT_EQ(o.kernel_flat(), m.kernel_flat());
+  EXPECT_EQ(o.r_surface_spread, m.r_surface_spread);
+  const nlohmann::json j = model::model_to_json(m);
+  auto refused = [&](nlohmann::json bad, const std::string &needle) {
+    std::ofstream(path) << bad.dump();
+    try {
+      model::load_model(path);
+      ADD_FAILURE() << needle << ": accepted";
+    }
+    catch (const model::ModelError &e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  nlohmann::json other = j;
+  other["r_surface_frames"]["frames"][1][4] = other["r_surface_frames"]["frames"][1][4].get<double>() + 0.01;
+  refused(other, "disagrees");
+  nlohmann::json spread = j;
+  spread["r_surface_frames"]["spread"] = 0.0;
+  refused(spread, "spread");
+  nlohmann::json three = j;
+  three["r_surface_frames"]["frames"].erase(0);
+  refused(three, "frames");
+  nlohmann::json ply = model::model_to_json(synthetic_model("silk", 4));
+  ply["r_surface_frames"] = j["r_surface_frames"];
+  refused(ply, "yarn-level");
+}
+
 TEST(YarnBsdf, MChannelKIsTheNetworksOutputKTimesItsScale)
 {
   /* Kills the mutant that swaps the M network's red and blue outputs (the calibration table would hide it
@@ -543,7 +664,7 @@ TEST(YarnBsdf, TwoSidedMReadsTheOutputsOfItsExitsSide)
  * past its last theta_i centre (the energy direction), at grazing incidence and below the surface. */
 TEST(YarnBsdf, ShadowTransmissionIsTheLobesPT)
 {
-  std::vector<model::YarnModel> models = {synthetic_model("silk", 4)};
+  std::vector<model::YarnModel> models = {synthetic_model("silk", 4), synthetic_yarn_model("cotton", 6)};
   for (const char *preset : {"fleece", "cotton", "gabardine"}) {
     models.push_back(model::load_model(model::builtin_model_path(preset)));
   }
@@ -569,7 +690,7 @@ TEST(YarnBsdf, ShadowTransmissionIsTheLobesPT)
  * yarn_eval_lobes() and yarn_pdf_lobes() bit for bit, over the whole sphere of w_o, with the TT part active. */
 TEST(YarnBsdf, EvalAndPdfTogetherAreEvalAndPdfApart)
 {
-  std::vector<model::YarnModel> models = {synthetic_model("fleece", 6)};
+  std::vector<model::YarnModel> models = {synthetic_model("fleece", 6), synthetic_yarn_model("cotton", 6)};
   for (const char *preset : {"cotton", "gabardine"}) {
     models.push_back(model::load_model(model::builtin_model_path(preset)));
   }

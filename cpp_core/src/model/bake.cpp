@@ -159,12 +159,13 @@ double candidate_score(const LobeComparison &m_lobe)
 }
 
 namespace {
-/* The R lobe's free path and shape table. Asked for (>= 0): that free path. Otherwise 0 (the surface fiber)
- * or r_free_path(), whichever puts the fitted lobe closer to the maps in its worst theta_i bin but the
- * grazing one (raw L1): the nodes move the cone where twisted plies put it and cost untwisted ones at grazing
- * light, which a mean over the bins hides (D38). Returns the candidates' scores (empty when there was no
- * choice). */
-nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double requested,
+/* The R lobe's nodes and shape table. A ply's: the free path asked for (>= 0), or 0 (the surface fiber) or
+ * r_free_path(), whichever puts the fitted lobe closer to the maps in its worst theta_i bin but the grazing one
+ * (raw L1): the nodes move the cone where twisted plies put it and cost untwisted ones at grazing light, which a
+ * mean over the bins hides (D38). A yarn's, the same way: the surface spread asked for (> 0: the frames of
+ * that share of its visible ply surface; 0: the surface fiber), or the better of the surface fiber and
+ * kRSurfaceSpread (D51). Returns the candidates' scores (empty when there was no choice). */
+nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double requested_path, double requested_spread,
                           const std::function<void(double)> &progress)
 {
   auto done = [&](double f) {
@@ -173,34 +174,63 @@ nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double request
     }
   };
   done(0.0);
-  const double lambda = r_free_path(*m);
-  if (requested >= 0.0 || lambda == 0.0) {
-    m->r_free_path = requested >= 0.0 ? requested : 0.0;
+  /* A candidate: its free path and surface spread (at most one of them non-zero). */
+  using Candidate = std::pair<double, double>;
+  auto apply = [&](const Candidate &c) {
+    m->r_free_path = c.first;
+    m->r_surface_spread = c.second;
+    m->r_frames = c.second > 0.0 ? r_surface_frames(*m, c.second) : std::vector<float>();
+  };
+  std::vector<Candidate> candidates;
+  if (m->structure.is_yarn()) {
+    if (requested_path > 0.0) {
+      throw ParameterError("r_free_path", "a yarn-level model's R nodes are its surface fibers (--r-surface-spread), "
+                                          "not a free path");
+    }
+    candidates = requested_spread >= 0.0 ? std::vector<Candidate>{{0.0, requested_spread}}
+                                         : std::vector<Candidate>{{0.0, 0.0}, {0.0, kRSurfaceSpread}};
+  }
+  else {
+    if (requested_spread > 0.0) {
+      throw ParameterError("r_surface_spread", "the R nodes' surface frames are a yarn-level model's (a ply has no plies)");
+    }
+    const double lambda = r_free_path(*m);
+    candidates = requested_path >= 0.0 || lambda == 0.0 ? std::vector<Candidate>{{std::max(requested_path, 0.0), 0.0}}
+                                                        : std::vector<Candidate>{{0.0, 0.0}, {lambda, 0.0}};
+  }
+  if (candidates.size() == 1) {
+    apply(candidates[0]);
     m->r_shape = fit_r_shape(*m, maps);
     done(1.0);
     return nlohmann::json();
   }
   const LobeGrid map_R = pool_map_lobe(maps, Lobe::kR);
   nlohmann::json scores = nlohmann::json::array();
-  double best_score = 0.0, best_path = 0.0;
+  double best_score = 0.0;
+  Candidate best;
   RShapeTable best_shape;
-  for (const double candidate : {0.0, lambda}) {
-    m->r_free_path = candidate;
-    /* Four quadratures of the R lobe over every incident bin, the free path's four times the surface
-     * fiber's (four nodes against one): 1, 2, 6, 10 of 10. */
+  for (size_t k = 0; k < candidates.size(); k++) {
+    apply(candidates[k]);
+    /* Four quadratures of the R lobe over every incident bin, the nodes' four times the surface fiber's
+     * (four nodes against one): 1, 2, 6, 10 of 10. */
     m->r_shape = fit_r_shape(*m, maps);
-    done(candidate == 0.0 ? 0.1 : 0.6);
+    done(k == 0 ? 0.1 : 0.6);
     const LobeComparison cmp = compare_lobes(model_lobe_grid(*m, maps.bins, Lobe::kR), map_R);
-    done(candidate == 0.0 ? 0.2 : 1.0);
+    done(k == 0 ? 0.2 : 1.0);
     const double score = cmp.l1_max_but_grazing; /* the goal's measure (issue 17); raw L1 without maps B */
-    scores.push_back({{"r_free_path", candidate}, {"r_lobe_l1_worst", score}, {"r_lobe_l1_mean", candidate_score(cmp)}});
-    if (scores.size() == 1 || score < best_score) {
+    nlohmann::json row = {{"r_free_path", candidates[k].first}, {"r_lobe_l1_worst", score},
+                          {"r_lobe_l1_mean", candidate_score(cmp)}};
+    if (m->structure.is_yarn()) {
+      row["r_surface_spread"] = candidates[k].second;
+    }
+    scores.push_back(row);
+    if (k == 0 || score < best_score) {
       best_score = score;
-      best_path = candidate;
+      best = candidates[k];
       best_shape = m->r_shape;
     }
   }
-  m->r_free_path = best_path;
+  apply(best);
   m->r_shape = std::move(best_shape);
   return scores;
 }
@@ -287,7 +317,7 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
     a /= wsum;
   }
   /* The R lobe's shape (its energy is unchanged by it; it depends on R alone), then the energies. */
-  const nlohmann::json r_scores = fit_r_lobe(&m, maps, o.r_free_path, stage("R shape"));
+  const nlohmann::json r_scores = fit_r_lobe(&m, maps, o.r_free_path, o.r_surface_spread, stage("R shape"));
   report("calibration", 0.0);
   m.calibration = calibrate_energy(m, maps, o.threads);
   report("calibration", 1.0);

@@ -147,6 +147,31 @@ EnergyCalibration calibration_from(const json &j, const std::vector<float> &flat
   }
   return c;
 }
+/* "r_surface_frames": the spread and kYarnRNodes frames of kYarnRFrameStride numbers; that they are rotations and
+ * the kernel array's own is checked with the array. */
+void r_surface_frames_from(const json &j, YarnModel *m, const std::string &where)
+{
+  if (!m->structure.is_yarn()) {
+    throw ModelError(where + "the R nodes' surface frames are a yarn-level model's");
+  }
+  if (!j.is_object() || !j.contains("frames") || !j["frames"].is_array() || j["frames"].size() != size_t(ny::kYarnRNodes)) {
+    throw ModelError(where + "'frames' must be " + std::to_string(ny::kYarnRNodes) + " frames");
+  }
+  m->r_surface_spread = finite_in(j, "spread", 1e-6, 1.0, where);
+  m->r_frames.clear();
+  for (const json &frame : j["frames"]) {
+    if (!frame.is_array() || frame.size() != size_t(ny::kYarnRFrameStride)) {
+      throw ModelError(where + "a frame must be " + std::to_string(ny::kYarnRFrameStride) + " numbers");
+    }
+    for (const json &v : frame) {
+      if (!v.is_number() || !std::isfinite(v.get<double>())) {
+        throw ModelError(where + "a frame holds a non-finite number or a non-number");
+      }
+      m->r_frames.push_back(v.get<float>());
+    }
+  }
+}
+
 /* The R shape table's shape from the "r_shape" object, its values from the kernel array (checked by
  * ny::yarn_flat_check: tau in [0, 1]); every row's azimuth density must integrate to 1. */
 RShapeTable r_shape_from(const json &j, const std::vector<float> &flat, const std::string &where, bool layout3)
@@ -212,6 +237,10 @@ std::vector<float> YarnModel::kernel_flat() const
   f[ny::kYarnFlatBeta_TT] = fp.beta_TT;
   f[ny::kYarnFlatGamma_TT] = fp.gamma_TT;
   f[ny::kYarnFlatFreePath] = float(r_free_path);
+  if (!r_frames.empty()) {
+    f[ny::kYarnFlatOffset_RFrames] = float(f.size());
+    f.insert(f.end(), r_frames.begin(), r_frames.end());
+  }
   f[ny::kYarnFlatKappa_R] = float(proxy.kappa_R);
   f[ny::kYarnFlatBeta_M] = float(proxy.beta_M);
   f[ny::kYarnFlatGamma_M] = float(proxy.gamma_M);
@@ -267,6 +296,15 @@ json model_to_json(const YarnModel &m)
                       {"layout", "[theta_i][phi_i][nu over phi~_o in (-90, 90) deg, tau r, g, b]: the R lobe's azimuth density and TT share"}};
   }
   j["r_free_path"] = m.r_free_path;
+  if (!m.r_frames.empty()) {
+    json frames = json::array();
+    for (size_t q = 0; q < m.r_frames.size(); q += ny::kYarnRFrameStride) {
+      frames.push_back(std::vector<float>(m.r_frames.begin() + long(q), m.r_frames.begin() + long(q) + ny::kYarnRFrameStride));
+    }
+    j["r_surface_frames"] = {{"spread", m.r_surface_spread},
+                             {"layout", "per R node: cos, sin of P, of a, of M (w -> M R_x(a) P w, kernel/yarn_bsdf.h)"},
+                             {"frames", frames}};
+  }
   /* What a renderer uploads, ready to use (kernel/yarn_bsdf.h): the calibration table's values are only
    * here; the loader checks that the rest agrees with the parts above. */
   j["kernel_flat"] = m.kernel_flat();
@@ -359,22 +397,29 @@ YarnModel model_from_json(const json &j, const std::string &source)
      * renders as they did); a layout 4 array is moved to layout 5 with the free path 0 (the same rendering)
      * and then checked as one. */
     std::vector<float> flat = float_array(j, "kernel_flat", where);
-    int layout = std::min(version, 4); /* 2, 3 or 4 (a yarn's version 5 has layout 4 or 5) */
-    if (layout == 4 && !flat.empty() && flat[0] == 4.0f) {
-      std::vector<float> upgraded(flat.size() + 1);
-      if (!ny::yarn_flat_from_layout4(flat.data(), int(flat.size()), upgraded.data())) {
-        throw ModelError(where + "'kernel_flat' is not a layout 4 array");
+    int layout = std::min(version, 4); /* 2, 3 or 4 (versions 4 and 5 hold layout 4, 5 or 6) */
+    const int written_layout = layout == 4 && !flat.empty() ? int(flat[0]) : layout;
+    if (layout == 4 && !flat.empty() && ny::yarn_flat_missing_fields(flat.data(), int(flat.size())) > 0) {
+      std::vector<float> upgraded(flat.size() + size_t(ny::yarn_flat_missing_fields(flat.data(), int(flat.size()))));
+      if (!ny::yarn_flat_upgrade(flat.data(), int(flat.size()), upgraded.data())) {
+        throw ModelError(where + "'kernel_flat' is not a layout " + std::to_string(written_layout) + " array");
       }
-      written_flat_hash = fnv1a64_hex(flat);
+      written_flat_hash = fnv1a64_hex(flat); /* what its fallback tables name */
       flat = std::move(upgraded);
     }
-    if (j.contains("r_free_path") && (layout < 4 || written_flat_hash)) {
-      throw ModelError(where + "'r_free_path' needs a layout 5 'kernel_flat'");
+    if (j.contains("r_free_path") && (layout < 4 || written_layout == 4)) {
+      throw ModelError(where + "'r_free_path' needs a layout 5 or 6 'kernel_flat'");
+    }
+    if (j.contains("r_surface_frames") && (layout < 4 || written_flat_hash)) {
+      throw ModelError(where + "'r_surface_frames' needs a layout 6 'kernel_flat'");
     }
     if (layout == 4) {
-      layout = 5;
+      layout = 6;
       if (j.contains("r_free_path")) {
         m.r_free_path = finite_in(j, "r_free_path", 0.0, ny::kYarnMaxFreePath, where);
+      }
+      if (j.contains("r_surface_frames")) {
+        r_surface_frames_from(j["r_surface_frames"], &m, where + "r_surface_frames: ");
       }
       if (const char *problem = ny::yarn_flat_check(flat.data(), int(flat.size()))) {
         throw ModelError(where + "'kernel_flat' " + problem);
@@ -401,7 +446,7 @@ YarnModel model_from_json(const json &j, const std::string &source)
     if (layout >= 3 && j.contains(r_key)) {
       m.r_shape = r_shape_from(j[r_key], flat, where + r_key + ": ", layout == 3);
     }
-    if (layout == 5 && m.kernel_flat() != flat) {
+    if (layout == 6 && m.kernel_flat() != flat) {
       throw ModelError(where + "'kernel_flat' disagrees with the networks, preset and sampling parameters");
     }
   }

@@ -7,6 +7,7 @@
 #include <Eigen/Dense>
 #include <tbb/parallel_for.h>
 
+#include "neuralyarn/geometry/yarn.h"
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/lobe_fidelity.h"
 #include "neuralyarn/presets.h" /* ParameterError */
@@ -25,6 +26,33 @@ double r_free_path(const YarnModel &model)
     return 0.0;
   }
   return kRFreePathScale * kPi / (2.0 * std::sqrt(double(model.preset.N) * model.preset.rho));
+}
+
+std::vector<float> r_surface_frames(const YarnModel &model, double spread)
+{
+  if (!model.structure.is_yarn()) {
+    throw ParameterError("r_surface_spread", "the R nodes' surface frames are a yarn-level model's (a ply has no plies)");
+  }
+  geometry::YarnParams yp;
+  yp.K = model.structure.plies;
+  yp.alpha_yarn = model.structure.ply_twist;
+  yp.ply = geometry::PlyParams{model.preset.N, model.preset.rho, model.preset.alpha, 1.0};
+  const std::vector<geometry::SurfaceFrame> frames =
+      geometry::visible_surface_frames(geometry::Yarn(yp, 1), ny::kYarnRNodes, spread);
+  std::vector<float> out;
+  for (const geometry::SurfaceFrame &f : frames) {
+    /* Q = M(phi_1) R_x(a) P(phi_2) with rows T, B, N: N = (sin a sin phi_2, sin a cos phi_2, cos a) (a in [0, pi]),
+     * then T = cos phi_1 m_1 - sin phi_1 m_2 with m_1, m_2 the first rows of R_x(a) P(phi_2). */
+    const Eigen::Vector3d &N = f.N, &T = f.T;
+    const double ca = N.z(), sa = std::hypot(N.x(), N.y());
+    const double c2 = sa > 1e-12 ? N.y() / sa : 1.0, s2 = sa > 1e-12 ? N.x() / sa : 0.0;
+    const Eigen::Vector3d m1(c2, -s2, 0.0), m2(ca * s2, ca * c2, -sa);
+    const double c1 = T.dot(m1), s1 = -T.dot(m2);
+    for (const double v : {c2, s2, ca, sa, c1, s1}) {
+      out.push_back(float(v));
+    }
+  }
+  return out;
 }
 
 Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd &G, const Eigen::VectorXd &h)

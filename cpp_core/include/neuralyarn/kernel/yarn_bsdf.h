@@ -50,7 +50,9 @@
 // the axis. So S_R is the mean of the single-fiber lobe over kYarnRNodes such fibers (s at the midpoints of
 // Exp(lambda)'s quantiles), each in its own frame: w -> M(alpha (1 - s w_i.z)) R_x(a) w. Every node's lobe
 // holds rho_R F / 2, so their mean does, exactly. Azimuth table rows are those of w_i. lambda = 0: one node,
-// the surface fiber (layouts before 5).
+// the surface fiber (layouts before 5). A yarn-level model may carry its nodes' own frames instead (layout 6,
+// docs/decisions.md D51): the fibers of the plies' visible surface, whose normals turn over the ridges and whose
+// fibers slope out of the envelope's plane, each w -> M_q R_x(a_q) P_q w from the array (lambda is then 0).
 //
 // Both arguments point away from the surface. The first is the direction the maps call incident (the
 // light side when the maps were gathered; a path tracer passes the direction toward the previous vertex,
@@ -107,9 +109,10 @@ enum YarnFlatField {
   kYarnFlatBeta_TT = 24,      /* radians: the surface fibers' TT lobe (R part's TT share)         */
   kYarnFlatGamma_TT = 25,     /* radians                                                          */
   kYarnFlatFreePath = 26,     /* lambda: the R lobe's mean free path to its fiber, ply radii (0: surface fiber) */
-  kYarnFlatHeader = 27
+  kYarnFlatOffset_RFrames = 27, /* offset of the R nodes' own frames (kYarnRNodes x kYarnRFrameStride), 0: none */
+  kYarnFlatHeader = 28
 };
-constexpr float kYarnFlatFormat = 5.0f;
+constexpr float kYarnFlatFormat = 6.0f;
 /* The R lobe's fibers when the free path is positive (one, the surface fiber, when it is 0). */
 constexpr int kYarnRNodes = 4;
 /* Node q's free path over lambda: the midpoint of Exp(1)'s q-th quantile, -log(1 - (q + 1/2) / kYarnRNodes)
@@ -118,6 +121,9 @@ NY_KERNEL_FN float yarn_r_node_path(int q)
 {
   return q == 0 ? 0.13353139f : q == 1 ? 0.47000363f : q == 2 ? 0.98082925f : 2.07944154f;
 }
+/* Floats per R node frame: the node's rotation w -> M_q R_x(a_q) P_q w as three (cos, sin) pairs, P_q and M_q about
+ * the yarn normal (as the twist M), R_x about the yarn axis: P_q (c, s), a_q (c, s), M_q (c, s). */
+constexpr int kYarnRFrameStride = 6;
 /* Largest free path a model may carry (ply radii). */
 constexpr float kYarnMaxFreePath = 2.0f;
 constexpr int kYarnCalStride = 7; /* dP_T, c_R.r, c_R.g, c_R.b, c_M.r, c_M.g, c_M.b */
@@ -133,6 +139,7 @@ struct YarnBsdfParams {
   TwistRotation twist;
   float alpha;     /* the surface fibers' twist, from which the R nodes' twists follow */
   float free_path; /* lambda, ply radii */
+  NY_GLOBAL const float *r_frames; /* the R nodes' own frames (a yarn's visible ply surface, D51), or null */
   FiberBsdfParams fiber; /* C_R, beta_R of the surface fibers; C_TT = 0 (R only) */
   float kappa_R;
   float beta_M, gamma_M, kappa_M;
@@ -151,7 +158,9 @@ struct YarnBsdfParams {
  * output widths and head. */
 NY_KERNEL_FN bool yarn_flat_network_ok(NY_GLOBAL const float *f, int offset, int end, int inputs, int outputs, int head)
 {
-  if (offset < kYarnFlatHeader || offset + 3 > end) {
+  if (offset < kYarnFlatHeader + (f[kYarnFlatOffset_RFrames] != 0.0f ? kYarnRNodes * kYarnRFrameStride : 0) ||
+      offset + 3 > end)
+  {
     return false;
   }
   const float Lf = f[offset];
@@ -195,6 +204,21 @@ NY_KERNEL_FN const char *yarn_flat_check(NY_GLOBAL const float *f, int n)
         f[kYarnFlatFreePath] >= 0.0f && f[kYarnFlatFreePath] <= kYarnMaxFreePath))
   {
     return "has sampling parameters out of range";
+  }
+  const float oF = f[kYarnFlatOffset_RFrames];
+  if (oF != 0.0f) {
+    /* Each node's frame is the free path's or its own: not both. */
+    if (oF != (float)kYarnFlatHeader || f[kYarnFlatFreePath] != 0.0f ||
+        !(f[kYarnFlatOffset_T] >= oF + (float)(kYarnRNodes * kYarnRFrameStride)))
+    {
+      return "has R node frames out of place";
+    }
+    for (int i = 0; i < kYarnRNodes * kYarnRFrameStride; i += 2) {
+      const float c = f[kYarnFlatHeader + i], sn = f[kYarnFlatHeader + i + 1];
+      if (!(fabsf(c * c + sn * sn - 1.0f) <= 1e-4f)) {
+        return "has an R node frame that is not a rotation";
+      }
+    }
   }
   const float oT = f[kYarnFlatOffset_T], oR = f[kYarnFlatOffset_R], oM = f[kYarnFlatOffset_M],
               oC = f[kYarnFlatOffset_Cal], oA = f[kYarnFlatOffset_Az];
@@ -240,33 +264,47 @@ NY_KERNEL_FN const char *yarn_flat_check(NY_GLOBAL const float *f, int n)
   return nullptr;
 }
 
-/* A layout 4 array (no free path) as layout 5: `out` (n + 1 floats) gets the free path 0 at its header's end
- * and every offset and the size moved by one. It renders exactly as the layout 4 array did (one R node, the
- * surface fiber). Returns false, leaving `out` alone, if `f` is not a layout 4 array whose offsets lie in it. */
-NY_KERNEL_FN bool yarn_flat_from_layout4(NY_GLOBAL const float *f, int n, float *out)
+/* Fields an older layout's header lacks: layout 4 the free path and the R node frames' offset, layout 5 the
+ * offset; 0 for this layout or any other. */
+NY_KERNEL_FN int yarn_flat_missing_fields(NY_GLOBAL const float *f, int n)
 {
-  constexpr int header4 = kYarnFlatFreePath;
-  if (n < header4 || f[kYarnFlatVersion] != 4.0f || f[kYarnFlatSize] != (float)n) {
+  if (n < 1) {
+    return 0;
+  }
+  return f[kYarnFlatVersion] == 4.0f ? 2 : f[kYarnFlatVersion] == 5.0f ? 1 : 0;
+}
+
+/* A layout 4 or 5 array as this layout: `out` (n + yarn_flat_missing_fields floats) gets the missing fields
+ * as 0 (free path 0, no node frames) at the header's end and every offset and the size moved past them. It
+ * renders exactly as the older array did. Returns false, leaving `out` alone, if `f` is not a layout 4 or 5
+ * array whose offsets lie in it. */
+NY_KERNEL_FN bool yarn_flat_upgrade(NY_GLOBAL const float *f, int n, float *out)
+{
+  const int missing = yarn_flat_missing_fields(f, n);
+  const int header_old = kYarnFlatHeader - missing;
+  if (missing == 0 || n < header_old || f[kYarnFlatSize] != (float)n) {
     return false;
   }
   const int offsets[5] = {kYarnFlatOffset_T, kYarnFlatOffset_R, kYarnFlatOffset_M, kYarnFlatOffset_Cal,
                           kYarnFlatOffset_Az};
   for (int k = 0; k < 5; k++) {
-    if (!(f[offsets[k]] >= (float)header4 && f[offsets[k]] <= (float)n)) {
+    if (!(f[offsets[k]] >= (float)header_old && f[offsets[k]] <= (float)n)) {
       return false;
     }
   }
-  for (int i = 0; i < header4; i++) {
+  for (int i = 0; i < header_old; i++) {
     out[i] = f[i];
   }
-  out[kYarnFlatFreePath] = 0.0f;
-  for (int i = header4; i < n; i++) {
-    out[i + 1] = f[i];
+  for (int i = header_old; i < kYarnFlatHeader; i++) {
+    out[i] = 0.0f;
+  }
+  for (int i = header_old; i < n; i++) {
+    out[i + missing] = f[i];
   }
   out[kYarnFlatVersion] = kYarnFlatFormat;
-  out[kYarnFlatSize] = (float)(n + 1);
+  out[kYarnFlatSize] = (float)(n + missing);
   for (int k = 0; k < 5; k++) {
-    out[offsets[k]] = f[offsets[k]] + 1.0f;
+    out[offsets[k]] = f[offsets[k]] + (float)missing;
   }
   return true;
 }
@@ -284,6 +322,7 @@ NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(NY_GLOBAL const float *f)
   p.twist = make_twist_rotation(f[kYarnFlatAlpha]);
   p.alpha = f[kYarnFlatAlpha];
   p.free_path = f[kYarnFlatFreePath];
+  p.r_frames = f[kYarnFlatOffset_RFrames] != 0.0f ? f + (int)f[kYarnFlatOffset_RFrames] : nullptr;
   p.fiber.C_R = make_rgb(f[kYarnFlatC_R], f[kYarnFlatC_R + 1], f[kYarnFlatC_R + 2]);
   p.fiber.C_TT = make_rgb(0.0f);
   p.fiber.beta_R = f[kYarnFlatBeta_R];
@@ -348,6 +387,7 @@ NY_KERNEL_FN void yarn_calibration(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, 
  * w_o there; yarn_eval(), yarn_pdf() and yarn_sample() recompute it per call. */
 /* One fiber of the R lobe (see the top): w -> its fiber frame M_q R_x(a_q) w. */
 struct YarnRNode {
+  TwistRotation pre;    /* P_q: identity but for a node with its own frame */
   float ca, sa;         /* cos, sin of a_q */
   TwistRotation twist;  /* M_q */
   LongitudinalLobe m_R, m_TT;
@@ -374,16 +414,23 @@ struct YarnLobes {
   YarnRNode node[kYarnRNodes];
 };
 
+/* Whether node q turns first by its own P_q (a node of the R frames; the free path's nodes have none). */
+NY_KERNEL_FN bool yarn_r_node_has_pre(NY_PRIVATE const YarnRNode &n) { return n.pre.c != 1.0f || n.pre.s != 0.0f; }
+
 /* w (yarn frame) in node q's fiber frame, and back. */
 NY_KERNEL_FN Vec3 yarn_to_r_node(NY_PRIVATE const YarnRNode &n, Vec3 w)
 {
+  if (yarn_r_node_has_pre(n)) {
+    w = yarn_to_surface_fiber(n.pre, w);
+  }
   return yarn_to_surface_fiber(n.twist, make_vec3(w.x, n.ca * w.y - n.sa * w.z, n.sa * w.y + n.ca * w.z));
 }
 
 NY_KERNEL_FN Vec3 r_node_to_yarn(NY_PRIVATE const YarnRNode &n, Vec3 w_f)
 {
   const Vec3 w = surface_fiber_to_yarn(n.twist, w_f);
-  return make_vec3(w.x, n.ca * w.y + n.sa * w.z, -n.sa * w.y + n.ca * w.z);
+  const Vec3 v = make_vec3(w.x, n.ca * w.y + n.sa * w.z, -n.sa * w.y + n.ca * w.z);
+  return yarn_r_node_has_pre(n) ? surface_fiber_to_yarn(n.pre, v) : v;
 }
 
 NY_KERNEL_FN float yarn_transmission(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi)
@@ -484,14 +531,22 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
   }
   /* The R nodes: their frames and longitudinal lobes (and, if the TT part has a share, its forward azimuth
    * phi~_i + pi truncated to the upper half: without a share it is never evaluated nor sampled, no erfc). */
-  l.n_R = p.free_path > 0.0f ? kYarnRNodes : 1;
+  l.n_R = (p.free_path > 0.0f || p.r_frames) ? kYarnRNodes : 1;
   const bool has_tt = average(l.tau) > 0.0f;
   for (int q = 0; q < l.n_R; q++) {
     NY_PRIVATE YarnRNode &n = l.node[q];
+    n.pre = TwistRotation{1.0f, 0.0f};
     if (l.n_R == 1) { /* the surface fiber: the base frame */
       n.ca = 1.0f;
       n.sa = 0.0f;
       n.twist = p.twist;
+    }
+    else if (p.r_frames) { /* a fiber of the visible surface: its frame from the model (D51) */
+      NY_GLOBAL const float *r = p.r_frames + q * kYarnRFrameStride;
+      n.pre = TwistRotation{r[0], r[1]};
+      n.ca = r[2];
+      n.sa = r[3];
+      n.twist = TwistRotation{r[4], r[5]};
     }
     else {
       const float s = p.free_path * yarn_r_node_path(q), a = -wi.y * s;

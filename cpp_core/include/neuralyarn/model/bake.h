@@ -44,6 +44,9 @@ struct TrainModelOptions {
   /* The R lobe's free path (ply radii); negative: 0 or r_free_path() of the model (model/r_shape.h),
    * whichever fits the R map better (docs/decisions.md D38). */
   double r_free_path = -1.0;
+  /* A yarn-level model's R nodes: the fibers of this share of its visible ply surface (0: the surface fiber
+   * alone); negative: 0 or kRSurfaceSpread, whichever fits the R map better (docs/decisions.md D51). */
+  double r_surface_spread = -1.0;
   int threads = 0;
   ProxyFitOptions fit;
   bool fit_proxy = true;

@@ -20,7 +20,8 @@
 
 namespace neuralyarn::model {
 
-/* 2: energy calibration table; 3: R azimuth table (kernel array layout 3). Versions 1 and 2 still load
+/* 2: energy calibration table; 3: R azimuth table (kernel array layout 3); 4 and 5 hold kernel arrays of
+ * layout 4, 5 or 6 (6: the R nodes' frames), which load as layout 6. Versions 1 and 2 still load
  * (without the tables they lack; their kernel array is rebuilt in the current layout). */
 constexpr int kModelFormatVersion = 4;
 /* A yarn-level model (docs/decisions.md D27): layout 4 plus the "structure" it was baked for. A build that
@@ -77,6 +78,11 @@ struct YarnModel {
   /* The R lobe's mean free path to its fiber, in ply radii (kernel/yarn_bsdf.h; 0: the surface fiber alone,
    * as models before it rendered). */
   double r_free_path = 0.0;
+  /* A yarn-level model's R nodes as fibers of the plies' visible surface (docs/decisions.md D51): the central
+   * `r_surface_spread` share of it, kYarnRNodes frames of kYarnRFrameStride floats (kernel/yarn_bsdf.h,
+   * r_surface_frames() in model/r_shape.h). Empty: no frames, as models before them rendered. */
+  double r_surface_spread = 0.0;
+  std::vector<float> r_frames;
   std::array<double, 3> albedo_M{}; /* M albedo averaged over w_i on the hemisphere */
   nlohmann::json provenance = nlohmann::json::object(); /* maps, seeds, code version, dates */
   nlohmann::json fidelity = nlohmann::json::object();   /* the numbers of `neuralyarn check`, if run */

@@ -36,6 +36,15 @@ struct RShapeOptions {
 constexpr double kRFreePathScale = 0.6;
 double r_free_path(const YarnModel &model);
 
+/* The share of a yarn's visible ply surface whose fibers a yarn-level model's R nodes are, when the bake
+ * chooses them (docs/decisions.md D51: the central 60 % fitted the maps better than all of it). */
+constexpr double kRSurfaceSpread = 0.6;
+/* The kernel array's R node frames (kYarnRNodes x kYarnRFrameStride floats, kernel/yarn_bsdf.h) for a
+ * yarn-level model: the fibers of its plies' visible surface (geometry::visible_surface_frames of the
+ * model's preset and structure, one packing), each frame's tangent T and normal N as the rotation
+ * M R_x(a) P whose rows are T, N x T, N. Throws ParameterError for a ply-level model or a spread outside (0, 1]. */
+std::vector<float> r_surface_frames(const YarnModel &model, double spread);
+
 /* The table for `model` (its current table is ignored; its free path is used) on `maps` (same preset). */
 RShapeTable fit_r_shape(const YarnModel &model, const rdm::RdmMaps &maps, const RShapeOptions &options = {});
 
