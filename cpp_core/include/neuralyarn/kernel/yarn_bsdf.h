@@ -209,6 +209,7 @@ NY_KERNEL_FN const char *yarn_flat_check(NY_GLOBAL const float *f, int n)
   if (oF != 0.0f) {
     /* Each node's frame is the free path's or its own: not both. */
     if (oF != (float)kYarnFlatHeader || f[kYarnFlatFreePath] != 0.0f ||
+        kYarnFlatHeader + kYarnRNodes * kYarnRFrameStride > n ||
         !(f[kYarnFlatOffset_T] >= oF + (float)(kYarnRNodes * kYarnRFrameStride)))
     {
       return "has R node frames out of place";
