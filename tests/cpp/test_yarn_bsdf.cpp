@@ -203,6 +203,9 @@ TEST(YarnBsdf, RNodeFramesAreTheVisibleSurfaceFibers)
   std::vector<float> skewed = flat;
   skewed[size_t(ny::kYarnFlatHeader)] *= 1.1f;
   EXPECT_STREQ(ny::yarn_flat_check(skewed.data(), int(skewed.size())), "has an R node frame that is not a rotation");
+  std::vector<float> cut(flat.begin(), flat.begin() + ny::kYarnFlatHeader + 10); /* ends inside the frames */
+  cut[ny::kYarnFlatSize] = float(cut.size());
+  EXPECT_STREQ(ny::yarn_flat_check(cut.data(), int(cut.size())), "has R node frames out of place");
 }
 
 TEST(YarnBsdf, CalibrationTableIsBilinearAndPeriodicInPhi)
