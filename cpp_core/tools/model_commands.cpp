@@ -450,12 +450,10 @@ class Commands : public ModelCommands {
     }
     if (topt_.r_surface_spread >= 0.0) {
       m.r_surface_spread = topt_.r_surface_spread;
-      m.r_frames = topt_.r_surface_spread > 0.0 ? model::r_surface_frames(m, topt_.r_surface_spread) : std::vector<float>();
+      m.r_frames = topt_.r_surface_spread > 0.0 ? model::r_surface_frames(m, topt_.r_surface_spread)
+                                                : std::vector<float>();
     }
-    if (m.r_free_path > 0.0 && !m.r_frames.empty()) {
-      throw ParameterError("r_free_path", "an R node is the free path's or a surface fiber, not both: set "
-                                          "--r-free-path 0 or --r-surface-spread 0");
-    }
+    model::require_one_r_node_kind(m.r_free_path, m.r_frames.empty() ? 0.0 : m.r_surface_spread);
     m.r_shape = model::fit_r_shape(m, maps);
     m.calibration = model::calibrate_energy(m, maps, threads_);
     refresh_fallback(&m);

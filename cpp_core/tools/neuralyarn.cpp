@@ -200,7 +200,8 @@ struct YarnGeometryCommand {
         yp.alpha_yarn = alpha;
         yp.ply = geometry::PlyParams{p.N, p.rho, p.alpha, 1.0};
         nlohmann::json frames = nlohmann::json::array();
-        for (const geometry::SurfaceFrame &f : geometry::visible_surface_frames(geometry::Yarn(yp, 1), surface_frames, spread)) {
+        const geometry::Yarn yarn(yp, 1);
+        for (const geometry::SurfaceFrame &f : geometry::visible_surface_frames(yarn, surface_frames, spread)) {
           frames.push_back({{"T", {f.T.x(), f.T.y(), f.T.z()}}, {"N", {f.N.x(), f.N.y(), f.N.z()}},
                             {"turn_deg", f.turn * 180.0 / kPi}});
         }

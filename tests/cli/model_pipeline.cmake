@@ -41,6 +41,25 @@ if(NOT LAST_OUT MATCHES "sampling proxy" OR NOT EXISTS ${OUT}/refit.json)
   message(FATAL_ERROR "fit output incomplete:\n${LAST_OUT}")
 endif()
 
+# fit leaves no fidelity numbers of the lobes before it: it drops them, or measures them again with --check-maps.
+run_ok(${CLI} fit ${OUT}/silk.json --maps ${OUT}/silk.nyrdm --samples 3000 --out ${OUT}/refit_plain.json)
+file(READ ${OUT}/refit_plain.json model)
+if(NOT model MATCHES "\"fidelity\": {}" OR NOT model MATCHES "\"refit\": {")
+  message(FATAL_ERROR "fit kept the fidelity numbers of the model before it")
+endif()
+run_ok(${CLI} fit ${OUT}/silk.json --maps ${OUT}/silk.nyrdm --samples 3000 --check-maps ${OUT}/silk.nyrdm
+       --out ${OUT}/refit_checked.json)
+file(READ ${OUT}/refit_checked.json model)
+if(NOT LAST_OUT MATCHES "energy vs map" OR NOT model MATCHES "\"fidelity\": {[^}]*\"albedo")
+  message(FATAL_ERROR "fit --check-maps did not measure the fidelity again:\n${LAST_OUT}")
+endif()
+# A ply has no plies: R node frames of its surface are refused, and nothing is written.
+execute_process(COMMAND ${CLI} fit ${OUT}/silk.json --maps ${OUT}/silk.nyrdm --r-surface-spread 0.6
+                        --out ${OUT}/refit_frames.json RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(rc EQUAL 0 OR NOT err MATCHES "yarn-level model" OR EXISTS ${OUT}/refit_frames.json)
+  message(FATAL_ERROR "R node frames were accepted for a ply (${rc}): ${err}")
+endif()
+
 # A model for silk checked against fleece maps is refused with a message, and nothing is written.
 run_ok(${CLI} gather --preset fleece --paths 2e4 --bins 6x24x12x24 --quiet --out ${OUT}/fleece.nyrdm)
 execute_process(COMMAND ${CLI} check ${OUT}/silk.json --maps ${OUT}/fleece.nyrdm RESULT_VARIABLE rc ERROR_VARIABLE err)

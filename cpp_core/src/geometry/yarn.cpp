@@ -254,7 +254,8 @@ std::vector<SurfaceFrame> visible_surface_frames(const Yarn &yarn, int nodes, do
     f.turn = std::atan2(-f.N.y(), f.N.z());
     visible.push_back(f);
   }
-  std::sort(visible.begin(), visible.end(), [](const SurfaceFrame &a, const SurfaceFrame &b) { return a.turn < b.turn; });
+  std::sort(visible.begin(), visible.end(),
+            [](const SurfaceFrame &a, const SurfaceFrame &b) { return a.turn < b.turn; });
   double total = 0.0;
   for (const SurfaceFrame &f : visible) {
     total += f.weight;

@@ -183,17 +183,15 @@ nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double request
   };
   std::vector<Candidate> candidates;
   if (m->structure.is_yarn()) {
-    if (requested_path > 0.0) {
-      throw ParameterError("r_free_path", "a yarn-level model's R nodes are its surface fibers (--r-surface-spread), "
-                                          "not a free path");
-    }
-    candidates = requested_spread >= 0.0 ? std::vector<Candidate>{{0.0, requested_spread}}
-                                         : std::vector<Candidate>{{0.0, 0.0}, {0.0, kRSurfaceSpread}};
+    require_one_r_node_kind(requested_path, requested_spread);
+    candidates = requested_path > 0.0      ? std::vector<Candidate>{{requested_path, 0.0}}
+                 : requested_spread >= 0.0 ? std::vector<Candidate>{{0.0, requested_spread}}
+                                           : std::vector<Candidate>{{0.0, 0.0}, {0.0, kRSurfaceSpread}};
+  }
+  else if (requested_spread > 0.0) {
+    candidates = {{0.0, requested_spread}}; /* refused by r_surface_frames: a ply has no plies */
   }
   else {
-    if (requested_spread > 0.0) {
-      throw ParameterError("r_surface_spread", "the R nodes' surface frames are a yarn-level model's (a ply has no plies)");
-    }
     const double lambda = r_free_path(*m);
     candidates = requested_path >= 0.0 || lambda == 0.0 ? std::vector<Candidate>{{std::max(requested_path, 0.0), 0.0}}
                                                         : std::vector<Candidate>{{0.0, 0.0}, {lambda, 0.0}};

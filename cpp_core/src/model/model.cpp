@@ -147,6 +147,7 @@ EnergyCalibration calibration_from(const json &j, const std::vector<float> &flat
   }
   return c;
 }
+
 /* "r_surface_frames": the spread and kYarnRNodes frames of kYarnRFrameStride numbers; that they are rotations and
  * the kernel array's own is checked with the array. */
 void r_surface_frames_from(const json &j, YarnModel *m, const std::string &where)
@@ -154,7 +155,8 @@ void r_surface_frames_from(const json &j, YarnModel *m, const std::string &where
   if (!m->structure.is_yarn()) {
     throw ModelError(where + "the R nodes' surface frames are a yarn-level model's");
   }
-  if (!j.is_object() || !j.contains("frames") || !j["frames"].is_array() || j["frames"].size() != size_t(ny::kYarnRNodes)) {
+  if (!j.is_object() || !j.contains("frames") || !j["frames"].is_array() ||
+      j["frames"].size() != size_t(ny::kYarnRNodes)) {
     throw ModelError(where + "'frames' must be " + std::to_string(ny::kYarnRNodes) + " frames");
   }
   m->r_surface_spread = finite_in(j, "spread", 1e-6, 1.0, where);
@@ -299,7 +301,8 @@ json model_to_json(const YarnModel &m)
   if (!m.r_frames.empty()) {
     json frames = json::array();
     for (size_t q = 0; q < m.r_frames.size(); q += ny::kYarnRFrameStride) {
-      frames.push_back(std::vector<float>(m.r_frames.begin() + long(q), m.r_frames.begin() + long(q) + ny::kYarnRFrameStride));
+      const auto first = m.r_frames.begin() + long(q);
+      frames.push_back(std::vector<float>(first, first + ny::kYarnRFrameStride));
     }
     j["r_surface_frames"] = {{"spread", m.r_surface_spread},
                              {"layout", "per R node: cos, sin of P, of a, of M (w -> M R_x(a) P w, kernel/yarn_bsdf.h)"},
@@ -389,18 +392,19 @@ YarnModel model_from_json(const json &j, const std::string &source)
     m.albedo_M[c] = v.get<double>();
   }
   const int version = j["version"].get<int>();
-  std::optional<std::string> written_flat_hash; /* of a layout 4 array, which its fallback tables name */
+  std::optional<std::string> written_flat_hash; /* of a layout 4 or 5 array, which its fallback tables name */
   if (version >= 2) {
     /* The kernel array: layout 2 (no R table; the calibration table runs to the end), 3 (the R azimuth table
-     * without the TT share, under "r_azimuth"), 4 (no R free path) and 5 (this code's). Layouts 2 and 3 are
-     * only checked for their version and numbers and rebuilt with the tables taken over (a TT share of 0
-     * renders as they did); a layout 4 array is moved to layout 5 with the free path 0 (the same rendering)
-     * and then checked as one. */
+     * without the TT share, under "r_azimuth"), 4 (no R free path), 5 (no R node frames) and 6 (this code's).
+     * Layouts 2 and 3 are only checked for their version and numbers and rebuilt with the tables taken over (a
+     * TT share of 0 renders as they did); a layout 4 or 5 array is moved to layout 6 with zeros in the fields
+     * it lacks (the same rendering) and then checked as one. */
     std::vector<float> flat = float_array(j, "kernel_flat", where);
     int layout = std::min(version, 4); /* 2, 3 or 4 (versions 4 and 5 hold layout 4, 5 or 6) */
     const int written_layout = layout == 4 && !flat.empty() ? int(flat[0]) : layout;
-    if (layout == 4 && !flat.empty() && ny::yarn_flat_missing_fields(flat.data(), int(flat.size())) > 0) {
-      std::vector<float> upgraded(flat.size() + size_t(ny::yarn_flat_missing_fields(flat.data(), int(flat.size()))));
+    const int missing = layout == 4 ? ny::yarn_flat_missing_fields(flat.data(), int(flat.size())) : 0;
+    if (missing > 0) {
+      std::vector<float> upgraded(flat.size() + size_t(missing));
       if (!ny::yarn_flat_upgrade(flat.data(), int(flat.size()), upgraded.data())) {
         throw ModelError(where + "'kernel_flat' is not a layout " + std::to_string(written_layout) + " array");
       }

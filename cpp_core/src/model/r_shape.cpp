@@ -31,7 +31,8 @@ double r_free_path(const YarnModel &model)
 std::vector<float> r_surface_frames(const YarnModel &model, double spread)
 {
   if (!model.structure.is_yarn()) {
-    throw ParameterError("r_surface_spread", "the R nodes' surface frames are a yarn-level model's (a ply has no plies)");
+    throw ParameterError("r_surface_spread",
+                         "the R nodes' surface frames are a yarn-level model's (a ply has no plies)");
   }
   geometry::YarnParams yp;
   yp.K = model.structure.plies;
@@ -53,6 +54,14 @@ std::vector<float> r_surface_frames(const YarnModel &model, double spread)
     }
   }
   return out;
+}
+
+void require_one_r_node_kind(double free_path, double surface_spread)
+{
+  if (free_path > 0.0 && surface_spread > 0.0) {
+    throw ParameterError("r_free_path", "an R node is the free path's or a surface fiber, not both: set the free "
+                                        "path or the surface spread to 0");
+  }
 }
 
 Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd &G, const Eigen::VectorXd &h)
