@@ -41,6 +41,21 @@ ny::Vec3 from_polar(double theta, double phi)
                        float(std::cos(theta)));
 }
 
+/* A kernel array without R node frames as layout 5 wrote it (no frames' offset) or layout 4 (no free path
+ * either): the header's last fields dropped, the offsets moved back past them. */
+std::vector<float> older_layout(std::vector<float> f, int layout)
+{
+  const int dropped = int(ny::kYarnFlatFormat) - layout;
+  f.erase(f.begin() + ny::kYarnFlatHeader - dropped, f.begin() + ny::kYarnFlatHeader);
+  for (int k : {ny::kYarnFlatOffset_T, ny::kYarnFlatOffset_R, ny::kYarnFlatOffset_M, ny::kYarnFlatOffset_Cal,
+                ny::kYarnFlatOffset_Az}) {
+    f[size_t(k)] -= float(dropped);
+  }
+  f[ny::kYarnFlatVersion] = float(layout);
+  f[ny::kYarnFlatSize] = float(f.size());
+  return f;
+}
+
 }  // namespace
 
 TEST(YarnBsdf, ReflectionLobeEnergyIsHalfTheFiberR)
@@ -388,13 +403,7 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
     nlohmann::json v4 = model::model_to_json(surface);
     std::vector<float> f = v4["kernel_flat"].get<std::vector<float>>();
     ASSERT_EQ(f[ny::kYarnFlatOffset_RFrames], 0.0f);
-    f.erase(f.begin() + ny::kYarnFlatFreePath, f.begin() + ny::kYarnFlatOffset_RFrames + 1);
-    for (int k : {ny::kYarnFlatOffset_T, ny::kYarnFlatOffset_R, ny::kYarnFlatOffset_M, ny::kYarnFlatOffset_Cal,
-                  ny::kYarnFlatOffset_Az}) {
-      f[size_t(k)] -= 2.0f;
-    }
-    f[0] = 4.0f;
-    f[1] = float(f.size());
+    f = older_layout(f, 4);
     v4["kernel_flat"] = f;
     v4.erase("r_free_path");
     v4["fallback"]["kernel_flat_fnv1a64"] = model::fnv1a64_hex(f);
@@ -420,13 +429,7 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
     five.fallback = model::compute_fallback(five, fo);
     nlohmann::json v5 = model::model_to_json(five);
     std::vector<float> f = v5["kernel_flat"].get<std::vector<float>>();
-    f.erase(f.begin() + ny::kYarnFlatOffset_RFrames);
-    for (int k : {ny::kYarnFlatOffset_T, ny::kYarnFlatOffset_R, ny::kYarnFlatOffset_M, ny::kYarnFlatOffset_Cal,
-                  ny::kYarnFlatOffset_Az}) {
-      f[size_t(k)] -= 1.0f;
-    }
-    f[0] = 5.0f;
-    f[1] = float(f.size());
+    f = older_layout(f, 5);
     v5["kernel_flat"] = f;
     v5["fallback"]["kernel_flat_fnv1a64"] = model::fnv1a64_hex(f);
     const std::string old = (dir / "v5.json").string();
