@@ -41,6 +41,15 @@ ny::Vec3 from_polar(double theta, double phi)
                        float(std::cos(theta)));
 }
 
+/* Fallback tables of 4 x 4 cells: enough to follow them through a file. */
+model::FallbackTables small_fallback(const model::YarnModel &m)
+{
+  model::FallbackOptions fo;
+  fo.theta_bins = 4;
+  fo.phi_bins = 4;
+  return model::compute_fallback(m, fo);
+}
+
 /* A kernel array without R node frames as layout 5 wrote it (no frames' offset) or layout 4 (no free path
  * either): the header's last fields dropped, the offsets moved back past them. */
 std::vector<float> older_layout(std::vector<float> f, int layout)
@@ -396,10 +405,7 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
      * it. */
     model::YarnModel surface = m;
     surface.r_free_path = 0.0;
-    model::FallbackOptions fo;
-    fo.theta_bins = 4;
-    fo.phi_bins = 4;
-    surface.fallback = model::compute_fallback(surface, fo);
+    surface.fallback = small_fallback(surface);
     nlohmann::json v4 = model::model_to_json(surface);
     std::vector<float> f = v4["kernel_flat"].get<std::vector<float>>();
     ASSERT_EQ(f[ny::kYarnFlatOffset_RFrames], 0.0f);
@@ -423,10 +429,7 @@ TEST(ModelFile, RoundTripsAndRejectsBadFiles)
     /* A layout 5 file (no R node frames: the header one float shorter) loads as the same model, free path
      * and fallback tables included. */
     model::YarnModel five = m;
-    model::FallbackOptions fo;
-    fo.theta_bins = 4;
-    fo.phi_bins = 4;
-    five.fallback = model::compute_fallback(five, fo);
+    five.fallback = small_fallback(five);
     nlohmann::json v5 = model::model_to_json(five);
     std::vector<float> f = v5["kernel_flat"].get<std::vector<float>>();
     f = older_layout(f, 5);
