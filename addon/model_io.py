@@ -84,6 +84,14 @@ def _network_ok(f: list, offset: int, end: int, inputs: int, outputs: int, head:
     return widths[0] == inputs and widths[L] == outputs and f[offset + L + 2] == head and offset + count <= end
 
 
+def _r_node_frames(f: list) -> list | None:
+    """A layout 6 array's R node frames (right after its header), or None when its offset field says none."""
+    if f[27] == 0.0:
+        return None
+    header = _FLAT_HEADERS[6]
+    return f[header:header + _R_NODES * _R_FRAME_STRIDE]
+
+
 def kernel_flat_problem(f: list, layout: int = 6) -> str | None:
     """What is wrong with a layout 6 kernel array (the native closure's input), or None: the same checks as
     the C++ loader's yarn_flat_check, so that the add-on packs no model the patched Cycles would refuse.
@@ -104,13 +112,14 @@ def kernel_flat_problem(f: list, layout: int = 6) -> str | None:
             (layout == 3 or (f[24] > 0.0 and f[25] > 0.0)) and
             (layout < 5 or 0.0 <= f[26] <= _MAX_FREE_PATH)):
         return "has sampling parameters out of range"
-    if layout >= 6 and f[27] != 0.0:
-        frames = f[28:28 + _R_NODES * _R_FRAME_STRIDE]
-        if f[27] != 28.0 or f[26] != 0.0 or not f[14] >= 28 + _R_NODES * _R_FRAME_STRIDE:
+    frames = _r_node_frames(f) if layout >= 6 else None
+    if frames is not None:
+        size = _R_NODES * _R_FRAME_STRIDE
+        if f[27] != header or f[26] != 0.0 or len(frames) < size or not f[14] >= header + size:
             return "has R node frames out of place"
-        if any(abs(frames[i] ** 2 + frames[i + 1] ** 2 - 1.0) > 1e-4 for i in range(0, len(frames), 2)):
+        if any(abs(frames[i] ** 2 + frames[i + 1] ** 2 - 1.0) > 1e-4 for i in range(0, size, 2)):
             return "has an R node frame that is not a rotation"
-        header += _R_NODES * _R_FRAME_STRIDE
+        header += size
     oT, oR, oM, oC, oA = f[14], f[15], f[16], f[17], f[20]
     if not (0.0 <= oT <= oR <= oM <= oC <= oA <= n) or oA != int(oA):
         return "has network offsets out of order"
@@ -204,7 +213,7 @@ def parse_model(text: str, source: str) -> YarnModel:
         # The frames are the array's and the file's alike, or neither's (the C++ loader rebuilds the array).
         surface = data.get("r_surface_frames")
         frames = surface.get("frames") if isinstance(surface, dict) else None
-        in_flat = flat[28:28 + _R_NODES * _R_FRAME_STRIDE] if layout >= 6 and flat[27] != 0.0 else None
+        in_flat = _r_node_frames(flat) if layout >= 6 else None
         if (surface is not None or in_flat is not None) and (
                 not isinstance(frames, list) or in_flat is None or
                 [v for fr in frames for v in (fr if isinstance(fr, list) else [None])] != in_flat):

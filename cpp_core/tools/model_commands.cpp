@@ -449,9 +449,7 @@ class Commands : public ModelCommands {
       m.r_free_path = topt_.r_free_path;
     }
     if (topt_.r_surface_spread >= 0.0) {
-      m.r_surface_spread = topt_.r_surface_spread;
-      m.r_frames = topt_.r_surface_spread > 0.0 ? model::r_surface_frames(m, topt_.r_surface_spread)
-                                                : std::vector<float>();
+      model::set_r_surface_spread(&m, topt_.r_surface_spread);
     }
     model::require_one_r_node_kind(m.r_free_path, m.r_frames.empty() ? 0.0 : m.r_surface_spread);
     m.r_shape = model::fit_r_shape(m, maps);

@@ -194,13 +194,11 @@ struct YarnGeometryCommand {
       const double d = geometry::ply_center_distance(plies, 1.0, alpha);
       nlohmann::json line = {{"plies", plies}, {"ply_twist", alpha}, {"ply_distance", d}, {"yarn_radius", d + 1.0}};
       if (surface_frames > 0) {
-        const FiberPreset p = resolve_preset(preset, params);
-        geometry::YarnParams yp;
-        yp.K = plies;
-        yp.alpha_yarn = alpha;
-        yp.ply = geometry::PlyParams{p.N, p.rho, p.alpha, 1.0};
+        geometry::YarnStructure structure;
+        structure.plies = plies;
+        structure.ply_twist = alpha;
+        const geometry::Yarn yarn(geometry::yarn_params(resolve_preset(preset, params), structure), 1);
         nlohmann::json frames = nlohmann::json::array();
-        const geometry::Yarn yarn(yp, 1);
         for (const geometry::SurfaceFrame &f : geometry::visible_surface_frames(yarn, surface_frames, spread)) {
           frames.push_back({{"T", {f.T.x(), f.T.y(), f.T.z()}}, {"N", {f.N.x(), f.N.y(), f.N.z()}},
                             {"turn_deg", f.turn * 180.0 / kPi}});

@@ -195,12 +195,8 @@ TEST(YarnBsdf, RNodeFramesAreTheVisibleSurfaceFibers)
   const std::vector<float> flat = m.kernel_flat();
   ASSERT_EQ(ny::yarn_flat_check(flat.data(), int(flat.size())), nullptr);
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
-  geometry::YarnParams yp;
-  yp.K = 3;
-  yp.alpha_yarn = 0.5;
-  yp.ply = geometry::PlyParams{m.preset.N, m.preset.rho, m.preset.alpha, 1.0};
-  const std::vector<geometry::SurfaceFrame> frames =
-      geometry::visible_surface_frames(geometry::Yarn(yp, 1), ny::kYarnRNodes, model::kRSurfaceSpread);
+  const std::vector<geometry::SurfaceFrame> frames = geometry::visible_surface_frames(
+      geometry::Yarn(geometry::yarn_params(m.preset, m.structure), 1), ny::kYarnRNodes, model::kRSurfaceSpread);
   const ny::YarnLobes l = ny::yarn_lobes(p, from_polar(0.6, 0.3));
   ASSERT_EQ(l.n_R, ny::kYarnRNodes);
   double turn_spread = 0.0;

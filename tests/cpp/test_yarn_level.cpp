@@ -108,12 +108,10 @@ TEST(YarnGeometry, SurfaceFramesOfOnePlyAreTheKernelsSurfaceFiber)
  * (geometry::surface_twist averages the outermost fibers: 0.02 in alpha). */
 TEST(YarnGeometry, SurfaceFramesOfThreePliesAreTheRidgesFlanks)
 {
-  const FiberPreset p = find_preset("polyester");
-  geometry::YarnParams yp;
-  yp.K = 3;
-  yp.alpha_yarn = 0.5;
-  yp.ply = geometry::PlyParams{p.N, p.rho, p.alpha, 1.0};
-  const geometry::Yarn yarn(yp, 1);
+  geometry::YarnStructure plying;
+  plying.plies = 3;
+  plying.ply_twist = 0.5;
+  const geometry::Yarn yarn(geometry::yarn_params(find_preset("polyester"), plying), 1);
   const std::vector<geometry::SurfaceFrame> wide = geometry::visible_surface_frames(yarn, 4, 1.0);
   const std::vector<geometry::SurfaceFrame> narrow = geometry::visible_surface_frames(yarn, 4, 0.2);
   ASSERT_EQ(wide.size(), 4u);

@@ -19,6 +19,33 @@ constexpr int kMaxPlies = 64;
 
 double twist_rate(double d, double R_ply, double alpha_yarn) { return kPi * alpha_yarn / (d + R_ply); }
 
+/* The smallest f(x) over [lo, lo + width]: f at n + 1 evenly spaced points, then the best point's bracket
+ * narrowed by `iterations` steps of golden-section search. */
+template<typename F> double scan_then_golden(const F &f, double lo, double width, int n, int iterations)
+{
+  int i_best = 0;
+  double f_best = INFINITY;
+  for (int i = 0; i <= n; i++) {
+    const double v = f(lo + width * i / n);
+    if (v < f_best) {
+      f_best = v;
+      i_best = i;
+    }
+  }
+  double a = lo + width * std::max(0, i_best - 1) / n, b = lo + width * std::min(n, i_best + 1) / n;
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (int it = 0; it < iterations; it++) {
+    const double x1 = b - g * (b - a), x2 = a + g * (b - a);
+    if (f(x1) < f(x2)) {
+      b = x2;
+    }
+    else {
+      a = x1;
+    }
+  }
+  return std::min(f_best, f(0.5 * (a + b)));
+}
+
 /* Squared distance from ply 0's centre at x = 0, (0, d, 0), to ply k's centre at x. */
 double dist2(double x, double d, double phi_k, double w)
 {
@@ -39,28 +66,7 @@ double neighbour_ply_distance(int K, double d, double R_ply, double alpha_yarn)
     /* f(x) >= x^2, so only |x| < sqrt(f(0)) can beat x = 0: scan that interval, then refine the best
      * bracket by golden-section search. */
     const double X = std::sqrt(dist2(0.0, d, phi, w));
-    const int n = 2000;
-    int i_best = n / 2;
-    double f_best = INFINITY;
-    for (int i = 0; i <= n; i++) {
-      const double f = dist2(-X + 2.0 * X * i / n, d, phi, w);
-      if (f < f_best) {
-        f_best = f;
-        i_best = i;
-      }
-    }
-    double a = -X + 2.0 * X * std::max(0, i_best - 1) / n, b = -X + 2.0 * X * std::min(n, i_best + 1) / n;
-    const double g = 0.5 * (std::sqrt(5.0) - 1.0);
-    for (int it = 0; it < 100; it++) {
-      const double x1 = b - g * (b - a), x2 = a + g * (b - a);
-      if (dist2(x1, d, phi, w) < dist2(x2, d, phi, w)) {
-        b = x2;
-      }
-      else {
-        a = x1;
-      }
-    }
-    best = std::min({best, f_best, dist2(0.5 * (a + b), d, phi, w)});
+    best = std::min(best, scan_then_golden([&](double x) { return dist2(x, d, phi, w); }, -X, 2.0 * X, 2000, 100));
   }
   return std::sqrt(best);
 }
@@ -138,6 +144,15 @@ Eigen::Vector3d Yarn::ply_point(int ply, double rho, double psi0, double x) cons
   return ply_center(ply, x) + rho * (std::cos(psi) * e_r + std::sin(psi) * e_b);
 }
 
+YarnParams yarn_params(const FiberPreset &preset, const YarnStructure &structure)
+{
+  YarnParams yp;
+  yp.K = structure.plies;
+  yp.alpha_yarn = structure.ply_twist;
+  yp.ply = PlyParams{preset.N, preset.rho, preset.alpha, 1.0};
+  return yp;
+}
+
 double surface_twist(const Yarn &yarn)
 {
   const YarnParams &p = yarn.params();
@@ -182,29 +197,7 @@ bool inside_another_ply(const Yarn &yarn, int self, const Eigen::Vector3d &q)
       continue;
     }
     auto d2 = [&](double x) { return (yarn.ply_center(k, x) - q).squaredNorm(); };
-    const int n = 64;
-    int i_best = 0;
-    double best = INFINITY;
-    for (int i = 0; i <= n; i++) {
-      const double f = d2(q.x() - reach + 2.0 * reach * i / n);
-      if (f < best) {
-        best = f;
-        i_best = i;
-      }
-    }
-    double a = q.x() - reach + 2.0 * reach * std::max(0, i_best - 1) / n;
-    double b = q.x() - reach + 2.0 * reach * std::min(n, i_best + 1) / n;
-    const double g = 0.5 * (std::sqrt(5.0) - 1.0);
-    for (int it = 0; it < 60; it++) {
-      const double x1 = b - g * (b - a), x2 = a + g * (b - a);
-      if (d2(x1) < d2(x2)) {
-        b = x2;
-      }
-      else {
-        a = x1;
-      }
-    }
-    if (std::min(best, d2(0.5 * (a + b))) < R * R) {
+    if (scan_then_golden(d2, q.x() - reach, 2.0 * reach, 64, 60) < R * R) {
       return true;
     }
   }

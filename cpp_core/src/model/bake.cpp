@@ -178,8 +178,7 @@ nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double request
   using Candidate = std::pair<double, double>;
   auto apply = [&](const Candidate &c) {
     m->r_free_path = c.first;
-    m->r_surface_spread = c.second;
-    m->r_frames = c.second > 0.0 ? r_surface_frames(*m, c.second) : std::vector<float>();
+    set_r_surface_spread(m, c.second);
   };
   std::vector<Candidate> candidates;
   if (m->structure.is_yarn()) {
@@ -207,6 +206,7 @@ nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double request
   double best_score = 0.0;
   Candidate best;
   RShapeTable best_shape;
+  std::vector<float> best_frames;
   for (size_t k = 0; k < candidates.size(); k++) {
     apply(candidates[k]);
     /* Four quadratures of the R lobe over every incident bin, the nodes' four times the surface fiber's
@@ -226,9 +226,12 @@ nlohmann::json fit_r_lobe(YarnModel *m, const rdm::RdmMaps &maps, double request
       best_score = score;
       best = candidates[k];
       best_shape = m->r_shape;
+      best_frames = m->r_frames;
     }
   }
-  apply(best);
+  m->r_free_path = best.first;
+  m->r_surface_spread = best.second;
+  m->r_frames = std::move(best_frames); /* the geometry's, kept rather than found again */
   m->r_shape = std::move(best_shape);
   return scores;
 }

@@ -34,12 +34,8 @@ std::vector<float> r_surface_frames(const YarnModel &model, double spread)
     throw ParameterError("r_surface_spread",
                          "the R nodes' surface frames are a yarn-level model's (a ply has no plies)");
   }
-  geometry::YarnParams yp;
-  yp.K = model.structure.plies;
-  yp.alpha_yarn = model.structure.ply_twist;
-  yp.ply = geometry::PlyParams{model.preset.N, model.preset.rho, model.preset.alpha, 1.0};
-  const std::vector<geometry::SurfaceFrame> frames =
-      geometry::visible_surface_frames(geometry::Yarn(yp, 1), ny::kYarnRNodes, spread);
+  const std::vector<geometry::SurfaceFrame> frames = geometry::visible_surface_frames(
+      geometry::Yarn(geometry::yarn_params(model.preset, model.structure), 1), ny::kYarnRNodes, spread);
   std::vector<float> out;
   for (const geometry::SurfaceFrame &f : frames) {
     /* Q = M(phi_1) R_x(a) P(phi_2) with rows T, B, N: N = (sin a sin phi_2, sin a cos phi_2, cos a) (a in [0, pi]),
@@ -54,6 +50,12 @@ std::vector<float> r_surface_frames(const YarnModel &model, double spread)
     }
   }
   return out;
+}
+
+void set_r_surface_spread(YarnModel *model, double spread)
+{
+  model->r_frames = spread > 0.0 ? r_surface_frames(*model, spread) : std::vector<float>();
+  model->r_surface_spread = spread;
 }
 
 void require_one_r_node_kind(double free_path, double surface_spread)

@@ -68,11 +68,7 @@ RdmMaps gather_yarn(const FiberPreset &preset, const geometry::YarnStructure &st
   geometry::validate(structure);
   validate(preset);
   validate(options);
-  geometry::YarnParams yp;
-  yp.K = structure.plies;
-  yp.alpha_yarn = structure.ply_twist;
-  yp.ply = geometry::PlyParams{preset.N, preset.rho, preset.alpha, 1.0};
-  const geometry::Yarn yarn(yp, options.packing_seed);
+  const geometry::Yarn yarn(geometry::yarn_params(preset, structure), options.packing_seed);
   const double R = yarn.yarn_radius();
   const double entry = std::clamp(yarn.sampling_length(), 2.0 * R, 24.0 * R);
   const double half = 0.5 * entry + kYarnEndMargin * R;

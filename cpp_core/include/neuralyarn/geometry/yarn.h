@@ -26,6 +26,7 @@
 
 #include "neuralyarn/geometry/ply.h"
 #include "neuralyarn/geometry/yarn_structure.h"
+#include "neuralyarn/presets.h"
 #include "neuralyarn/units.h"
 
 namespace neuralyarn::geometry {
@@ -65,6 +66,9 @@ class Yarn {
   double d_ = 0.0, w_ = 0.0, arc_per_x_ = 1.0;
   double fiber_rate_ = 0.0; /* d psi / ds = pi alpha_ply / R_ply + tau */
 };
+
+/* A preset's fibers in the plies of `structure`, in ply radii (R_ply = 1): what the yarn level walks through. */
+YarnParams yarn_params(const FiberPreset &preset, const YarnStructure &structure);
 
 /* The surface fibers' twist of a yarn as a twist factor: the mean over the outermost fibers (centres
  * within three fiber radii of the yarn's envelope, sampled along one pitch) of tan(tilt) / pi, tilt the

@@ -44,6 +44,8 @@ constexpr double kRSurfaceSpread = 0.6;
  * model's preset and structure, one packing), each frame's tangent T and normal N as the rotation
  * M R_x(a) P whose rows are T, N x T, N. Throws ParameterError for a ply-level model or a spread outside (0, 1]. */
 std::vector<float> r_surface_frames(const YarnModel &model, double spread);
+/* Sets a model's surface spread and the frames that follow from it (none for 0). */
+void set_r_surface_spread(YarnModel *model, double spread);
 /* An R node is the free path's or a surface fiber: ParameterError when both are asked for (> 0). */
 void require_one_r_node_kind(double free_path, double surface_spread);
 
