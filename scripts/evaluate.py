@@ -48,6 +48,9 @@ Metrics against reference A (linear HDR images):
   mean_colour_error_frame  the same over the whole frame;
   mean_luminance_error     the same for Rec. 709 luminance, central region;
   flip                     mean HDR-FLIP (NVIDIA, PyPI flip-evaluator), 67 pixels per degree, whole frame;
+  flip_colour_matched      the same after each channel of the image is scaled to the reference's whole-frame
+                           mean: the error of the image's structure alone (a pattern missing or misplaced), so
+                           flip - flip_colour_matched is what a right mean colour would gain;
   relmse                   mean over pixels of mean_c (x - r)^2 / (r^2 + 0.01), the top 0.1 % discarded;
   ssim                     scripts/images.py: display images (the reference's 99.5th percentile
                            maps to 1, clamped, sRGB), Gaussian window sigma 1.5.
@@ -620,10 +623,16 @@ def metrics(img: np.ndarray, ref: np.ndarray, region: tuple[slice, slice]) -> di
         "mean_luminance_error": float(m_img @ LUMINANCE / (m_ref @ LUMINANCE) - 1.0),
         "mean_luminance_error_frame": float(f_img @ LUMINANCE / (f_ref @ LUMINANCE) - 1.0),
     }
-    _, mean_flip, _ = flip_evaluator.evaluate(np.ascontiguousarray(ref, dtype=np.float32),
-                                              np.ascontiguousarray(img, dtype=np.float32), "HDR",
-                                              applyMagma=False, parameters={"ppd": FLIP_PPD})
-    out["flip"] = float(mean_flip)
+    def flip(test):
+        _, mean_flip, _ = flip_evaluator.evaluate(np.ascontiguousarray(ref, dtype=np.float32),
+                                                  np.ascontiguousarray(test, dtype=np.float32), "HDR",
+                                                  applyMagma=False, parameters={"ppd": FLIP_PPD})
+        return float(mean_flip)
+
+    out["flip"] = flip(img)
+    # A black channel stays black: no scale makes it the reference's, and dividing by zero would make NaN.
+    scale = np.where(f_img > 0.0, f_ref / np.where(f_img > 0.0, f_img, 1.0), 1.0)
+    out["flip_colour_matched"] = flip(img * scale)
     e = (((img - ref) ** 2) / (ref ** 2 + RELMSE_EPS)).mean(axis=2).ravel()
     keep = np.sort(e)[: max(1, int(math.ceil(e.size * (1.0 - RELMSE_DISCARD))))]
     out["relmse"] = float(keep.mean())
@@ -631,7 +640,7 @@ def metrics(img: np.ndarray, ref: np.ndarray, region: tuple[slice, slice]) -> di
     return out
 
 
-METRIC_KEYS = ["flip", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame", "mean_luminance_error",
+METRIC_KEYS = ["flip", "flip_colour_matched", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame", "mean_luminance_error",
                "mean_luminance_error_frame"]
 
 
@@ -1036,11 +1045,12 @@ def summary(results: dict) -> str:
              "reference A; noise floor: reference B against A. Mean over seeds. `closeup d48`: the close-up's camera "
              "at 48 ply radii. frame lum %: the luminance error of the whole frame; region light %: the share of "
              "reference A's light on the ply's rows (over the region's columns) that is in the region (where it is "
-             "small, the light is at the ply's silhouettes, outside the region: read the frame's error).",
+             "small, the light is at the ply's silhouettes, outside the region: read the frame's error). FLIP mc: FLIP "
+             "with the image's mean colour matched to the reference's (its structure's error alone).",
              "",
              "| scene | preset | light | method | spp | R % | G % | B % | lum % | lum floor % | frame lum % "
-             "| region light % | FLIP | FLIP floor | render s | load s | peak MB | failed |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| region light % | FLIP | FLIP mc | FLIP floor | render s | load s | peak MB | failed |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     floors = {(label(group_of(f)), f["preset"], f["light"]): f for f in results["noise_floor"]}
     groups: dict = {}
     for r in results["runs"]:
@@ -1067,7 +1077,8 @@ def summary(results: dict) -> str:
             f"{fmt(100 * fl['mean_luminance_error'] if fl['mean_luminance_error'] is not None else None, '+.1f')} | "
             f"{fmt(100 * mean([r.get('mean_luminance_error_frame') for r in ok]) if ok else None, '+.1f')} | "
             f"{fmt(100 * fl['region_share'] if fl.get('region_share') is not None else None, '.0f')} | "
-            f"{fmt(mean([r['flip'] for r in ok]), '.3f')} | {fmt(fl['flip'], '.3f')} | "
+            f"{fmt(mean([r['flip'] for r in ok]), '.3f')} | "
+            f"{fmt(mean([r.get('flip_colour_matched') for r in ok]) if ok else None, '.3f')} | {fmt(fl['flip'], '.3f')} | "
             f"{fmt(mean([r['seconds_render'] for r in cost]), '.2f')} | {fmt(mean([r['seconds_load'] for r in cost]), '.2f')} | "
             f"{fmt(mean([r['peak_rss_mb'] for r in cost]), '.0f')} | {failed.replace('|', '/')[:80]} |")
     if results.get("baselines"):

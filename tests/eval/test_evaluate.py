@@ -18,10 +18,11 @@ ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir, os.par
 EVALUATE = os.path.join(ROOT, "scripts", "evaluate.sh")
 LIGHTS = ["key-rim", "grazing"]
 RUN_FIELDS = ["scene", "method", "preset", "light", "distance", "spp", "seed", "seconds_load", "seconds_render",
-              "peak_rss_mb", "baseline_rss_mb", "curve_keys", "flip", "relmse", "ssim", "mean_colour_error",
-              "mean_colour_error_frame", "mean_luminance_error", "mean_luminance_error_frame", "failed"]
-METRICS = ["flip", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame", "mean_luminance_error",
-           "mean_luminance_error_frame"]
+              "peak_rss_mb", "baseline_rss_mb", "curve_keys", "flip", "flip_colour_matched", "relmse", "ssim",
+              "mean_colour_error", "mean_colour_error_frame", "mean_luminance_error", "mean_luminance_error_frame",
+              "failed"]
+METRICS = ["flip", "flip_colour_matched", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame",
+           "mean_luminance_error", "mean_luminance_error_frame"]
 
 
 def evaluate(*args):
@@ -280,3 +281,31 @@ def test_the_predicted_fallback_is_what_blender_renders(tmp_path, light):
     lum = lambda c: float(np.dot(c, LUMINANCE))  # noqa: E731
     assert lum(predicted) > 1e-3
     assert abs(lum(rendered) / lum(predicted) - 1.0) < 0.03, (light, rendered, predicted)
+
+
+def test_colour_matched_flip_separates_colour_from_structure():
+    """flip_colour_matched is FLIP once the image's mean colour is the reference's: a tint (a lobe with the
+    wrong colour) is all in flip and gone from it, a pattern smoothed away (a yarn drawn as one plain
+    cylinder where the reference shows its plies) stays in both. A black channel is left black, not NaN."""
+    import sys
+    import numpy as np
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    from evaluate import CLOSEUP_DISTANCE, CLOSEUP_FOV, central_region, metrics
+
+    rng = np.random.default_rng(7)
+    region = central_region(CLOSEUP_DISTANCE, CLOSEUP_FOV, 160, 80)
+    ref = np.zeros((80, 160, 3))
+    cols = np.arange(160)
+    stripes = 0.5 + 0.45 * np.sign(np.sin(2.0 * np.pi * cols / 6.0))  # the plies' crests and grooves
+    ref[30:50] = (stripes[None, :, None] * np.array([0.8, 0.5, 0.3])) * (1.0 + 0.05 * rng.random((20, 160, 1)))
+    tinted = metrics(ref * np.array([1.4, 1.0, 0.7]), ref, region)
+    assert tinted["flip"] > 0.05 and tinted["flip_colour_matched"] < 1e-3, tinted
+    plain = ref.copy()
+    plain[30:50] = ref[30:50].mean(axis=1, keepdims=True)  # the same mean colour, no pattern
+    smooth = metrics(plain, ref, region)
+    assert smooth["flip_colour_matched"] > 0.05
+    assert smooth["flip_colour_matched"] == pytest.approx(smooth["flip"], rel=1e-3)
+    dark = ref.copy()
+    dark[..., 2] = 0.0
+    m = metrics(dark, ref, region)
+    assert math.isfinite(m["flip_colour_matched"]) and m["flip_colour_matched"] > 0.0
