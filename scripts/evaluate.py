@@ -88,8 +88,8 @@ import types
 
 import numpy as np
 
-from evaluate_charts import (CLOSEUP_DISTANCE, REFERENCE_METHOD, error_distance_charts, error_time_charts, label,
-                             group_of, level_summary, speed_summary, stem, summary_table)
+from evaluate_charts import (CLOSEUP_DISTANCE, REFERENCE_METHOD, auto_summary, auto_table, error_distance_charts,
+                             error_time_charts, group_of, label, level_summary, speed_summary, stem, summary_table)
 from garment import PATCHES, flat_knit_plies, garment_plies, patch_plies, straight_yarn_plies, yarn_radius
 from images import LUMINANCE, display, display_ssim, exposure_of, read_exr, write_exr
 
@@ -980,6 +980,7 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
     }
     results["summary"] = speed_summary(results)
     results["summary_over_plies"] = level_summary(results)
+    results["auto"] = auto_summary(results)
     return results, failures
 
 
@@ -1094,6 +1095,9 @@ def summary(results: dict) -> str:
     if results.get("summary_over_plies"):
         lines += ["", "Speed of the levels of detail against the ply level (native):", "",
                   summary_table(results, "summary_over_plies", "native").rstrip()]
+    if results.get("auto"):
+        lines += ["", "The add-on's Auto level (addon/geometry/lod.py) against the levels rendered, at the most samples "
+                  "(issue 18's goal: FLIP and time each within 10 %; ✗ where not):", "", auto_table(results["auto"]).rstrip()]
     return "\n".join(lines) + "\n"
 
 

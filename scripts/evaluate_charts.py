@@ -195,6 +195,63 @@ def level_summary(results: dict) -> dict | None:
     return speed_summary(results, LEVELS_OVER[0])
 
 
+#: The harness's methods that are levels of detail (D27), as the add-on's Auto names them (the surface level is
+#: drawn only when asked for: Auto never chooses it).
+LEVEL_OF_METHOD = {"explicit": "fibers", "native": "plies", "yarns": "yarns"}
+#: Issue 18's goal: Auto within 10 % of the most accurate level's FLIP, and of the fastest time to that FLIP.
+AUTO_TOLERANCE = 0.10
+
+
+def auto_summary(results: dict) -> list[dict]:
+    """results.json's `auto`: per group with two or more levels and a camera whose ply width is known, the level
+    the add-on's Auto draws for that width (addon/geometry/lod.py, the same function the add-on calls), its
+    FLIP at the run's most samples against the most accurate level's, and its time to that FLIP against the
+    fastest level's that reaches it (times from the curves, as for the speed-ups). `flip_ok` / `time_ok`: within
+    AUTO_TOLERANCE; None where Auto's level was not rendered."""
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "addon"))
+    from geometry import lod
+    widths = {(sc, float(d)): v.get("ply_pixels") for sc, cam in results.get("scenes", {}).items()
+              for d, v in cam.get("distances", {}).items()}
+    rows = []
+    for group, methods in sorted(curves(results).items()):
+        levels = {LEVEL_OF_METHOD[m]: c for m, c in methods.items() if m in LEVEL_OF_METHOD}
+        px = widths.get((group[0], float(group[3])))
+        if len(levels) < 2 or px is None:
+            continue
+        flip = {lv: c[-1]["flip"] for lv, c in levels.items()}  # at the run's most samples
+        best = min(flip, key=flip.get)
+        auto = lod.level_for_ply_pixels(px)
+        row = {"scene": group[0], "preset": group[1], "light": group[2], "distance": group[3], "ply_pixels": px,
+               "auto": auto, "best": best, "flip": flip, "flip_ratio": None, "flip_ok": None,
+               "fastest": None, "time_ratio": None, "time_ok": None}
+        if auto in flip:
+            row["flip_ratio"] = flip[auto] / flip[best]
+            row["flip_ok"] = row["flip_ratio"] <= 1.0 + AUTO_TOLERANCE
+            reach = {lv: time_to_reach(c, flip[auto])[0] for lv, c in levels.items()}
+            reach = {lv: t for lv, t in reach.items() if t is not None}
+            row["fastest"] = min(reach, key=reach.get)
+            row["time_ratio"] = reach[auto] / reach[row["fastest"]]
+            row["time_ok"] = row["time_ratio"] <= 1.0 + AUTO_TOLERANCE
+        rows.append(row)
+    return rows
+
+
+def auto_table(rows: list[dict]) -> str:
+    """Markdown of auto_summary's rows."""
+    lines = ["| scene | preset | light | ply px | FLIP per level | Auto | most accurate | Auto / best FLIP | "
+             "fastest to Auto's FLIP | Auto / its time |", "|---|---|---|---|---|---|---|---|---|---|"]
+
+    def ok(v, good):
+        return "-" if v is None else f"{v:.2f}" + ("" if good else " ✗")
+
+    for r in rows:
+        flips = ", ".join(f"{lv} {f:.3f}" for lv, f in sorted(r["flip"].items()))
+        lines.append(f"| {r['scene']} | {r['preset']} | {r['light']} | {r['ply_pixels']:.2f} | {flips} | {r['auto']} | "
+                     f"{r['best']} | {ok(r['flip_ratio'], r['flip_ok'])} | {r['fastest'] or '-'} | "
+                     f"{ok(r['time_ratio'], r['time_ok'])} |")
+    return "\n".join(lines) + "\n"
+
+
 def summary_table(results: dict, key: str = "summary", reference: str = REFERENCE_METHOD) -> str:
     """Markdown: per group and method, the equal-FLIP level, both times and the speed-ups; then per scene."""
     summ = results.get(key) or {}
@@ -370,6 +427,7 @@ def main(argv: list[str]) -> int:
         results = json.load(f)
     results["summary"] = speed_summary(results)
     results["summary_over_plies"] = level_summary(results)
+    results["auto"] = auto_summary(results)
     with open(os.path.join(argv[0], "results.json"), "w") as f:
         json.dump(results, f, indent=1)
     for p in error_time_charts(argv[0], results) + error_distance_charts(argv[0], results):
@@ -377,6 +435,8 @@ def main(argv: list[str]) -> int:
     print(summary_table(results), end="")
     if results["summary_over_plies"]:
         print("\nAgainst the ply level (native):\n\n" + summary_table(results, "summary_over_plies", "native"), end="")
+    if results["auto"]:
+        print("\nThe add-on's Auto level against the levels rendered:\n\n" + auto_table(results["auto"]), end="")
     return 0
 
 

@@ -112,3 +112,29 @@ def test_against_the_baselines_at_equal_render_time():
     # Worst at the biased method's first point (0.3 at 0.1 s against chiang's 0.224 then).
     assert q == {"worst_ratio": pytest.approx(0.3 / math.sqrt(0.05)), "best_other": "chiang"}
     assert ec.against_others_at_equal_time(BIASED, {}) is None
+
+
+def test_auto_against_the_levels_rendered():
+    """The add-on's Auto (addon/geometry/lod.py) at each camera of the run: where a ply is 13.8 px it draws plies,
+    the most accurate level here: within the goal; at 1.4 px it draws yarns, whose FLIP is 30 % above the ply
+    level's: flagged, and the ply level is also the faster to the yarn level's FLIP (its first point, at 16 spp,
+    is already below it)."""
+    plies = [{"spp": 16, "seconds": 0.4, "flip": 0.05}, {"spp": 64, "seconds": 1.6, "flip": 0.04}]
+    yarns = [{"spp": 16, "seconds": 0.2, "flip": 0.053}, {"spp": 64, "seconds": 0.8, "flip": 0.052}]
+    res = results_of({"native": plies, "yarns": yarns}, {"native": 110.0, "yarns": 105.0})
+    far = [{**r, "distance": 120.0} for r in res["runs"]]
+    res["runs"] = [{**r, "scene": "yarn"} for r in res["runs"] + far]
+    res["scenes"] = {"yarn": {"distances": {"12": {"ply_pixels": 13.8}, "120": {"ply_pixels": 1.4}}}}
+    rows = ec.auto_summary(res)
+    assert [(r["distance"], r["auto"], r["best"]) for r in rows] == [(12.0, "plies", "plies"), (120.0, "yarns", "plies")]
+    near, far = rows
+    assert near["flip_ratio"] == pytest.approx(1.0) and near["flip_ok"] and near["time_ok"]
+    assert far["flip_ratio"] == pytest.approx(0.052 / 0.04) and far["flip_ok"] is False
+    # The ply level reaches 0.052 at its first point (0.4 s, an upper bound), the yarn level at 0.8 s.
+    assert far["fastest"] == "plies" and far["time_ratio"] == pytest.approx(0.8 / 0.4) and far["time_ok"] is False
+    table = ec.auto_table(rows)
+    assert "| yarn | fleece | grazing | 1.40 |" in table and "1.30 ✗" in table
+    # One level, or a camera of unknown width: nothing to compare.
+    assert ec.auto_summary(results_of({"native": plies}, {"native": 110.0})) == []
+    res.pop("scenes")
+    assert ec.auto_summary(res) == []
