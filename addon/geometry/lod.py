@@ -23,11 +23,13 @@ LEVELS = ("fibers", "plies", "yarns", "surface")
 #: The plying (plies per yarn, ply twist) the shipped yarn-level models were baked for (their "structure";
 #: tests/addon/test_lod.py holds the two together).
 YARN_MODEL_PLIES, YARN_MODEL_PLY_TWIST = 3, 0.5
-#: Auto draws yarns where a ply is narrower than this many pixels: between the widths of the harness's distance
-#: sweep under the key-rim rig where the yarn level's FLIP is within 10 % of the ply level's and where it is not;
-#: under grazing light it is not within 10 % at any width the sweep measured, down to 0.83 px, so no threshold
-#: would be (docs/benchmarks.md, "Level of detail").
-YARNS_BELOW_PLY_PIXELS = 2.0
+#: Auto draws yarns where a ply is narrower than this many pixels (D52): in the evaluation harness's sweep of the
+#: widths 1.38, 1.04 and 0.83 px under grazing, back, axis and key-rim light (and 13.8, 4.1 px before, where the
+#: ply level is the better), the yarn level's FLIP is within 10 % of the best level's at 0.83 px under every light
+#: but the back light and 10-27 % above the ply level's at 1.04 px under grazing and key-rim light, where the
+#: plies' pattern (its period 1.56 ply widths) is still on screen. No width meets the goal under every light
+#: (docs/benchmarks.md, "Level of detail").
+YARNS_BELOW_PLY_PIXELS = 1.0
 #: Auto draws explicit fibers only where a fiber itself is at least this wide: the ply model is the fibers'
 #: mean look and cannot show single fibers. (The harness's close-ups do not reach fibers this wide, so this is
 #: a judgement, not a measurement: a fiber two pixels wide is seen as a fiber.)
