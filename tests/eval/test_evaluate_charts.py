@@ -116,15 +116,18 @@ def test_against_the_baselines_at_equal_render_time():
 
 def test_auto_against_the_levels_rendered():
     """The add-on's Auto (addon/geometry/lod.py) at each camera of the run: where a ply is 13.8 px it draws plies,
-    the most accurate level here: within the goal; at 1.4 px it draws yarns, whose FLIP is 30 % above the ply
-    level's: flagged, and the ply level is also the faster to the yarn level's FLIP (its first point, at 16 spp,
-    is already below it)."""
+    the most accurate level here: within the goal; below its threshold it draws yarns, whose FLIP is 30 % above
+    the ply level's: flagged, and the ply level is also the faster to the yarn level's FLIP (its first point, at
+    16 spp, is already below it)."""
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "addon"))
+    from geometry import lod
+    far_px = 0.7 * lod.YARNS_BELOW_PLY_PIXELS
     plies = [{"spp": 16, "seconds": 0.4, "flip": 0.05}, {"spp": 64, "seconds": 1.6, "flip": 0.04}]
     yarns = [{"spp": 16, "seconds": 0.2, "flip": 0.053}, {"spp": 64, "seconds": 0.8, "flip": 0.052}]
     res = results_of({"native": plies, "yarns": yarns}, {"native": 110.0, "yarns": 105.0})
     far = [{**r, "distance": 120.0} for r in res["runs"]]
     res["runs"] = [{**r, "scene": "yarn"} for r in res["runs"] + far]
-    res["scenes"] = {"yarn": {"distances": {"12": {"ply_pixels": 13.8}, "120": {"ply_pixels": 1.4}}}}
+    res["scenes"] = {"yarn": {"distances": {"12": {"ply_pixels": 13.8}, "120": {"ply_pixels": far_px}}}}
     rows = ec.auto_summary(res)
     assert [(r["distance"], r["auto"], r["best"]) for r in rows] == [(12.0, "plies", "plies"), (120.0, "yarns", "plies")]
     near, far = rows
@@ -133,7 +136,7 @@ def test_auto_against_the_levels_rendered():
     # The ply level reaches 0.052 at its first point (0.4 s, an upper bound), the yarn level at 0.8 s.
     assert far["fastest"] == "plies" and far["time_ratio"] == pytest.approx(0.8 / 0.4) and far["time_ok"] is False
     table = ec.auto_table(rows)
-    assert "| yarn | fleece | grazing | 1.40 |" in table and "1.30 ✗" in table
+    assert f"| yarn | fleece | grazing | {far_px:.2f} |" in table and "1.30 ✗" in table
     # One level, or a camera of unknown width: nothing to compare.
     assert ec.auto_summary(results_of({"native": plies}, {"native": 110.0})) == []
     res.pop("scenes")
