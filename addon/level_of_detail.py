@@ -18,7 +18,8 @@ from .geometry import lod, ply_center_distance
 from .geometry.lod import YARN_MODEL_PLIES, YARN_MODEL_PLY_TWIST
 
 LEVEL_ITEMS = [
-    ("AUTO", "Auto", "From the scene camera: yarns where a ply is narrower than 2 pixels, else plies"),
+    ("AUTO", "Auto", f"From the scene camera: yarns where a ply is narrower than {lod.YARNS_BELOW_PLY_PIXELS:g} px, "
+                     "else plies"),
     ("FIBERS", "Fibers", "Explicit fibers (drawn by neuralyarn cycles-scene, not the add-on: plies here)"),
     ("PLIES", "Plies", "Each ply a curve with the preset's ply model"),
     ("YARNS", "Yarns", "Each yarn one curve with the preset's yarn-level model"),
