@@ -640,8 +640,8 @@ def metrics(img: np.ndarray, ref: np.ndarray, region: tuple[slice, slice]) -> di
     return out
 
 
-METRIC_KEYS = ["flip", "flip_colour_matched", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame", "mean_luminance_error",
-               "mean_luminance_error_frame"]
+METRIC_KEYS = ["flip", "flip_colour_matched", "relmse", "ssim", "mean_colour_error", "mean_colour_error_frame",
+               "mean_luminance_error", "mean_luminance_error_frame"]
 
 
 # --- the run -------------------------------------------------------------------------------------------

@@ -29,6 +29,9 @@ import sys
 
 import numpy as np
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "addon"))
+from geometry import lod  # noqa: E402  (addon/geometry: pure numpy; Auto's rule is the add-on's own)
+
 REFERENCE_METHOD = "explicit"
 CLOSEUP_DISTANCE = 12.0  # cycles-scene's default camera distance (ply radii)
 #: The log axis's floor for render times (a method whose time per sample rounds to nothing).
@@ -195,6 +198,12 @@ def level_summary(results: dict) -> dict | None:
     return speed_summary(results, LEVELS_OVER[0])
 
 
+def ply_widths(results: dict) -> dict:
+    """(scene, camera distance) -> the ply's width in pixels there, from the run's cameras that record it."""
+    return {(sc, float(d)): v["ply_pixels"] for sc, cam in results.get("scenes", {}).items()
+            for d, v in cam.get("distances", {}).items() if v.get("ply_pixels") is not None}
+
+
 #: The harness's methods that are levels of detail (D27), as the add-on's Auto names them (the surface level is
 #: drawn only when asked for: Auto never chooses it).
 LEVEL_OF_METHOD = {"explicit": "fibers", "native": "plies", "yarns": "yarns"}
@@ -208,10 +217,7 @@ def auto_summary(results: dict) -> list[dict]:
     FLIP at the run's most samples against the most accurate level's, and its time to that FLIP against the
     fastest level's that reaches it (times from the curves, as for the speed-ups). `flip_ok` / `time_ok`: within
     AUTO_TOLERANCE; None where Auto's level was not rendered."""
-    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "addon"))
-    from geometry import lod
-    widths = {(sc, float(d)): v.get("ply_pixels") for sc, cam in results.get("scenes", {}).items()
-              for d, v in cam.get("distances", {}).items()}
+    widths = ply_widths(results)
     rows = []
     for group, methods in sorted(curves(results).items()):
         levels = {LEVEL_OF_METHOD[m]: c for m, c in methods.items() if m in LEVEL_OF_METHOD}
@@ -375,8 +381,7 @@ def error_distance_charts(out: str, results: dict) -> list[str]:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    widths = {(sc, float(d)): v["ply_pixels"] for sc, cam in results.get("scenes", {}).items()
-              for d, v in cam.get("distances", {}).items()}
+    widths = ply_widths(results)
     by: dict = {}
     for r in results["runs"]:
         if r["failed"] or r["flip"] is None:
