@@ -475,7 +475,8 @@ struct SceneCommand {
     cmd->add_option("--predict-region", region,
                     "Print the mean colour the core library predicts over the pixel rectangle X Y W H of a WIDTH x "
                     "HEIGHT render (see --width/--height) under the environment or a distant-light rig: of the "
-                    "--model, and of each --predict-maps file")
+                    "--model, and of each --predict-maps file. The scene must be one straight curve along x seen "
+                    "from -z: the close-up, or the yarn level's straight yarn (--level yarns with such a plies file)")
         ->expected(4);
     cmd->add_option("--predict-lights", predict_lights,
                     "With --predict-region: predict under these rigs (default: the scene's), each map file "
@@ -521,7 +522,7 @@ struct SceneCommand {
                   scene.num_curves(), scene.num_curve_keys(), cam.x(), cam.y(), cam.z(), scene.camera.fov);
     }
     if (!region.empty()) {
-      predict();
+      predict(scene);
     }
     else if (!predict_maps.empty() || !predict_lights.empty() || predict_fallback || predict_lobes != "RM") {
       throw std::runtime_error(
@@ -530,13 +531,38 @@ struct SceneCommand {
     return 0;
   }
 
+  /* The prediction's camera: the scene must be one straight curve along the x axis (the close-up's ply, or the
+   * yarn level's straight yarn) and the camera on the -z side of it at x = y = 0, looking along +z; its distance
+   * in the curve's radii. Throws std::runtime_error naming what differs. */
+  static scenes::CloseupCamera straight_curve_camera(const scenes::Scene &scene)
+  {
+    const auto refuse = [](const char *what) {
+      throw std::runtime_error(std::string("--predict-region predicts one straight curve along x seen from -z: ") + what);
+    };
+    if (scene.objects.size() != 1 || scene.objects[0].curves.num_curves() != 1 || !scene.meshes.empty()) {
+      refuse("the scene has other curves or meshes");
+    }
+    const geometry::CurveSet &c = scene.objects[0].curves;
+    const double r = c.radii[0];
+    for (const Eigen::Vector3f &p : c.points) {
+      if (std::abs(p.y()) > 1e-5 * r || std::abs(p.z()) > 1e-5 * r) {
+        refuse("its curve leaves the x axis");
+      }
+    }
+    const Eigen::Vector3d &cam = scene.camera.position;
+    if (std::abs(cam.x()) > 1e-9 * r || std::abs(cam.y()) > 1e-9 * r || !(cam.z() < -r)) {
+      refuse("the camera is not on the -z side of the curve at x = y = 0");
+    }
+    return {-cam.z() / r, scene.camera.fov};
+  }
+
   /* One line per prediction and rig: "predicted model R G B RIG", "predicted fallback R G B RIG",
    * "predicted maps R G B RIG PATH". */
-  void predict()
+  void predict(const scenes::Scene &scene)
   {
-    if (opt.camera_distance != scenes::kCloseupCameraDistance || opt.unit_scale != 1.0 || opt.layers != 1) {
-      throw std::runtime_error("--predict-region predicts the close-up as it is: no --camera-distance, "
-                               "--unit-scale or --layers");
+    if (opt.unit_scale != 1.0 || opt.layers != 1) {
+      throw std::runtime_error("--predict-region predicts the scene as the close-up is built: no --unit-scale or "
+                               "--layers");
     }
     std::vector<scenes::LightRig> rigs;
     if (predict_lights.empty()) {
@@ -545,13 +571,6 @@ struct SceneCommand {
     for (const std::string &name : predict_lights) {
       rigs.push_back(scenes::find_light_rig(name));
     }
-    const scenes::PixelRegion pixels{opt.width, opt.height, region[0], region[1], region[2], region[3]};
-    const auto print = [&](const scenes::FarField &f, const char *what, const std::string &suffix) {
-      for (const scenes::LightRig &rig : rigs) {
-        const scenes::Rgb3 a = scenes::predict_closeup(f, rig, pixels);
-        std::printf("predicted %s %.5f %.5f %.5f %s%s\n", what, a.r, a.g, a.b, rig.name.c_str(), suffix.c_str());
-      }
-    };
     if (predict_fallback && opt.model.empty()) {
       throw std::runtime_error("--predict-fallback needs --model");
     }
@@ -560,6 +579,15 @@ struct SceneCommand {
     if (lobes != scenes::Lobes::kRM && predict_fallback) {
       throw std::runtime_error("--predict-fallback predicts the fallback whole: no --predict-lobes");
     }
+    /* After the options' own errors: they name what the user asked for wrongly before the scene's shape. */
+    const scenes::CloseupCamera camera = straight_curve_camera(scene);
+    const scenes::PixelRegion pixels{opt.width, opt.height, region[0], region[1], region[2], region[3]};
+    const auto print = [&](const scenes::FarField &f, const char *what, const std::string &suffix) {
+      for (const scenes::LightRig &rig : rigs) {
+        const scenes::Rgb3 a = scenes::predict_closeup(f, rig, pixels, camera);
+        std::printf("predicted %s %.6g %.6g %.6g %s%s\n", what, a.r, a.g, a.b, rig.name.c_str(), suffix.c_str());
+      }
+    };
     if (!opt.model.empty()) {
       const model::YarnModel m = model::load_model(opt.model);
       print(scenes::model_far_field(m, lobes), "model", "");

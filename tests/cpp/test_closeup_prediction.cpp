@@ -61,16 +61,27 @@ TEST(CloseupPrediction, SilhouetteRowsAreCoveredAsTheBoxFilterCoversThem)
    * and the row above it not at all; a Blackman-Harris filter 1.5 pixels wide (Blender's default, which
    * the prediction once assumed) covers 0.98 of the first and 0.0015 of the second. Cycles' render of the
    * same black ply: 0.925 and 0 (docs/benchmarks.md). */
-  const double t = std::tan(0.5 * neuralyarn::scenes::kCloseupCameraFov);
-  const double D = neuralyarn::scenes::kCloseupCameraDistance;
-  const double y_edge = 40.0 * (1.0 - 1.0 / std::sqrt(D * D - 1.0) / t); /* 80 rows: v = (1 - y / 40) t */
-  const int row = int(std::floor(y_edge));
-  const auto &env = find_light_rig("environment");
-  const Rgb3 edge = predict_closeup(constant_far_field(0.0), env, {160, 80, 40, row, 80, 1});
-  /* 256 sub-rows: the midpoint rule places the edge within half a sub-row. */
-  EXPECT_NEAR(1.0 - edge.g, row + 1 - y_edge, 0.5 / 256) << "row " << row << ", edge at " << y_edge;
-  const Rgb3 above = predict_closeup(constant_far_field(0.0), env, {160, 80, 40, row - 1, 80, 1});
-  EXPECT_NEAR(above.g, 1.0, 1e-9);
+  /* The close-up's camera, and the yarn level's straight yarn at 120 ply radii (radius 2.33: 51.4 of its
+   * radii) with the same field of view (D53). */
+  for (const neuralyarn::scenes::CloseupCamera camera :
+       {neuralyarn::scenes::CloseupCamera{}, neuralyarn::scenes::CloseupCamera{51.4, 0.9}}) {
+    const double t = std::tan(0.5 * camera.fov), D = camera.distance;
+    const double y_edge = 40.0 * (1.0 - 1.0 / std::sqrt(D * D - 1.0) / t); /* 80 rows: v = (1 - y / 40) t */
+    const int row = int(std::floor(y_edge));
+    const auto &env = find_light_rig("environment");
+    const Rgb3 edge = predict_closeup(constant_far_field(0.0), env, {160, 80, 40, row, 80, 1}, camera);
+    /* 256 sub-rows: the midpoint rule places the edge within half a sub-row. */
+    EXPECT_NEAR(1.0 - edge.g, row + 1 - y_edge, 0.5 / 256) << "row " << row << ", edge at " << y_edge << ", D " << D;
+    const Rgb3 above = predict_closeup(constant_far_field(0.0), env, {160, 80, 40, row - 1, 80, 1}, camera);
+    EXPECT_NEAR(above.g, 1.0, 1e-9);
+  }
+  /* A camera inside the curve, or without a field of view, is refused. */
+  EXPECT_THROW(predict_closeup(constant_far_field(0.0), find_light_rig("environment"), {160, 80, 0, 0, 160, 80},
+                               neuralyarn::scenes::CloseupCamera{0.5, 0.9}),
+               std::runtime_error);
+  EXPECT_THROW(predict_closeup(constant_far_field(0.0), find_light_rig("environment"), {160, 80, 0, 0, 160, 80},
+                               neuralyarn::scenes::CloseupCamera{12.0, 0.0}),
+               std::runtime_error);
 }
 
 TEST(CloseupPrediction, DistantLightArrivesInTheHitsFrame)

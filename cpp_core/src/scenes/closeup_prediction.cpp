@@ -144,12 +144,15 @@ FarField fallback_far_field(const model::YarnModel &model)
   return out;
 }
 
-Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &r)
+Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &r, const CloseupCamera &camera)
 {
   if (!(r.width > 0 && r.height > 0 && r.w > 0 && r.h > 0 && r.x >= 0 && r.y >= 0 && r.x + r.w <= r.width &&
         r.y + r.h <= r.height))
   {
     throw std::runtime_error("the predicted region lies outside the image");
+  }
+  if (!(camera.distance > 1.0 && camera.fov > 0.0 && camera.fov < kPi)) {
+    throw std::runtime_error("the predicted camera must lie outside the curve, with a field of view in (0, pi)");
   }
   std::vector<std::pair<Eigen::Vector3d, double>> lights; /* direction toward the light, irradiance / count */
   for (const RigLight &l : rig.lights) {
@@ -168,8 +171,8 @@ Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &
   /* Cycles' standalone camera applies the field of view to the shorter side of the image; raster row 0
    * is the top (+y). */
   const double aspect = double(r.width) / double(r.height);
-  const double t = std::tan(0.5 * kCloseupCameraFov) * (r.width >= r.height ? 1.0 : 1.0 / aspect);
-  const Eigen::Vector3d o(0.0, 0.0, -kCloseupCameraDistance);
+  const double t = std::tan(0.5 * camera.fov) * (r.width >= r.height ? 1.0 : 1.0 / aspect);
+  const Eigen::Vector3d o(0.0, 0.0, -camera.distance);
   auto raster_v = [&](double y) { return (1.0 - 2.0 * y / r.height) * t; };
   /* A camera ray (u, v, 1) passes the axis at distance D |v| / sqrt(1 + v^2), whatever u. */
   auto hits = [&](double y) {

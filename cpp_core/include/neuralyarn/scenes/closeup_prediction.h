@@ -60,9 +60,17 @@ struct PixelRegion {
   int width = 0, height = 0, x = 0, y = 0, w = 0, h = 0;
 };
 
+/* The camera: on the -z side of the curve's axis at `distance` curve radii, looking along +z, `fov` across
+ * the image's shorter side. The close-up's by default; a scene of one straight curve along x seen so (the yarn
+ * level's straight yarn, decisions D53) is the same picture at its own distance over radius. */
+struct CloseupCamera {
+  double distance = kCloseupCameraDistance, fov = kCloseupCameraFov;
+};
+
 /* The expected mean colour over the region of the close-up under `rig` (its environment or distant
  * lights; throws std::runtime_error for sphere lights, whose near-field position and size this does not
  * model), with the pixels filtered as the scenes state it (a box one pixel wide, decisions D36). */
-Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &region);
+Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &region,
+                     const CloseupCamera &camera = {});
 
 }  // namespace neuralyarn::scenes
