@@ -362,6 +362,7 @@ class Commands : public ModelCommands {
     check_->add_option("--threads", threads_, "Worker threads (0: all cores); results do not depend on it")
         ->capture_default_str();
     check_->add_option("--image", image_, "Comparison image (PNG)");
+    check_->add_option("--json", json_out_, "Also write the numbers as JSON (the object a bake stores as \"fidelity\")");
     check_->add_option("--theta-i", theta_i_, "Incident polar angle of the image, degrees")
         ->check(finite_range(0.0, 90.0))
         ->capture_default_str();
@@ -552,8 +553,20 @@ class Commands : public ModelCommands {
       require_same_preset(m, maps_b);
     }
     print_proxy(m);
+    if (!json_out_.empty()) {
+      check_writable(json_out_);
+    }
     const model::FidelityReport r = model::check_model(m, maps, {}, maps_b_.empty() ? nullptr : &maps_b);
     print_fidelity(r);
+    if (!json_out_.empty()) {
+      try {
+        write_file_atomically(json_out_, r.to_json().dump(1), "\n");
+      }
+      catch (const std::exception &e) {
+        throw std::runtime_error(json_out_ + ": " + e.what());
+      }
+      std::printf("wrote %s\n", json_out_.c_str());
+    }
     if (forward_peaks_) {
       /* Both maps together where there are two (twice the paths per bin): the fit takes their mean, and the M
        * energy, linear in the map, is the mean of theirs. */
@@ -708,7 +721,7 @@ class Commands : public ModelCommands {
   rdm::GatherOptions gopt_;
   std::vector<std::string> check_maps_;
   std::string maps_, maps_b_, out_, model_, preset_ = "fleece", params_, paths_ = "4e7", check_paths_ = "0", bins_ = "22x90x45x90", maps_out_,
-                                   image_;
+                                   image_, json_out_;
   int threads_ = 0;
   bool no_fit_ = false, quiet_ = false;
   double theta_i_ = 45.0, phi_i_ = 0.0, max_err_ = -1.0;

@@ -29,6 +29,18 @@ if(NOT LAST_OUT MATCHES "energy vs map +R: mean relative error [0-9.]+ %" OR NOT
    NOT LAST_OUT MATCHES "forward peak .*TT arc.*theta_i \\| share of M \\| width \\(deg\\) +\\| explained \\| ceiling")
   message(FATAL_ERROR "check output incomplete:\n${LAST_OUT}")
 endif()
+# --json writes the numbers as the bake stores them ("fidelity"): the same keys as the baked model's object.
+run_ok(${CLI} check ${OUT}/silk.json --maps ${OUT}/silk.nyrdm --json ${OUT}/check.json)
+file(READ ${OUT}/check.json checked)
+file(READ ${OUT}/silk.json baked)
+string(JSON baked_fidelity GET "${baked}" fidelity)
+foreach(key albedo_mae_rel M_energy_rel_by_theta_i lobes)
+  string(JSON v ERROR_VARIABLE missing GET "${checked}" ${key})
+  string(JSON w ERROR_VARIABLE missing_baked GET "${baked_fidelity}" ${key})
+  if(missing OR missing_baked)
+    message(FATAL_ERROR "check --json lacks '${key}' (or the bake's fidelity does): ${missing} ${missing_baked}")
+  endif()
+endforeach()
 
 run_ok(${CLI} train --maps ${OUT}/silk.nyrdm --out ${OUT}/trained.json --quiet ${SMALL} --m-widths 6-16-16-16-3)
 file(READ ${OUT}/trained.json model)
