@@ -1044,14 +1044,16 @@ def summary(results: dict) -> str:
              "",
              "Errors over the central region of the ply (the whole frame where the ply is under 3 rows), against "
              "reference A; noise floor: reference B against A. Mean over seeds. `closeup d48`: the close-up's camera "
-             "at 48 ply radii. frame lum %: the luminance error of the whole frame; region light %: the share of "
+             "at 48 ply radii. frame lum %: the luminance error of the whole frame, and its floor (reference B "
+             "against A over the whole frame: under back light the silhouette's few pixels make it the larger one); "
+             "region light %: the share of "
              "reference A's light on the ply's rows (over the region's columns) that is in the region (where it is "
              "small, the light is at the ply's silhouettes, outside the region: read the frame's error). FLIP mc: FLIP "
              "with the image's mean colour matched to the reference's (its structure's error alone).",
              "",
              "| scene | preset | light | method | spp | R % | G % | B % | lum % | lum floor % | frame lum % "
-             "| region light % | FLIP | FLIP mc | FLIP floor | render s | load s | peak MB | failed |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| frame floor % | region light % | FLIP | FLIP mc | FLIP floor | render s | load s | peak MB | failed |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     floors = {(label(group_of(f)), f["preset"], f["light"]): f for f in results["noise_floor"]}
     groups: dict = {}
     for r in results["runs"]:
@@ -1077,6 +1079,7 @@ def summary(results: dict) -> str:
             f"{fmt(100 * mean([r['mean_luminance_error'] for r in ok]) if ok else None, '+.1f')} | "
             f"{fmt(100 * fl['mean_luminance_error'] if fl['mean_luminance_error'] is not None else None, '+.1f')} | "
             f"{fmt(100 * mean([r.get('mean_luminance_error_frame') for r in ok]) if ok else None, '+.1f')} | "
+            f"{fmt(100 * fl['mean_luminance_error_frame'] if fl.get('mean_luminance_error_frame') is not None else None, '+.1f')} | "
             f"{fmt(100 * fl['region_share'] if fl.get('region_share') is not None else None, '.0f')} | "
             f"{fmt(mean([r['flip'] for r in ok]), '.3f')} | "
             f"{fmt(mean([r.get('flip_colour_matched') for r in ok]) if ok else None, '.3f')} | {fmt(fl['flip'], '.3f')} | "
