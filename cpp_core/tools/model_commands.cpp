@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -18,6 +19,7 @@
 #include "neuralyarn/model/r_shape.h"
 #include "neuralyarn/plots.h"
 #include "neuralyarn/rdm/map_file.h"
+#include "neuralyarn/scenes/closeup_prediction.h"
 #include "neuralyarn/units.h"
 #include "neuralyarn/version.h"
 
@@ -70,8 +72,8 @@ void add_train_options(CLI::App *cmd, TrainModelOptions *o)
    * the one that renders closer to independent maps (docs/decisions.md D33); the option is the tool that
    * measured it. */
   cmd->add_option("--m-candidates", o->m_candidates,
-                  "M networks to train from different seeds; the model keeps the one whose lobe is closest to "
-                  "the training maps")
+                  "M networks to train from different seeds; the model keeps the one closest to the training maps "
+                  "(--m-choice: in 4D or in the close-up's images)")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
   cmd->add_option("--r-free-path", o->r_free_path,
@@ -270,6 +272,7 @@ class Commands : public ModelCommands {
     train_->add_option("--maps", maps_, "Map file (.nyrdm) to train on")->required();
     train_->add_option("--out", out_, "Model file to write (.json)")->required();
     add_train_options(train_, &topt_);
+    add_m_choice(train_);
     train_->add_flag("--no-fit", no_fit_, "Skip the proxy fit (kappa_R only)");
     train_->add_flag("--quiet", quiet_, "No progress bar");
 
@@ -315,6 +318,7 @@ class Commands : public ModelCommands {
     bake_->add_option("--threads", threads_, "Worker threads (0: all cores); results do not depend on it")
         ->capture_default_str();
     add_train_options(bake_, &topt_);
+    add_m_choice(bake_);
     add_level_options(bake_, &level_);
     bake_->add_flag("--quiet", quiet_, "No progress bar");
 
@@ -429,6 +433,7 @@ class Commands : public ModelCommands {
     topt_.threads = threads_;
     ProgressBar bar(!quiet_, "steps");
     topt_.progress = bar_callback(&bar, topt_);
+    set_m_choice(maps);
     model::YarnModel m = model::train_model(maps, topt_);
     m.provenance["maps"]["file"] = maps_;
     model::save_model(m, out_);
@@ -506,6 +511,7 @@ class Commands : public ModelCommands {
     }
     topt_.threads = threads_;
     topt_.progress = bar_callback(&bar, topt_);
+    set_m_choice(maps);
     model::YarnModel m = model::train_model(maps, topt_);
     m.provenance["gather_seconds"] = maps.stats.seconds;
     /* Two independent check gathers of half the check paths each: their mean checks the energies, the
@@ -597,6 +603,31 @@ class Commands : public ModelCommands {
       return 1;
     }
     return 0;
+  }
+
+  void add_m_choice(CLI::App *cmd)
+  {
+    cmd->add_option("--m-choice", m_choice_,
+                    "With --m-candidates: keep the M network whose lobe is closest to the maps in 4D (lobes), or "
+                    "whose close-up image under the front, grazing, back and axis lights is (image: ranks trainings "
+                    "as independent maps do, docs/decisions.md D53)")
+        ->check(CLI::IsMember({"lobes", "image"}))
+        ->capture_default_str();
+  }
+
+  /* --m-choice image: the candidates scored by their close-up images against the maps' (scenes/, so set here). */
+  void set_m_choice(const rdm::RdmMaps &maps)
+  {
+    if (m_choice_ != "image" || topt_.m_candidates < 2) {
+      return;
+    }
+    auto target = std::make_shared<std::vector<scenes::Rgb3>>(scenes::predict_distant_rigs(scenes::maps_far_field(maps)));
+    topt_.m_candidate_score = [target](const model::YarnModel &m) {
+      return scenes::image_fit_error(scenes::predict_distant_rigs(scenes::model_far_field(m)), *target);
+    };
+    topt_.m_candidate_score_name = "mean over the front, grazing, back and axis lights and the channels of |model / "
+                                   "maps - 1| of the close-up's whole frame predicted with the model and with the "
+                                   "training maps (scenes/closeup_prediction.h image_fit_error, D53)";
   }
 
   /* The fallback tables sample the kernel: every change to a model's networks or tables redoes them. */
@@ -716,6 +747,7 @@ class Commands : public ModelCommands {
   bool furnace_bound_ = false;
   bool forward_peaks_ = false;
   std::string forward_shape_ = "spot";
+  std::string m_choice_ = "lobes";
   TrainModelOptions topt_;
   model::FallbackOptions fbopt_;
   rdm::GatherOptions gopt_;

@@ -48,6 +48,15 @@ if(NOT model MATCHES "\"format\": \"neuralyarn-model\"" OR NOT model MATCHES "6,
   message(FATAL_ERROR "train wrote an unexpected model")
 endif()
 
+# --m-choice image: the M candidates chosen by their close-up images against the maps' (D53), named in the provenance.
+run_ok(${CLI} train --maps ${OUT}/silk.nyrdm --out ${OUT}/chosen.json --quiet ${SMALL} --m-candidates 2 --m-choice image)
+file(READ ${OUT}/chosen.json model)
+string(JSON score GET "${model}" provenance m_candidates score)
+string(JSON n LENGTH "${model}" provenance m_candidates candidates)
+if(NOT score MATCHES "close-up's whole frame" OR NOT n EQUAL 2)
+  message(FATAL_ERROR "train --m-choice image did not score its candidates by the image fit: ${score} (${n})")
+endif()
+
 run_ok(${CLI} fit ${OUT}/trained.json --maps ${OUT}/silk.nyrdm --samples 3000 --out ${OUT}/refit.json)
 if(NOT LAST_OUT MATCHES "sampling proxy" OR NOT EXISTS ${OUT}/refit.json)
   message(FATAL_ERROR "fit output incomplete:\n${LAST_OUT}")

@@ -199,3 +199,33 @@ TEST(CloseupPrediction, RejectsSphereLightsAndRegionsOutsideTheImage)
 }
 
 }  // namespace
+
+TEST(CloseupPrediction, ImageFitReadsAScaleOfTheMapsAndTheRigsInOrder)
+{
+  /* The image fit (D53): a far field 1.25 times another reads 0.25 under every rig; a far field that lights
+   * only exits below the ply's horizon is dark under the front light and bright under the back light (the rigs
+   * in their stated order, front, grazing, back, axis); a black channel of the maps counts 0. */
+  FarField below, brighter;
+  below.eval = [](const ny::Vec3 &, const ny::Vec3 &wo) {
+    return wo.z < 0.0f ? Rgb3{0.2, 0.4, 0.0} : Rgb3{0.0, 0.0, 0.0};
+  };
+  below.albedo = [](const ny::Vec3 &) { return Rgb3{}; };
+  brighter = below;
+  brighter.eval = [](const ny::Vec3 &wi, const ny::Vec3 &wo) {
+    return wo.z < 0.0f ? Rgb3{0.25, 0.5, 0.3} : Rgb3{0.0, 0.0, 0.0};
+  };
+  const std::vector<Rgb3> t = neuralyarn::scenes::predict_distant_rigs(below);
+  const std::vector<Rgb3> x = neuralyarn::scenes::predict_distant_rigs(brighter);
+  ASSERT_EQ(t.size(), 4u);
+  EXPECT_LT(t[0].g, 0.05 * t[2].g) << "front against back";
+  EXPECT_GT(t[2].g, 0.0);
+  /* Red and green 1.25 times, blue black in the maps: (0.25 + 0.25 + 0) / 3 wherever the maps have light. */
+  const double e = neuralyarn::scenes::image_fit_error(x, t);
+  int lit = 0;
+  for (const Rgb3 &c : t) {
+    lit += c.g > 0.0;
+  }
+  EXPECT_NEAR(e, (0.5 / 3.0) * lit / 4.0, 1e-9);
+  EXPECT_EQ(neuralyarn::scenes::image_fit_error(t, t), 0.0);
+  EXPECT_THROW(neuralyarn::scenes::image_fit_error(std::vector<Rgb3>(3), t), std::runtime_error);
+}

@@ -84,3 +84,28 @@ TEST(MCandidates, KeepsTheBestCalibratedForItself)
       << "the kept network carries another one's calibration";
   EXPECT_LE(score(best, maps, map_M), scores[0]);
 }
+
+TEST(MCandidates, AnotherScoreChoosesAndIsNamed)
+{
+  /* The tools' --m-choice image scores candidates by their close-up images (scenes/, D53) through
+   * TrainModelOptions::m_candidate_score: whatever that score prefers is kept, and the provenance names it. Here
+   * a score that prefers the last candidate (by its seed's network: each candidate is told apart by its M). */
+  rdm::GatherOptions g;
+  g.paths = 100000;
+  g.seed = 7;
+  g.bins = {6, 24, 12, 24};
+  const rdm::RdmMaps maps = rdm::gather(find_preset("silk"), g);
+  model::TrainModelOptions o = small_training(3);
+  std::vector<std::vector<float>> seen;
+  o.m_candidate_score = [&seen](const model::YarnModel &m) {
+    seen.push_back(m.M.flat);
+    return -double(seen.size()); /* later candidates score lower */
+  };
+  o.m_candidate_score_name = "the test's";
+  const model::YarnModel m = model::train_model(maps, o);
+  ASSERT_EQ(seen.size(), 3u);
+  EXPECT_EQ(m.provenance["m_candidates"]["kept"].get<size_t>(), 2u);
+  EXPECT_EQ(m.provenance["m_candidates"]["score"].get<std::string>(), "the test's");
+  EXPECT_EQ(m.M.flat, seen[2]);
+  EXPECT_NE(seen[0], seen[2]);
+}

@@ -251,6 +251,9 @@ void select_m_candidate(YarnModel *model, const rdm::RdmMaps &maps, const TrainM
 {
   const LobeGrid map_M = pool_map_lobe(maps, Lobe::kM);
   auto score = [&](const YarnModel &m) {
+    if (o.m_candidate_score) {
+      return o.m_candidate_score(m);
+    }
     return candidate_score(compare_lobes(model_lobe_grid(m, maps.bins, Lobe::kM), map_M));
   };
   YarnModel best = *model;
@@ -273,8 +276,10 @@ void select_m_candidate(YarnModel *model, const rdm::RdmMaps &maps, const TrainM
     }
   }
   *model = std::move(best);
-  model->provenance["m_candidates"] = {{"score", "mean over theta_i of the M lobe's relative L1 against the "
-                                                 "training maps (model/bake.h candidate_score)"},
+  model->provenance["m_candidates"] = {{"score", o.m_candidate_score ? o.m_candidate_score_name
+                                                                    : "mean over theta_i of the M lobe's relative L1 "
+                                                                      "against the training maps (model/bake.h "
+                                                                      "candidate_score)"},
                                        {"candidates", candidates},
                                        {"kept", best_k}};
 }

@@ -5,9 +5,11 @@
 #include <cmath>
 #include <memory>
 #include <stdexcept>
+#include <iterator>
 #include <vector>
 
 #include <Eigen/Dense>
+#include <tbb/parallel_for.h>
 
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/model/calibration.h"
@@ -224,6 +226,31 @@ Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &
     }
   }
   return sum;
+}
+
+std::vector<Rgb3> predict_distant_rigs(const FarField &f)
+{
+  static const char *const rigs[] = {"front", "grazing", "back", "axis"};
+  std::vector<Rgb3> out(std::size(rigs));
+  tbb::parallel_for(0, int(std::size(rigs)), [&](int k) {
+    out[size_t(k)] = predict_closeup(f, find_light_rig(rigs[k]), PixelRegion{160, 80, 0, 0, 160, 80});
+  });
+  return out;
+}
+
+double image_fit_error(const std::vector<Rgb3> &model, const std::vector<Rgb3> &maps)
+{
+  if (model.size() != maps.size() || maps.empty()) {
+    throw std::runtime_error("image_fit_error: the model's and the maps' predictions differ in number");
+  }
+  double sum = 0.0;
+  for (size_t k = 0; k < maps.size(); k++) {
+    const double x[3] = {model[k].r, model[k].g, model[k].b}, t[3] = {maps[k].r, maps[k].g, maps[k].b};
+    for (int c = 0; c < 3; c++) {
+      sum += t[c] > 0.0 ? std::abs(x[c] / t[c] - 1.0) : 0.0;
+    }
+  }
+  return sum / double(3 * maps.size());
 }
 
 }  // namespace neuralyarn::scenes

@@ -41,6 +41,11 @@ struct TrainModelOptions {
    * the training maps (candidate_score). One by default: that choice does not pick the network that renders
    * closer to independent maps (docs/decisions.md D33). */
   int m_candidates = 1;
+  /* The candidates' score, lower is better, and what it is (the model's provenance names it); unset: the 4D M
+   * lobe's L1 (candidate_score). The tools set the close-up's image fit against the maps (`--m-choice image`,
+   * docs/decisions.md D53), which lives in scenes/, above this library's layer. */
+  std::function<double(const YarnModel &)> m_candidate_score;
+  std::string m_candidate_score_name;
   /* The R lobe's free path (ply radii); negative: 0 or r_free_path() of the model (model/r_shape.h),
    * whichever fits the R map better (docs/decisions.md D38). */
   double r_free_path = -1.0;

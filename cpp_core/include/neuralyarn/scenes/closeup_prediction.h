@@ -21,6 +21,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "neuralyarn/kernel/frames.h"
 #include "neuralyarn/model/model.h"
@@ -72,5 +73,12 @@ struct CloseupCamera {
  * model), with the pixels filtered as the scenes state it (a box one pixel wide, decisions D36). */
 Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &region,
                      const CloseupCamera &camera = {});
+
+/* The image fit (docs/decisions.md D53): the close-up's whole frame (160 x 80) under each distant-light rig,
+ * front, grazing, back and axis, predicted with a far field, the rigs in parallel; and a model's error against
+ * the maps' predictions, the mean over rigs and channels of |model / maps - 1| (a channel the maps leave black
+ * counts 0). It ranks M trainings as an independent map does, where the 4D L1 does not. */
+std::vector<Rgb3> predict_distant_rigs(const FarField &f);
+double image_fit_error(const std::vector<Rgb3> &model, const std::vector<Rgb3> &maps);
 
 }  // namespace neuralyarn::scenes
