@@ -32,6 +32,16 @@ model::TrainModelOptions small_training(int candidates)
   return o;
 }
 
+/* Silk's maps at a coarse resolution, seeded. */
+rdm::RdmMaps small_silk_maps(uint64_t paths)
+{
+  rdm::GatherOptions g;
+  g.paths = paths;
+  g.seed = 7;
+  g.bins = {6, 24, 12, 24};
+  return rdm::gather(find_preset("silk"), g);
+}
+
 double score(const model::YarnModel &m, const rdm::RdmMaps &maps, const model::LobeGrid &map_M)
 {
   return model::candidate_score(model::compare_lobes(model::model_lobe_grid(m, maps.bins, model::Lobe::kM), map_M));
@@ -40,11 +50,7 @@ double score(const model::YarnModel &m, const rdm::RdmMaps &maps, const model::L
 
 TEST(MCandidates, KeepsTheBestCalibratedForItself)
 {
-  rdm::GatherOptions g;
-  g.paths = 300000;
-  g.seed = 7;
-  g.bins = {6, 24, 12, 24};
-  const rdm::RdmMaps maps = rdm::gather(find_preset("silk"), g);
+  const rdm::RdmMaps maps = small_silk_maps(300000);
   const model::LobeGrid map_M = model::pool_map_lobe(maps, model::Lobe::kM);
 
   const model::TrainModelOptions o1 = small_training(1), o4 = small_training(4);
@@ -90,11 +96,7 @@ TEST(MCandidates, AnotherScoreChoosesAndIsNamed)
   /* The tools' --m-choice image scores candidates by their close-up images (scenes/, D53) through
    * TrainModelOptions::m_candidate_score: whatever that score prefers is kept, and the provenance names it. Here
    * a score that prefers the last candidate (by its seed's network: each candidate is told apart by its M). */
-  rdm::GatherOptions g;
-  g.paths = 100000;
-  g.seed = 7;
-  g.bins = {6, 24, 12, 24};
-  const rdm::RdmMaps maps = rdm::gather(find_preset("silk"), g);
+  const rdm::RdmMaps maps = small_silk_maps(100000);
   model::TrainModelOptions o = small_training(3);
   std::vector<std::vector<float>> seen;
   o.m_candidate_score = [&seen](const model::YarnModel &m) {
