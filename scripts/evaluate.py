@@ -1066,6 +1066,9 @@ def summary(results: dict) -> str:
     def fmt(v, spec):
         return format(v, spec) if v is not None else "-"
 
+    def percent(v):  # None where nothing was measured (runs without a reference, files older than a field)
+        return 100 * v if v is not None else None
+
     for (scene, preset, light, method, spp), rs in groups.items():
         cost = [r for r in rs if not r["failed"]]
         ok = [r for r in cost if r["flip"] is not None]  # measured against a reference
@@ -1076,9 +1079,9 @@ def summary(results: dict) -> str:
                                   {"no reference" for r in cost if r.get("no_reference")})) or ""
         lines.append(
             f"| {scene} | {preset} | {light} | {method} | {spp} | {' | '.join(pct)} | "
-            f"{fmt(100 * mean([r['mean_luminance_error'] for r in ok]) if ok else None, '+.1f')} | "
+            f"{fmt(percent(mean([r['mean_luminance_error'] for r in ok])), '+.1f')} | "
             f"{fmt(100 * fl['mean_luminance_error'] if fl['mean_luminance_error'] is not None else None, '+.1f')} | "
-            f"{fmt(100 * mean([r.get('mean_luminance_error_frame') for r in ok]) if ok else None, '+.1f')} | "
+            f"{fmt(percent(mean([r.get('mean_luminance_error_frame') for r in ok])), '+.1f')} | "
             f"{fmt(100 * fl['mean_luminance_error_frame'] if fl.get('mean_luminance_error_frame') is not None else None, '+.1f')} | "
             f"{fmt(100 * fl['region_share'] if fl.get('region_share') is not None else None, '.0f')} | "
             f"{fmt(mean([r['flip'] for r in ok]), '.3f')} | "

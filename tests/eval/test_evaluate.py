@@ -366,3 +366,19 @@ def test_colour_matched_flip_separates_colour_from_structure():
     dark[..., 2] = 0.0
     m = metrics(dark, ref, region)
     assert math.isfinite(m["flip_colour_matched"]) and m["flip_colour_matched"] > 0.0
+
+
+def test_summary_reads_results_older_than_its_fields():
+    """A results.json written before the frame's luminance error existed (docs/evaluation/fidelity_sweep.json)
+    is summarised with '-' where the field is missing, not refused with a TypeError (it once was)."""
+    import sys
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    from evaluate import summary
+
+    with open(os.path.join(ROOT, "docs", "evaluation", "fidelity_sweep.json")) as f:
+        old = json.load(f)
+    assert not any("mean_luminance_error_frame" in r for r in old["runs"])
+    rows = [ln for ln in summary(old).splitlines() if ln.startswith("| closeup")]
+    assert rows
+    # the columns "frame lum %" and "frame floor %": the 12th and 13th cells of a row
+    assert all(ln.split("|")[11].strip() == "-" and ln.split("|")[12].strip() == "-" for ln in rows), rows[0]
