@@ -1080,10 +1080,10 @@ def summary(results: dict) -> str:
         lines.append(
             f"| {scene} | {preset} | {light} | {method} | {spp} | {' | '.join(pct)} | "
             f"{fmt(percent(mean([r['mean_luminance_error'] for r in ok])), '+.1f')} | "
-            f"{fmt(100 * fl['mean_luminance_error'] if fl['mean_luminance_error'] is not None else None, '+.1f')} | "
+            f"{fmt(percent(fl['mean_luminance_error']), '+.1f')} | "
             f"{fmt(percent(mean([r.get('mean_luminance_error_frame') for r in ok])), '+.1f')} | "
-            f"{fmt(100 * fl['mean_luminance_error_frame'] if fl.get('mean_luminance_error_frame') is not None else None, '+.1f')} | "
-            f"{fmt(100 * fl['region_share'] if fl.get('region_share') is not None else None, '.0f')} | "
+            f"{fmt(percent(fl.get('mean_luminance_error_frame')), '+.1f')} | "
+            f"{fmt(percent(fl.get('region_share')), '.0f')} | "
             f"{fmt(mean([r['flip'] for r in ok]), '.3f')} | "
             f"{fmt(mean([r.get('flip_colour_matched') for r in ok]) if ok else None, '.3f')} | {fmt(fl['flip'], '.3f')} | "
             f"{fmt(mean([r['seconds_render'] for r in cost]), '.2f')} | {fmt(mean([r['seconds_load'] for r in cost]), '.2f')} | "

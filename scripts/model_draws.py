@@ -88,8 +88,11 @@ def main(argv: list[str]) -> int:
     scenes = os.path.join(a.eval, "scenes")
     plies = a.plies or next(os.path.join(scenes, f) for f in sorted(os.listdir(scenes))
                             if re.fullmatch(r"yarn_[0-9.]+\.json", f))
-    refs = {L: [read_exr(os.path.join(a.eval, "refs", f"yarn_{a.preset}_{L}_d{a.distance}_{k}.exr")).mean(axis=(0, 1))
-                for k in "AB"] for L in a.lights}
+    # Each light's references A and B, read once: A whole (the renders' metrics), both as frame means.
+    ref_a = {L: read_exr(os.path.join(a.eval, "refs", f"yarn_{a.preset}_{L}_d{a.distance}_A.exr")) for L in a.lights}
+    refs = {L: [ref_a[L].mean(axis=(0, 1)),
+                read_exr(os.path.join(a.eval, "refs", f"yarn_{a.preset}_{L}_d{a.distance}_B.exr")).mean(axis=(0, 1))]
+            for L in a.lights}
     models = [(os.path.basename(m)[:-5], os.path.abspath(m)) for m in a.models]
     for seed in a.seeds:
         path = os.path.join(a.out, f"seed{seed}.json")
@@ -120,8 +123,7 @@ def main(argv: list[str]) -> int:
             run([evaluate.CYCLES, "--background", "--quiet", "--samples", str(a.spp), "--threads", str(os.cpu_count()),
                  "--width", "160", "--height", "80", "--output", exr, os.path.join(a.out, tag + ".xml")])
             img = read_exr(exr)
-            m = evaluate.metrics(img, read_exr(os.path.join(a.eval, "refs", f"yarn_{a.preset}_{light}_d{a.distance}_A.exr")),
-                                 (slice(None), slice(None)))
+            m = evaluate.metrics(img, ref_a[light], (slice(None), slice(None)))
             row["render"][light] = {"error": m["mean_colour_error_frame"], "flip": m["flip"],
                                     "error_ab": list(img.mean(axis=(0, 1)) / (0.5 * (refs[light][0] + refs[light][1])) - 1)}
         rows.append(row)

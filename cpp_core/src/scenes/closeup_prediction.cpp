@@ -5,7 +5,6 @@
 #include <cmath>
 #include <memory>
 #include <stdexcept>
-#include <iterator>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -230,10 +229,19 @@ Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &
 
 std::vector<Rgb3> predict_distant_rigs(const FarField &f)
 {
-  static const char *const rigs[] = {"front", "grazing", "back", "axis"};
-  std::vector<Rgb3> out(std::size(rigs));
-  tbb::parallel_for(0, int(std::size(rigs)), [&](int k) {
-    out[size_t(k)] = predict_closeup(f, find_light_rig(rigs[k]), PixelRegion{160, 80, 0, 0, 160, 80});
+  /* The scenes' rigs of distant lights alone, in their order (ply_scene.h: front, grazing, back, axis). */
+  std::vector<const LightRig *> rigs;
+  for (const LightRig &rig : light_rigs()) {
+    if (!rig.environment && !rig.lights.empty() &&
+        std::all_of(rig.lights.begin(), rig.lights.end(),
+                    [](const RigLight &l) { return l.kind == RigLight::Kind::distant; }))
+    {
+      rigs.push_back(&rig);
+    }
+  }
+  std::vector<Rgb3> out(rigs.size());
+  tbb::parallel_for(0, int(rigs.size()), [&](int k) {
+    out[size_t(k)] = predict_closeup(f, *rigs[size_t(k)], PixelRegion{160, 80, 0, 0, 160, 80});
   });
   return out;
 }
