@@ -589,6 +589,11 @@ def central_region(distance: float, fov: float, width: int, height: int,
     return slice(rows[0] + 1, rows[-1]), slice(width // 4, width - width // 4)
 
 
+def framed_region(width: int, height: int) -> tuple[slice, slice]:
+    """Rows and columns of a framed scene's central region: the middle half of the frame, the fabric."""
+    return slice(height // 4, height - height // 4), slice(width // 4, width - width // 4)
+
+
 def ply_band(region: tuple[slice, slice]) -> tuple[slice, slice]:
     """The ply's rows over a central region's columns: the region and the silhouette row it leaves out on
     each side."""
@@ -882,9 +887,8 @@ def evaluate(a, rigs: dict[str, str]) -> tuple[dict, int]:
         if not ref_failed:
             ref_img = read_exr(os.path.join(a.out, refs["A"]["image"]))
             try:
-                if scene in FRAMED_SCENES:  # the middle half of the frame: the fabric
-                    region = (slice(a.height // 4, a.height - a.height // 4), slice(a.width // 4, a.width - a.width // 4))
-                    region_name = "central"
+                if scene in FRAMED_SCENES:
+                    region, region_name = framed_region(a.width, a.height), "central"
                 else:  # the ply's, or the yarn's bounding cylinder
                     radius = yarn_radius() if scene == "yarn" else PLY_RADIUS
                     region, region_name = central_region(cam_distance, fov, a.width, a.height, radius), "central"

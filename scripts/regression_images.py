@@ -1,7 +1,9 @@
 # SPDX-License-Identifier: Apache-2.0
 """Image regression (issue 19): a few small scenes per method, rendered and compared with committed references
-(tests/data/regression/*.exr) by Blender's render-test rule, `idiff -fail 0.016 -failpercent 1` on the display
-images (each pair at the reference's exposure, clamped, sRGB: scripts/images.py).
+(tests/data/regression/*.exr). The cases of one curve per ply (the native closure, the baseline, the fallbacks)
+by Blender's render-test rule, `idiff -fail 0.016 -failpercent 1` on the display images (each pair at
+the reference's exposure, clamped, sRGB: scripts/images.py); explicit fibers by their mean colour per channel over
+the frame and the central region, within MEANS_TOLERANCE (their paths are not the same on every CPU, below).
 
     .venv/bin/python scripts/regression_images.py [--out DIR] [--cases NAME ...]    # compare (CI)
     .venv/bin/python scripts/regression_images.py --update                          # regenerate the references
@@ -9,8 +11,14 @@ images (each pair at the reference's exposure, clamped, sRGB: scripts/images.py)
 Every scene is written by `neuralyarn cycles-scene` (its XML for the patched standalone Cycles, its description
 for Blender: the bpy wheel through scripts/fallback_render.py), seeded: a render repeats bit for bit on one
 build, so any change of what a method renders — the closure, the model files, the fallback's tables and
-shaders, the scene writers, the Blender builder — moves pixels. Regenerate the references (--update) only for
-a change meant to alter images, and say so in the commit. Exits 1 naming each case that differs or fails.
+shaders, the scene writers, the Blender builder — moves pixels. Not so across CPUs for explicit fibers: rendered
+on an Intel Xeon and an AMD EPYC, 17-41 % of their pixels differed, up to 1 in display units, frame means within
+5 % (most likely Embree's and the natively built kernel's rounding, AVX-512 on the one and AVX2 on the other: a
+ray grazing one of hundreds of fibers hits it on one machine and misses it on the other, and the path goes on
+elsewhere).
+Those cases are rendered with enough samples for their means to be a measurement and compared as one.
+Regenerate the references (--update) only for a change meant to alter images, and say so in the commit. Exits 1
+naming each case that differs or fails.
 """
 from __future__ import annotations
 
@@ -33,22 +41,25 @@ IDIFF = ["-fail", "0.016", "-failpercent", "1"]
 #: harness's knit patch (make_examples.py's), 64 x 64.
 SIZES = {"closeup": (64, 32), "knit": (64, 64)}
 CLOSEUP = ["--camera-distance", "5", "--ply-length", "30"]
+#: Explicit fibers' mean colour per channel (frame and central region), relative error allowed per scene: half
+#: as much again as six seeds of each case differ pairwise at its samples (docs/benchmarks.md "Image regression").
+MEANS_TOLERANCE = {"closeup": 0.06, "knit": 0.10}
 #: (name, scene, renderer, cycles-scene arguments, samples): three presets under three rigs by every method
 #: (explicit fibers, the native closure, a baseline in the standalone Cycles; the OSL and stock-node fallbacks in
 #: Blender). `--model P` names a preset's shipped model.
 CASES = [
-    ("closeup_fleece_keyrim_explicit", "closeup", "cycles", ["--preset", "fleece", "--lights", "key-rim"], 16),
+    ("closeup_fleece_keyrim_explicit", "closeup", "cycles", ["--preset", "fleece", "--lights", "key-rim"], 256),
     ("closeup_fleece_keyrim_native", "closeup", "cycles", ["--preset", "fleece", "--lights", "key-rim", "--model", "fleece"], 16),
     ("closeup_fleece_keyrim_chiang", "closeup", "cycles",
      ["--preset", "fleece", "--lights", "key-rim", "--baseline", "chiang", "--baseline-colour", "0.05", "0.2", "0.5"], 16),
     ("closeup_fleece_keyrim_osl", "closeup", "osl", ["--preset", "fleece", "--lights", "key-rim", "--model", "fleece"], 16),
     ("closeup_fleece_keyrim_nodes", "closeup", "nodes", ["--preset", "fleece", "--lights", "key-rim", "--model", "fleece"], 16),
-    ("closeup_cotton_grazing_explicit", "closeup", "cycles", ["--preset", "cotton", "--lights", "grazing"], 16),
+    ("closeup_cotton_grazing_explicit", "closeup", "cycles", ["--preset", "cotton", "--lights", "grazing"], 256),
     ("closeup_cotton_grazing_native", "closeup", "cycles", ["--preset", "cotton", "--lights", "grazing", "--model", "cotton"], 16),
     ("closeup_cotton_grazing_nodes", "closeup", "nodes", ["--preset", "cotton", "--lights", "grazing", "--model", "cotton"], 16),
     ("closeup_silk_back_native", "closeup", "cycles", ["--preset", "silk", "--lights", "back", "--model", "silk"], 16),
     ("closeup_silk_back_osl", "closeup", "osl", ["--preset", "silk", "--lights", "back", "--model", "silk"], 16),
-    ("knit_polyester_keyrim_explicit", "knit", "cycles", ["--preset", "polyester"], 4),
+    ("knit_polyester_keyrim_explicit", "knit", "cycles", ["--preset", "polyester"], 64),
     ("knit_polyester_keyrim_native", "knit", "cycles", ["--preset", "polyester", "--model", "polyester"], 16),
     ("knit_polyester_keyrim_nodes", "knit", "nodes", ["--preset", "polyester", "--model", "polyester"], 16),
 ]
@@ -68,16 +79,48 @@ def render(name: str, scene: str, renderer: str, args: list[str], spp: int, out:
     return exr
 
 
-def compare(name: str, exr: str, out: str) -> tuple[bool, str]:
-    """idiff's verdict on the display images of the render and the reference (one exposure: the reference's)."""
+def explicit(args: list[str]) -> bool:
+    """Whether cycles-scene draws the case's fibers (as it does when given neither a model nor a baseline)."""
+    return "--model" not in args and "--baseline" not in args
+
+
+def region(scene: str, name: str, out: str) -> tuple[slice, slice]:
+    """The harness's central region of a case's scene: the close-up's ply, the middle half of the knit."""
+    width, height = SIZES[scene]
+    if scene in ev.FRAMED_SCENES:
+        return ev.framed_region(width, height)
+    return ev.central_region(*ev.camera(os.path.join(out, name + ".xml")), width, height)
+
+
+def load(name: str, exr: str) -> tuple[np.ndarray, np.ndarray]:
+    """The reference and the render. Raises ev.RenderFailed where they cannot be compared."""
     ref_path = os.path.join(REFERENCES, name + ".exr")
     if not os.path.isfile(ref_path):
-        return False, f"no reference {os.path.relpath(ref_path, ev.ROOT)} (make it with --update)"
+        raise ev.RenderFailed(f"no reference {os.path.relpath(ref_path, ev.ROOT)} (make it with --update)")
     ref, img = read_exr(ref_path), read_exr(exr)
     if ref.shape != img.shape:
-        return False, f"size {img.shape[1]} x {img.shape[0]}, the reference's {ref.shape[1]} x {ref.shape[0]}"
+        raise ev.RenderFailed(f"size {img.shape[1]} x {img.shape[0]}, the reference's {ref.shape[1]} x {ref.shape[0]}")
     if not np.isfinite(img).all():
-        return False, f"{int((~np.isfinite(img)).sum())} non-finite pixel values"
+        raise ev.RenderFailed(f"{int((~np.isfinite(img)).sum())} non-finite pixel values")
+    return ref, img
+
+
+def compare_means(ref: np.ndarray, img: np.ndarray, central: tuple[slice, slice], tolerance: float) -> tuple[bool, str]:
+    """The mean colour per channel over the frame and the central region, relative to the reference's, each
+    within the tolerance."""
+    parts, worst = [], 0.0
+    for where, r in (("frame", (slice(None), slice(None))), ("central", central)):
+        m_ref, m_img = ref[r][..., :3].mean(axis=(0, 1)), img[r][..., :3].mean(axis=(0, 1))
+        if (m_ref <= 0.0).any():
+            return False, f"the reference's {where} mean has a black channel: no relative error"
+        e = m_img / m_ref - 1.0
+        worst = max(worst, float(np.abs(e).max()))
+        parts.append(f"{where} {' / '.join(f'{100 * x:+.1f}' for x in e)} %")
+    return worst <= tolerance, f"means {'; '.join(parts)} (limit {100 * tolerance:g} %)"
+
+
+def compare_pixels(name: str, ref: np.ndarray, img: np.ndarray, out: str) -> tuple[bool, str]:
+    """idiff's verdict on the display images of the render and the reference (one exposure: the reference's)."""
     exposure = exposure_of(ref)
     a, b = os.path.join(out, name + "_ref_display.exr"), os.path.join(out, name + "_display.exr")
     write_exr(a, display(ref, exposure))
@@ -110,7 +153,11 @@ def main() -> int:
                 write_exr(os.path.join(REFERENCES, name + ".exr"), read_exr(exr), half=True)
                 ok, what = True, "reference written"
             else:
-                ok, what = compare(name, exr, a.out)
+                ref, img = load(name, exr)
+                if explicit(args):
+                    ok, what = compare_means(ref, img, region(scene, name, a.out), MEANS_TOLERANCE[scene])
+                else:
+                    ok, what = compare_pixels(name, ref, img, a.out)
         except ev.RenderFailed as e:
             ok, what = False, str(e)
         print(f"[{k + 1}/{len(cases)}] {name}: {'ok' if ok else 'DIFFERS'} ({what}, {time.monotonic() - t0:.1f} s)",
