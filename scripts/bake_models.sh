@@ -20,9 +20,11 @@ LEVEL="${NY_LEVEL:-ply}"
 case "$LEVEL" in
   # A ply's paths spread over 32 fiber cross-sections: the model of the yarn, not of one draw of it (D42).
   ply) PATHS="${NY_BAKE_PATHS:-4e7}"; CHECK_PATHS="${NY_CHECK_PATHS:-2e7}"; SUFFIX=""; LEVEL_ARGS=(--layouts 32) ;;
-  # The yarn's walks cost 3-9x the ply's (Embree on an explicit yarn, docs/benchmarks.md): half the paths.
+  # The yarn's walks cost 3-9x the ply's (Embree on an explicit yarn, docs/benchmarks.md): half the paths. Of
+  # four M trainings the one whose close-up images under distant lights are closest to the maps' (D53): the
+  # trainings' 4D scores do not rank how they render at this level.
   yarn) PATHS="${NY_BAKE_PATHS:-2e7}"; CHECK_PATHS="${NY_CHECK_PATHS:-1e7}"; SUFFIX="_yarn"
-        LEVEL_ARGS=(--level yarn --plies 3 --ply-twist 0.5) ;;
+        LEVEL_ARGS=(--level yarn --plies 3 --ply-twist 0.5 --m-candidates 4 --m-choice image) ;;
   *) echo "bake_models.sh: NY_LEVEL must be ply or yarn" >&2; exit 2 ;;
 esac
 CLI="$BUILD/cpp_core/neuralyarn"

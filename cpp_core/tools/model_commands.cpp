@@ -711,12 +711,14 @@ class Commands : public ModelCommands {
     print_network("M", m.M);
     if (m.provenance.contains("m_candidates")) {
       const auto &c = m.provenance["m_candidates"];
-      std::printf("M candidates     mean M lobe L1 against the training maps:");
+      // Each score as the file names it (the M lobe's 4D L1, or the close-up images' fit: D53).
+      std::printf("M candidates    ");
       for (const auto &k : c["candidates"]) {
         std::printf(" %.2f %% (seed %llu)", 100 * k.value("score", 0.0),
                     (unsigned long long)k.value("seed", uint64_t(0)));
       }
-      std::printf("; kept #%zu\n", c.value("kept", size_t(0)) + 1);
+      std::printf("; kept #%zu\n                 score: %s\n", c.value("kept", size_t(0)) + 1,
+                  c.value("score", std::string("?")).c_str());
     }
     print_proxy(m);
     if (m.fallback) {

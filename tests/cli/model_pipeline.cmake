@@ -56,6 +56,10 @@ string(JSON n LENGTH "${model}" provenance m_candidates candidates)
 if(NOT score MATCHES "close-up's whole frame" OR NOT n EQUAL 2)
   message(FATAL_ERROR "train --m-choice image did not score its candidates by the image fit: ${score} (${n})")
 endif()
+# ... and its report names that score, not the 4D one.
+if(NOT LAST_OUT MATCHES "kept #[12]\n +score: mean over the front" OR LAST_OUT MATCHES "M lobe L1")
+  message(FATAL_ERROR "train --m-choice image reported another score:\n${LAST_OUT}")
+endif()
 
 run_ok(${CLI} fit ${OUT}/trained.json --maps ${OUT}/silk.nyrdm --samples 3000 --out ${OUT}/refit.json)
 if(NOT LAST_OUT MATCHES "sampling proxy" OR NOT EXISTS ${OUT}/refit.json)
