@@ -283,26 +283,31 @@ def test_the_predicted_fallback_is_what_blender_renders(tmp_path, light):
     assert abs(lum(rendered) / lum(predicted) - 1.0) < 0.03, (light, rendered, predicted)
 
 
+def harness_straight_yarn(tmp_path) -> str:
+    """The harness's plies file of its yarn scene at 120 ply radii, 160 x 80 (evaluate.straight_yarn_file)."""
+    import sys
+    import types
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    from evaluate import ply_length, straight_yarn_file
+
+    (tmp_path / "scenes").mkdir(exist_ok=True)
+    return straight_yarn_file(str(tmp_path), ply_length(120.0, types.SimpleNamespace(width=160, height=80)))
+
+
 @pytest.mark.parametrize("light", ["grazing", "back"])
 def test_the_yarn_levels_straight_yarn_is_predicted_as_cycles_renders_it(tmp_path, light):
     """`cycles-scene --predict-region` on the harness's yarn scene at the yarn level (one straight curve of the
     yarn's radius, seen from 120 ply radii: D53) against the patched Cycles' render of the same scene, whole
     frame, fleece's yarn model, 256 spp. Measured under back light (the noisiest: the rim is a few pixels), two
     fleece yarn models: 64 spp up to +4.5 %, 256 spp up to +1.7 % over two seeds, 1024-2048 spp within 0.3 %;
-    so 2.5 %. A
-    prediction that took the camera's distance in ply radii instead of the yarn's (the curve 2.3 times smaller
-    in the picture) is off by a factor ~2."""
-    import sys
-    import types
+    so 2.5 %. A prediction that took the camera's distance in ply radii instead of the yarn's (the curve 2.3 times
+    smaller in the picture) is off by a factor ~2."""
     import numpy as np
-    sys.path.insert(0, os.path.join(ROOT, "scripts"))
-    from evaluate import CYCLES, ply_length
-    from garment import straight_yarn_plies
+    plies = harness_straight_yarn(tmp_path)  # puts scripts/ on the path
+    from evaluate import CYCLES
     from images import read_exr
 
     cli = os.path.join(BUILD, "cpp_core", "neuralyarn")
-    plies = tmp_path / "yarn.json"
-    plies.write_text(json.dumps(straight_yarn_plies(ply_length(120.0, types.SimpleNamespace(width=160, height=80)))))
     scene, exr = str(tmp_path / "s.xml"), str(tmp_path / "s.exr")
     pred = subprocess.run([cli, "cycles-scene", "--preset", "fleece", "--plies", str(plies), "--camera-distance", "120",
                            "--level", "yarns", "--model", os.path.join(ROOT, "models", "fleece_yarn.json"),
@@ -323,15 +328,8 @@ def test_the_yarn_levels_straight_yarn_is_predicted_as_cycles_renders_it(tmp_pat
 def test_the_prediction_refuses_what_is_not_one_straight_curve(tmp_path):
     """The ply level of the same scene is three curves (the plies) and the close-up with layers more: the
     prediction, which integrates one straight curve along x, says so instead of predicting another picture."""
-    import sys
-    import types
-    sys.path.insert(0, os.path.join(ROOT, "scripts"))
-    from evaluate import ply_length
-    from garment import straight_yarn_plies
-
     cli = os.path.join(BUILD, "cpp_core", "neuralyarn")
-    plies = tmp_path / "yarn.json"
-    plies.write_text(json.dumps(straight_yarn_plies(ply_length(120.0, types.SimpleNamespace(width=160, height=80)))))
+    plies = harness_straight_yarn(tmp_path)
     r = subprocess.run([cli, "cycles-scene", "--preset", "fleece", "--plies", str(plies), "--camera-distance", "120",
                         "--model", os.path.join(ROOT, "models", "fleece.json"), "--lights", "back",
                         "--predict-region", "0", "0", "160", "80", "--out", str(tmp_path / "s.xml")],
