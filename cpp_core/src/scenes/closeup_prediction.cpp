@@ -251,12 +251,13 @@ double image_fit_error(const std::vector<Rgb3> &model, const std::vector<Rgb3> &
   if (model.size() != maps.size() || maps.empty()) {
     throw std::runtime_error("image_fit_error: the model's and the maps' predictions differ in number");
   }
+  /* One channel's term, written out per channel: GCC 12 at -O3 -march=native on an AVX-512 CPU (AMD Zen 4)
+   * vectorised the loop over an array of the three channels with a zero-masked division and dropped the select,
+   * so a black channel of the maps counted 1 instead of 0 (the ImageFit test caught it). */
+  const auto term = [](double x, double t) { return t > 0.0 ? std::abs(x / t - 1.0) : 0.0; };
   double sum = 0.0;
   for (size_t k = 0; k < maps.size(); k++) {
-    const double x[3] = {model[k].r, model[k].g, model[k].b}, t[3] = {maps[k].r, maps[k].g, maps[k].b};
-    for (int c = 0; c < 3; c++) {
-      sum += t[c] > 0.0 ? std::abs(x[c] / t[c] - 1.0) : 0.0;
-    }
+    sum += term(model[k].r, maps[k].r) + term(model[k].g, maps[k].g) + term(model[k].b, maps[k].b);
   }
   return sum / double(3 * maps.size());
 }
