@@ -609,25 +609,33 @@ class Commands : public ModelCommands {
   {
     cmd->add_option("--m-choice", m_choice_,
                     "With --m-candidates: keep the M network whose lobe is closest to the maps in 4D (lobes), or "
-                    "whose close-up image under the front, grazing, back and axis lights is (image: ranks trainings "
-                    "as independent maps do, docs/decisions.md D53)")
-        ->check(CLI::IsMember({"lobes", "image"}))
+                    "whose close-up image under the front, grazing, back and axis lights is, over the whole frame "
+                    "(image: ranks trainings as independent maps do, docs/decisions.md D53) or over the frame and "
+                    "its central region (image-centre: what the ply level's goals measure, D54)")
+        ->check(CLI::IsMember({"lobes", "image", "image-centre"}))
         ->capture_default_str();
   }
 
-  /* --m-choice image: the candidates scored by their close-up images against the maps' (scenes/, so set here). */
+  /* --m-choice image, image-centre: the candidates scored by their close-up images against the maps' (scenes/, so
+   * set here). */
   void set_m_choice(const rdm::RdmMaps &maps)
   {
-    if (m_choice_ != "image" || topt_.m_candidates < 2) {
+    if (m_choice_ == "lobes" || topt_.m_candidates < 2) {
       return;
     }
-    auto target = std::make_shared<std::vector<scenes::Rgb3>>(scenes::predict_distant_rigs(scenes::maps_far_field(maps)));
-    topt_.m_candidate_score = [target](const model::YarnModel &m) {
-      return scenes::image_fit_error(scenes::predict_distant_rigs(scenes::model_far_field(m)), *target);
+    const bool centre = m_choice_ == "image-centre";
+    const scenes::ImageFitRegions regions = centre ? scenes::ImageFitRegions::kFrameAndCentre
+                                                   : scenes::ImageFitRegions::kFrame;
+    auto target = std::make_shared<std::vector<scenes::Rgb3>>(
+        scenes::predict_distant_rigs(scenes::maps_far_field(maps), regions));
+    topt_.m_candidate_score = [target, regions](const model::YarnModel &m) {
+      return scenes::image_fit_error(scenes::predict_distant_rigs(scenes::model_far_field(m), regions), *target);
     };
-    topt_.m_candidate_score_name = "mean over the front, grazing, back and axis lights and the channels of |model / "
-                                   "maps - 1| of the close-up's whole frame predicted with the model and with the "
-                                   "training maps (scenes/closeup_prediction.h image_fit_error, D53)";
+    topt_.m_candidate_score_name = std::string("mean over the front, grazing, back and axis lights and the channels "
+                                               "of |model / maps - 1| of the close-up's ") +
+                                   (centre ? "whole frame and central region" : "whole frame") +
+                                   " predicted with the model and with the training maps "
+                                   "(scenes/closeup_prediction.h image_fit_error, " + (centre ? "D54)" : "D53)");
   }
 
   /* The fallback tables sample the kernel: every change to a model's networks or tables redoes them. */

@@ -61,6 +61,15 @@ if(NOT LAST_OUT MATCHES "kept #[12]\n +score: mean over the front" OR LAST_OUT M
   message(FATAL_ERROR "train --m-choice image reported another score:\n${LAST_OUT}")
 endif()
 
+# --m-choice image-centre: the frame and the close-up's central region (D54), named so.
+run_ok(${CLI} train --maps ${OUT}/silk.nyrdm --out ${OUT}/chosen_centre.json --quiet ${SMALL} --m-candidates 2
+       --m-choice image-centre)
+file(READ ${OUT}/chosen_centre.json model)
+string(JSON score GET "${model}" provenance m_candidates score)
+if(NOT score MATCHES "close-up's whole frame and central region")
+  message(FATAL_ERROR "train --m-choice image-centre did not score the central region too: ${score}")
+endif()
+
 run_ok(${CLI} fit ${OUT}/trained.json --maps ${OUT}/silk.nyrdm --samples 3000 --out ${OUT}/refit.json)
 if(NOT LAST_OUT MATCHES "sampling proxy" OR NOT EXISTS ${OUT}/refit.json)
   message(FATAL_ERROR "fit output incomplete:\n${LAST_OUT}")

@@ -229,3 +229,48 @@ TEST(CloseupPrediction, ImageFitReadsAScaleOfTheMapsAndTheRigsInOrder)
   EXPECT_EQ(neuralyarn::scenes::image_fit_error(t, t), 0.0);
   EXPECT_THROW(neuralyarn::scenes::image_fit_error(std::vector<Rgb3>(3), t), std::runtime_error);
 }
+
+TEST(CloseupPrediction, CentralRegionIsTheHarnesss)
+{
+  /* The same rows and columns as scripts/evaluate.py central_region (tests/eval/test_evaluate.py pins it to these
+   * numbers too): the region issue 17's goals are measured over and the image fit's centre (D54). */
+  using neuralyarn::scenes::central_region;
+  using neuralyarn::scenes::CloseupCamera;
+  auto same = [](const PixelRegion &r, int x, int y, int w, int h) {
+    return r.x == x && r.y == y && r.w == w && r.h == h;
+  };
+  EXPECT_TRUE(same(central_region(160, 80), 40, 34, 80, 12));
+  EXPECT_TRUE(same(central_region(96, 48), 24, 21, 48, 6));
+  EXPECT_TRUE(same(central_region(64, 32, CloseupCamera{5.0}), 16, 10, 32, 12));
+  EXPECT_TRUE(same(central_region(80, 160), 20, 74, 40, 12)) << "the field of view spans the shorter side";
+  EXPECT_THROW(central_region(160, 80, CloseupCamera{60.0}), std::runtime_error) << "two rows: no centre";
+  EXPECT_THROW(central_region(0, 80), std::runtime_error);
+  EXPECT_THROW(central_region(160, 80, CloseupCamera{0.5}), std::runtime_error) << "a camera inside the curve";
+}
+
+TEST(CloseupPrediction, ImageFitWithTheCentreAddsTheCentralRegionOfEveryRig)
+{
+  /* --m-choice image-centre (D54): the frame's four predictions, then the central region's under the same rigs in
+   * the same order; a far field lit only toward exits below the horizon is seen there under the back light. */
+  using neuralyarn::scenes::central_region;
+  using neuralyarn::scenes::ImageFitRegions;
+  using neuralyarn::scenes::predict_distant_rigs;
+  FarField below;
+  below.eval = [](const ny::Vec3 &, const ny::Vec3 &wo) {
+    return wo.z < 0.0f ? Rgb3{0.2, 0.4, 0.1} : Rgb3{0.0, 0.0, 0.0};
+  };
+  below.albedo = [](const ny::Vec3 &) { return Rgb3{}; };
+  const std::vector<Rgb3> frame = predict_distant_rigs(below);
+  const std::vector<Rgb3> both = predict_distant_rigs(below, ImageFitRegions::kFrameAndCentre);
+  ASSERT_EQ(both.size(), 8u);
+  const char *rigs[4] = {"front", "grazing", "back", "axis"};
+  for (size_t k = 0; k < 4; k++) {
+    EXPECT_EQ(both[k].g, frame[k].g) << rigs[k];
+    const Rgb3 c = predict_closeup(below, find_light_rig(rigs[k]), central_region(160, 80));
+    EXPECT_EQ(both[4 + k].r, c.r) << rigs[k];
+    EXPECT_EQ(both[4 + k].g, c.g) << rigs[k];
+    EXPECT_EQ(both[4 + k].b, c.b) << rigs[k];
+  }
+  EXPECT_GT(both[6].g, 0.0) << "the back light through the centre";
+  EXPECT_NE(both[6].g, both[2].g) << "the centre is not the frame";
+}

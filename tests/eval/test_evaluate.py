@@ -248,6 +248,22 @@ def test_references_draw_their_own_fiber_cross_sections(tmp_path):
 BUILD = os.environ.get("NY_BUILD_DIR", os.path.join(ROOT, "build"))
 
 
+def test_the_central_region_is_the_one_the_core_predicts():
+    """evaluate.central_region and the core's scenes::central_region (the image fit's centre, D54) are one
+    definition in two languages: both pinned to the same rows and columns (tests/cpp/test_closeup_prediction.cpp
+    CloseupPrediction.CentralRegionIsTheHarnesss)."""
+    import sys
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    from evaluate import CLOSEUP_DISTANCE, CLOSEUP_FOV, RenderFailed, central_region
+
+    assert central_region(CLOSEUP_DISTANCE, CLOSEUP_FOV, 160, 80) == (slice(34, 46), slice(40, 120))
+    assert central_region(CLOSEUP_DISTANCE, CLOSEUP_FOV, 96, 48) == (slice(21, 27), slice(24, 72))
+    assert central_region(5.0, CLOSEUP_FOV, 64, 32) == (slice(10, 22), slice(16, 48))
+    assert central_region(CLOSEUP_DISTANCE, CLOSEUP_FOV, 80, 160) == (slice(74, 86), slice(20, 60))
+    with pytest.raises(RenderFailed):
+        central_region(60.0, CLOSEUP_FOV, 160, 80)
+
+
 @pytest.mark.parametrize("light", ["grazing", "back"])
 def test_the_predicted_fallback_is_what_blender_renders(tmp_path, light):
     """`cycles-scene --predict-fallback` (the host's emulation of the stock fallback: its tables looked up as

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <memory>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -227,7 +228,31 @@ Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &
   return sum;
 }
 
-std::vector<Rgb3> predict_distant_rigs(const FarField &f)
+PixelRegion central_region(int width, int height, const CloseupCamera &camera)
+{
+  if (width <= 0 || height <= 0 || !(camera.distance > 1.0)) {
+    throw std::runtime_error("central_region: needs a positive image size and a camera outside the curve");
+  }
+  /* Cycles' standalone camera applies the field of view to the image's shorter side. A ray from (0, 0, -d)
+   * with direction (0, v, 1) passes the axis at distance d |v| / sqrt(1 + v^2): it hits the cylinder of radius 1
+   * for |v| <= 1 / sqrt(d^2 - 1). */
+  const double t = std::tan(0.5 * camera.fov) * (width >= height ? 1.0 : double(height) / double(width));
+  const double v_max = 1.0 / std::sqrt(camera.distance * camera.distance - 1.0);
+  int first = -1, last = -1;
+  for (int py = 0; py < height; py++) {
+    if (std::abs((1.0 - 2.0 * (py + 0.5) / height) * t) <= v_max) {
+      first = first < 0 ? py : first;
+      last = py;
+    }
+  }
+  if (first < 0 || last - first < 2) {
+    throw std::runtime_error("central_region: the curve covers too few rows of a " + std::to_string(width) + " x " +
+                             std::to_string(height) + " image for a central region");
+  }
+  return {width, height, width / 4, first + 1, width - 2 * (width / 4), last - first - 1};
+}
+
+std::vector<Rgb3> predict_distant_rigs(const FarField &f, ImageFitRegions regions)
 {
   /* The scenes' rigs of distant lights alone, in their order (ply_scene.h: front, grazing, back, axis). */
   std::vector<const LightRig *> rigs;
@@ -239,9 +264,14 @@ std::vector<Rgb3> predict_distant_rigs(const FarField &f)
       rigs.push_back(&rig);
     }
   }
-  std::vector<Rgb3> out(rigs.size());
-  tbb::parallel_for(0, int(rigs.size()), [&](int k) {
-    out[size_t(k)] = predict_closeup(f, *rigs[size_t(k)], PixelRegion{160, 80, 0, 0, 160, 80});
+  std::vector<PixelRegion> where{PixelRegion{160, 80, 0, 0, 160, 80}};
+  if (regions == ImageFitRegions::kFrameAndCentre) {
+    where.push_back(central_region(160, 80));
+  }
+  const size_t n = rigs.size();
+  std::vector<Rgb3> out(n * where.size());
+  tbb::parallel_for(0, int(out.size()), [&](int k) {
+    out[size_t(k)] = predict_closeup(f, *rigs[size_t(k) % n], where[size_t(k) / n]);
   });
   return out;
 }

@@ -74,11 +74,21 @@ struct CloseupCamera {
 Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &region,
                      const CloseupCamera &camera = {});
 
-/* The image fit (docs/decisions.md D53): the close-up's whole frame (160 x 80) under each distant-light rig,
- * front, grazing, back and axis, predicted with a far field, the rigs in parallel; and a model's error against
- * the maps' predictions, the mean over rigs and channels of |model / maps - 1| (a channel the maps leave black
- * counts 0). It ranks M trainings as an independent map does, where the 4D L1 does not. */
-std::vector<Rgb3> predict_distant_rigs(const FarField &f);
+/* The close-up's central region, as the evaluation harness measures it (scripts/evaluate.py central_region, the
+ * issue-17 goals' region): the middle half of the width; the rows whose pixel-centre rays (x = 0) hit the
+ * curve's bounding cylinder, less one row at each silhouette, where the pixel filter mixes curve and background.
+ * Throws std::runtime_error when that leaves fewer than one row. */
+PixelRegion central_region(int width, int height, const CloseupCamera &camera = {});
+
+/* The regions an image fit compares: the whole frame (D53), or the frame and the central region (D54). */
+enum class ImageFitRegions { kFrame, kFrameAndCentre };
+
+/* The image fit (docs/decisions.md D53, D54): the close-up (160 x 80) under each distant-light rig, front,
+ * grazing, back and axis, predicted with a far field over the whole frame (then, with kFrameAndCentre, over the
+ * central region, the rigs in the same order), the rigs in parallel; and a model's error against the maps'
+ * predictions, the mean over the predictions and channels of |model / maps - 1| (a channel the maps leave black
+ * counts 0). It ranks M trainings as independent maps do, where the 4D L1 does not. */
+std::vector<Rgb3> predict_distant_rigs(const FarField &f, ImageFitRegions regions = ImageFitRegions::kFrame);
 double image_fit_error(const std::vector<Rgb3> &model, const std::vector<Rgb3> &maps);
 
 }  // namespace neuralyarn::scenes
