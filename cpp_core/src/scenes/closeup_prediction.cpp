@@ -264,9 +264,10 @@ std::vector<Rgb3> predict_distant_rigs(const FarField &f, ImageFitRegions region
       rigs.push_back(&rig);
     }
   }
-  std::vector<PixelRegion> where{PixelRegion{160, 80, 0, 0, 160, 80}};
+  constexpr int width = 160, height = 80; /* the close-up's image (scripts/evaluate.py DEFAULTS) */
+  std::vector<PixelRegion> where{PixelRegion{width, height, 0, 0, width, height}};
   if (regions == ImageFitRegions::kFrameAndCentre) {
-    where.push_back(central_region(160, 80));
+    where.push_back(central_region(width, height));
   }
   const size_t n = rigs.size();
   std::vector<Rgb3> out(n * where.size());
