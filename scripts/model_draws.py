@@ -53,12 +53,12 @@ def run(cmd: list[str]) -> str:
 SIZE = (160, 80)  # the evaluation run's image
 
 
-def regions(a) -> dict:
+def regions(centre: tuple[slice, slice] | None) -> dict:
     """The predicted regions as cycles-scene's --predict-region (x, y, w, h): the whole frame, and for the close-up
     its central region (evaluate.central_region: what issue 17's goals are measured over)."""
     out = {"frame": (0, 0, *SIZE)}
-    if a.scene == "closeup":
-        rows, cols = evaluate.central_region(evaluate.CLOSEUP_DISTANCE, evaluate.CLOSEUP_FOV, *SIZE)
+    if centre is not None:
+        rows, cols = centre
         out["centre"] = (cols.start, rows.start, cols.stop - cols.start, rows.stop - rows.start)
     return out
 
@@ -124,12 +124,13 @@ def main(argv: list[str]) -> int:
     else:
         scene_args = ["--ply-length", f"{evaluate.ply_length(evaluate.CLOSEUP_DISTANCE, size):g}"]
         stem, method = f"closeup_{a.preset}_{{light}}", "native"
-    where = regions(a)
+    closeup_centre = evaluate.central_region(evaluate.CLOSEUP_DISTANCE, evaluate.CLOSEUP_FOV, *SIZE) \
+        if a.scene == "closeup" else None
+    where = regions(closeup_centre)
     # Each light's references A and B, read once: A whole (the renders' metrics), both as region means.
     ref_a = {L: read_exr(os.path.join(a.eval, "refs", stem.format(light=L) + "_A.exr")) for L in a.lights}
     ref_b = {L: read_exr(os.path.join(a.eval, "refs", stem.format(light=L) + "_B.exr")) for L in a.lights}
-    centre = evaluate.central_region(evaluate.CLOSEUP_DISTANCE, evaluate.CLOSEUP_FOV, *SIZE) \
-        if a.scene == "closeup" else (slice(None), slice(None))
+    centre = closeup_centre or (slice(None), slice(None))  # the renders' region (the yarn scene: its frame)
     models = [(os.path.basename(m)[:-5], os.path.abspath(m)) for m in a.models]
     for seed in a.seeds:
         path = os.path.join(a.out, f"seed{seed}.json")
@@ -185,6 +186,24 @@ def main(argv: list[str]) -> int:
             against_b = f"{mean_abs(fit_b):.1f}" if a.maps_b else "—"
             print(f"| {r['model']} | {100 * r['M_l1']:.1f} | " + " | ".join(rgb(fit[L]) for L in a.fit_lights) +
                   f" | {mean_abs(fit):.1f} | {against_b} |")
+        print()
+    def all_regions(by_region: dict) -> float:
+        """mean_abs over every region's lights and channels (each region holds as many)."""
+        return mean_abs({reg: sum(by_light.values(), []) for reg, by_light in by_region.items()})
+
+    if len(where) > 1:
+        print("All regions: mean |fit| % over " + ", ".join(where) + " (the --m-choice image-centre score x 100) "
+              "against the training maps; against maps B")
+        for r in rows:
+            print(f"  {r['model']}: {all_regions(r['fit']):.2f}; " + (f"{all_regions(r['fit_b']):.2f}" if a.maps_b else "—"))
+        print()
+    if a.maps_b:
+        # The maps' own disagreement in the same mean: a model closer to B by less than this is not told apart (D54).
+        gap = {reg: [x for L in a.fit_lights for x in maps_b_mean(p, L) / p[(a.maps, L)] - 1.0]
+               for reg, p in maps_pred.items()}
+        print("maps B against the maps, mean |B / maps - 1| %: " +
+              ", ".join(f"{reg} {mean_abs({reg: v}):.2f}" for reg, v in gap.items()) +
+              f", all {mean_abs(gap):.2f}")
         print()
     for key, label in (("error", "whole frame"), ("error_centre", "central region")) if a.lights else ():
         if key == "error_centre" and a.scene != "closeup":
