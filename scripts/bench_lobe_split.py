@@ -20,12 +20,12 @@ import json
 import os
 
 from bench_split import predict, rel, worst
-from evaluate import PRESETS
+from evaluate import CLOSEUP_DISTANCE, CLOSEUP_FOV, PRESETS, central_region
 from images import LUMINANCE
 
 LIGHTS = ["front", "grazing", "back", "axis"]
 SIZE = (160, 80)
-REGIONS = {"centre": (slice(34, 46), slice(40, 120)),  # evaluate.central_region of this close-up: rows, columns
+REGIONS = {"centre": central_region(CLOSEUP_DISTANCE, CLOSEUP_FOV, *SIZE),  # rows, columns
            "frame": (slice(0, SIZE[1]), slice(0, SIZE[0]))}
 
 
