@@ -282,9 +282,9 @@ double image_fit_error(const std::vector<Rgb3> &model, const std::vector<Rgb3> &
   if (model.size() != maps.size() || maps.empty()) {
     throw std::runtime_error("image_fit_error: the model's and the maps' predictions differ in number");
   }
-  /* One channel's term, written out per channel: GCC 12 at -O3 -march=native on an AVX-512 CPU (AMD Zen 4)
-   * vectorised the loop over an array of the three channels with a zero-masked division and dropped the select,
-   * so a black channel of the maps counted 1 instead of 0 (the ImageFit test caught it). */
+  /* One channel's term, written out per channel: GCC 12 at -O3 -march=native vectorised the loop over an array
+   * of the three channels with AVX masked loads of the model's values under the first vector's mask alone, so a
+   * black channel of the maps counted 1 instead of 0 (decisions D55; build.no_grouped_masked_loads). */
   const auto term = [](double x, double t) { return t > 0.0 ? std::abs(x / t - 1.0) : 0.0; };
   double sum = 0.0;
   for (size_t k = 0; k < maps.size(); k++) {
