@@ -369,7 +369,7 @@ struct SceneCommand {
   std::vector<double> baseline_colour;
   std::vector<int> region;
   std::vector<std::string> predict_maps, predict_lights;
-  std::string predict_lobes = "RM";
+  std::string predict_lobes = "RM", predict_image;
   bool predict_fallback = false;
 
   explicit SceneCommand(CLI::App &app)
@@ -478,6 +478,12 @@ struct SceneCommand {
                     "--model, and of each --predict-maps file. The scene must be one straight curve along x seen "
                     "from -z: the close-up, or the yarn level's straight yarn (--level yarns with such a plies file)")
         ->expected(4);
+    cmd->add_option("--predict-image", predict_image,
+                    "Write the whole WIDTH x HEIGHT image the core library predicts, as OpenEXR, for each far field "
+                    "and rig: PREFIX_model_RIG.exr, PREFIX_fallback_RIG.exr, PREFIX_maps1_RIG.exr (the --predict-maps "
+                    "files in order); with the same options and scene conditions as --predict-region, with or "
+                    "without it")
+        ->type_name("PREFIX");
     cmd->add_option("--predict-lights", predict_lights,
                     "With --predict-region: predict under these rigs (default: the scene's), each map file "
                     "loaded once for all of them")
@@ -513,6 +519,9 @@ struct SceneCommand {
       scenes::check_scene_extension(out);
       check_writable(out);
     }
+    if (!predict_image.empty()) {
+      check_writable(predict_image + "_model.exr"); /* before the scene and the predictions */
+    }
     const scenes::Scene scene = scenes::ply_scene(resolve_preset(preset, params), opt);
     for (const std::string &out : outs) {
       scenes::write_scene(scene, out);
@@ -521,12 +530,12 @@ struct SceneCommand {
       std::printf("wrote %s (%zu curves, %zu curve keys; camera at %.9g %.9g %.9g, fov %.9g)\n", out.c_str(),
                   scene.num_curves(), scene.num_curve_keys(), cam.x(), cam.y(), cam.z(), scene.camera.fov);
     }
-    if (!region.empty()) {
+    if (!region.empty() || !predict_image.empty()) {
       predict(scene);
     }
     else if (!predict_maps.empty() || !predict_lights.empty() || predict_fallback || predict_lobes != "RM") {
-      throw std::runtime_error(
-          "--predict-maps, --predict-lights, --predict-lobes and --predict-fallback need --predict-region");
+      throw std::runtime_error("--predict-maps, --predict-lights, --predict-lobes and --predict-fallback need "
+                               "--predict-region or --predict-image");
     }
     return 0;
   }
@@ -557,7 +566,7 @@ struct SceneCommand {
   }
 
   /* One line per prediction and rig: "predicted model R G B RIG", "predicted fallback R G B RIG",
-   * "predicted maps R G B RIG PATH". */
+   * "predicted maps R G B RIG PATH"; with --predict-image, "predicted image WHAT RIG EXR" per image written. */
   void predict(const scenes::Scene &scene)
   {
     if (opt.unit_scale != 1.0 || opt.layers != 1) {
@@ -581,23 +590,37 @@ struct SceneCommand {
     }
     /* After the options' own errors: they name what the user asked for wrongly before the scene's shape. */
     const scenes::CloseupCamera camera = straight_curve_camera(scene);
-    const scenes::PixelRegion pixels{opt.width, opt.height, region[0], region[1], region[2], region[3]};
-    const auto print = [&](const scenes::FarField &f, const char *what, const std::string &suffix) {
+    const auto print = [&](const scenes::FarField &f, const char *what, const std::string &suffix,
+                           const std::string &image_name) {
       for (const scenes::LightRig &rig : rigs) {
-        const scenes::Rgb3 a = scenes::predict_closeup(f, rig, pixels, camera);
-        std::printf("predicted %s %.6g %.6g %.6g %s%s\n", what, a.r, a.g, a.b, rig.name.c_str(), suffix.c_str());
+        if (!region.empty()) {
+          const scenes::PixelRegion pixels{opt.width, opt.height, region[0], region[1], region[2], region[3]};
+          const scenes::Rgb3 a = scenes::predict_closeup(f, rig, pixels, camera);
+          std::printf("predicted %s %.6g %.6g %.6g %s%s\n", what, a.r, a.g, a.b, rig.name.c_str(), suffix.c_str());
+        }
+        if (!predict_image.empty()) {
+          const std::vector<scenes::Rgb3> img = scenes::predict_closeup_image(f, rig, opt.width, opt.height, camera);
+          std::vector<float> rgb;
+          rgb.reserve(3 * img.size());
+          for (const scenes::Rgb3 &p : img) {
+            rgb.insert(rgb.end(), {float(p.r), float(p.g), float(p.b)});
+          }
+          const std::string path = predict_image + "_" + image_name + "_" + rig.name + ".exr";
+          write_rgb_exr(rgb, opt.width, opt.height, path);
+          std::printf("predicted image %s %s %s\n", image_name.c_str(), rig.name.c_str(), path.c_str());
+        }
       }
     };
     if (!opt.model.empty()) {
       const model::YarnModel m = model::load_model(opt.model);
-      print(scenes::model_far_field(m, lobes), "model", "");
+      print(scenes::model_far_field(m, lobes), "model", "", "model");
       if (predict_fallback) {
-        print(scenes::fallback_far_field(m), "fallback", "");
+        print(scenes::fallback_far_field(m), "fallback", "", "fallback");
       }
     }
-    for (const std::string &path : predict_maps) {
-      const rdm::RdmMaps maps = rdm::load_maps(path);
-      print(scenes::maps_far_field(maps, lobes), "maps", " " + path);
+    for (size_t k = 0; k < predict_maps.size(); k++) {
+      const rdm::RdmMaps maps = rdm::load_maps(predict_maps[k]);
+      print(scenes::maps_far_field(maps, lobes), "maps", " " + predict_maps[k], "maps" + std::to_string(k + 1));
     }
   }
 };

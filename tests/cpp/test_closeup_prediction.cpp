@@ -27,6 +27,7 @@ using neuralyarn::scenes::model_far_field;
 using neuralyarn::scenes::maps_far_field;
 using neuralyarn::scenes::PixelRegion;
 using neuralyarn::scenes::predict_closeup;
+using neuralyarn::scenes::predict_closeup_image;
 using neuralyarn::scenes::Rgb3;
 
 FarField constant_far_field(double albedo)
@@ -108,6 +109,45 @@ TEST(CloseupPrediction, DistantLightArrivesInTheHitsFrame)
   const double bottom = predict_closeup(lit, grazing, {160, 80, 40, 42, 80, 4}).r;
   EXPECT_NEAR(top, kPi, 1e-9);
   EXPECT_LT(bottom, 0.5 * kPi);
+}
+
+TEST(CloseupPrediction, ImageIsEveryPixelsPredictionInRasterOrder)
+{
+  /* A far field that varies across the ply (the hit's normal) and with the light: the image's rows run from
+   * the top (+y, the rows facing the grazing rig's light) down, and any block of it averages to the region's
+   * prediction. A 48 x 24 image keeps the test short. */
+  FarField f;
+  f.eval = [](const ny::Vec3 &wi, const ny::Vec3 &wo) {
+    const double c = std::max(0.0, double(wo.z));
+    return Rgb3{c, c * (0.5 + 0.5 * wi.y), c * c};
+  };
+  f.albedo = [](const ny::Vec3 &) { return Rgb3{}; };
+  const auto &grazing = find_light_rig("grazing");
+  constexpr int w = 48, h = 24;
+  const std::vector<Rgb3> img = predict_closeup_image(f, grazing, w, h);
+  ASSERT_EQ(img.size(), size_t(w * h));
+  for (const PixelRegion r : {PixelRegion{w, h, 5, 3, 1, 1}, PixelRegion{w, h, 30, 17, 1, 1},
+                              PixelRegion{w, h, 12, 8, 24, 8}, PixelRegion{w, h, 0, 0, w, h}})
+  {
+    Rgb3 mean;
+    for (int y = r.y; y < r.y + r.h; y++) {
+      for (int x = r.x; x < r.x + r.w; x++) {
+        const Rgb3 &p = img[size_t(y * w + x)];
+        mean.r += p.r / (r.w * r.h), mean.g += p.g / (r.w * r.h), mean.b += p.b / (r.w * r.h);
+      }
+    }
+    const Rgb3 want = predict_closeup(f, grazing, r);
+    EXPECT_NEAR(mean.r, want.r, 1e-12 * (1.0 + want.r)) << r.x << " " << r.y << " " << r.w << " " << r.h;
+    EXPECT_NEAR(mean.g, want.g, 1e-12 * (1.0 + want.g));
+    EXPECT_NEAR(mean.b, want.b, 1e-12 * (1.0 + want.b));
+  }
+  /* The grazing light reaches the upper rows: the image's top half is the brighter. */
+  double top = 0.0, bottom = 0.0;
+  for (int x = 0; x < w; x++) {
+    top += img[size_t((h / 2 - 2) * w + x)].r, bottom += img[size_t((h / 2 + 1) * w + x)].r;
+  }
+  EXPECT_GT(top, 2.0 * bottom);
+  EXPECT_THROW(predict_closeup_image(f, grazing, 0, h), std::runtime_error);
 }
 
 TEST(CloseupPrediction, MapsAreLookedUpInTheirBins)

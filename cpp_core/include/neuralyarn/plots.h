@@ -6,6 +6,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "neuralyarn/model/model.h"
 #include "neuralyarn/presets.h"
@@ -17,6 +18,10 @@ namespace neuralyarn {
  * longitudinal plane of w_i and a (phi_o, theta_o) map of eval, for the incident direction
  * (theta_i, phi_i) in degrees. Throws std::runtime_error when the file cannot be written. */
 void write_fiber_lobe_plot(const FiberPreset &preset, double theta_i_deg, double phi_i_deg, const std::string &path);
+
+/* An OpenEXR file of `rgb` (interleaved, row 0 the top), float, zip-compressed, written under a temporary name
+ * and moved into place. Throws std::runtime_error when the file cannot be written. */
+void write_rgb_exr(const std::vector<float> &rgb, int width, int height, const std::string &path);
 
 namespace model {
 

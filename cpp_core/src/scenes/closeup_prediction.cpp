@@ -228,6 +228,22 @@ Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &
   return sum;
 }
 
+std::vector<Rgb3> predict_closeup_image(const FarField &f, const LightRig &rig, int width, int height,
+                                        const CloseupCamera &camera)
+{
+  if (!(width > 0 && height > 0)) {
+    throw std::runtime_error("the predicted image needs a positive width and height");
+  }
+  std::vector<Rgb3> out(size_t(width) * size_t(height));
+  tbb::parallel_for(0, height, [&](int py) {
+    for (int px = 0; px < width; px++) {
+      out[size_t(py) * size_t(width) + size_t(px)] = predict_closeup(f, rig, PixelRegion{width, height, px, py, 1, 1},
+                                                                     camera);
+    }
+  });
+  return out;
+}
+
 PixelRegion central_region(int width, int height, const CloseupCamera &camera)
 {
   if (width <= 0 || height <= 0 || !(camera.distance > 1.0)) {

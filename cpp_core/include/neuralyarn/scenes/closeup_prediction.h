@@ -74,6 +74,12 @@ struct CloseupCamera {
 Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &region,
                      const CloseupCamera &camera = {});
 
+/* The whole width x height image, pixel by pixel (row 0 the top, as Cycles writes it): each pixel's
+ * predict_closeup over itself. What a tabulated closure would render without noise when `f` holds the maps,
+ * so that an image metric (FLIP) splits too; the rows in parallel. */
+std::vector<Rgb3> predict_closeup_image(const FarField &f, const LightRig &rig, int width, int height,
+                                        const CloseupCamera &camera = {});
+
 /* The close-up's central region, as the evaluation harness measures it (scripts/evaluate.py central_region, the
  * issue-17 goals' region): the middle half of the width; the rows whose pixel-centre rays (x = 0) hit the
  * curve's bounding cylinder, less one row at each silhouette, where the pixel filter mixes curve and background.
