@@ -546,7 +546,8 @@ struct SceneCommand {
   static scenes::CloseupCamera straight_curve_camera(const scenes::Scene &scene)
   {
     const auto refuse = [](const char *what) {
-      throw std::runtime_error(std::string("--predict-region predicts one straight curve along x seen from -z: ") + what);
+      throw std::runtime_error(std::string("--predict-region and --predict-image predict one straight curve along x "
+                                           "seen from -z (give --model): ") + what);
     };
     if (scene.objects.size() != 1 || scene.objects[0].curves.num_curves() != 1 || !scene.meshes.empty()) {
       refuse("the scene has other curves or meshes");

@@ -1,0 +1,146 @@
+# SPDX-License-Identifier: Apache-2.0
+"""FLIP split into fitting and aggregation: how close any far-field model of a ply can come to explicit fibers in
+HDR-FLIP, and how much of a model's FLIP its fit to the maps adds (issue 17; docs/benchmarks.md "FLIP's split").
+
+The close-up's whole image is predicted without noise (`cycles-scene --predict-image`, decisions D20) with each
+model and with the radiance distribution maps themselves — what a tabulated closure renders — and compared
+with an evaluation run's explicit-fiber references A and B:
+
+  * floor: FLIP(B, A), the harness's noise floor (two noisy images);
+  * noise-free floor: FLIP(A + (B - A) / sqrt 2, A) — the difference has the variance of A's own noise, so this is
+    what a perfect noise-free image scores against A;
+  * maps: FLIP(maps' prediction, A) — the aggregation error (far field, the maps' bins) plus A's noise: the best
+    any far-field model of the ply scores; "maps A/B" is FLIP between the first two map files' predictions (their
+    own noise);
+  * each model: FLIP(its prediction, A), and FLIP(its prediction, the maps' prediction) — the fitting error alone,
+    both noise-free; and, where given, FLIP of its render (the run's native render or --renders) against A.
+
+  .venv/bin/python scripts/bench_flip_split.py --eval build/eval_gabardine_axis --preset gabardine --lights axis \\
+      --maps TRAIN.nyrdm build/bench_lobes/gabardine_3001_L32.nyrdm build/bench_lobes/gabardine_3002_L32.nyrdm \\
+      --models SHIPPED.json models/gabardine.json --out build/flip_split
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from images import read_exr  # noqa: E402
+import evaluate  # noqa: E402
+
+SIZE = (160, 80)  # the close-up's image (evaluate.py DEFAULTS)
+
+
+def bands() -> dict:
+    """The frame's rows in three parts: the silhouettes (two rows either side of the ply's first and last row,
+    where the pixel filter mixes ply and background and camera rays graze it), the interior between them, and the
+    background. The ply's rows are the central region's and one more at each side (evaluate.central_region)."""
+    rows, _ = evaluate.central_region(evaluate.CLOSEUP_DISTANCE, evaluate.CLOSEUP_FOV, *SIZE)
+    top, bottom = rows.start - 1, rows.stop
+    silhouette = [r for r in range(SIZE[1]) if abs(r - top) <= 2 or abs(r - bottom) <= 2]
+    return {"silhouette": silhouette, "interior": list(range(top + 3, bottom - 2)),
+            "background": [r for r in range(SIZE[1]) if r < top - 2 or r > bottom + 2]}
+
+
+def flip(test: np.ndarray, ref: np.ndarray) -> dict:
+    """Mean HDR-FLIP over the frame, and each band's share of it (the shares add up to the mean)."""
+    import flip_evaluator
+    error, mean, _ = flip_evaluator.evaluate(np.ascontiguousarray(ref, dtype=np.float32),
+                                             np.ascontiguousarray(test, dtype=np.float32), "HDR", applyMagma=False,
+                                             parameters={"ppd": evaluate.FLIP_PPD})
+    error = np.asarray(error).reshape(ref.shape[:2])
+    return {"mean": float(mean), **{b: float(error[rows].sum() / error.size) for b, rows in bands().items()}}
+
+
+def cell(f: dict | None) -> str:
+    return f"{f['mean']:.3f} ({f['silhouette']:.3f} / {f['interior']:.3f})" if f else ""
+
+
+def predicted(a, prefix: str, model: str, maps: list[str]) -> dict:
+    """{(what, light): image}: what is "model" or the index of a map file (1, 2, ...). The model also makes the
+    scene one curve (without it cycles-scene writes explicit fibers)."""
+    size = argparse.Namespace(width=SIZE[0], height=SIZE[1])
+    cmd = [evaluate.CLI, "cycles-scene", "--preset", a.preset,
+           "--ply-length", f"{evaluate.ply_length(evaluate.CLOSEUP_DISTANCE, size):g}", "--lights", a.lights[0],
+           "--predict-lights", *a.lights, "--width", str(SIZE[0]), "--height", str(SIZE[1]),
+           "--predict-image", prefix, "--model", model, "--out", prefix + ".xml"]
+    if maps:
+        cmd += ["--predict-maps", *maps]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"bench_flip_split: {' '.join(cmd)} failed:\n{r.stderr}")
+    out = {}
+    for line in r.stdout.splitlines():
+        f = line.split()
+        if f[:2] == ["predicted", "image"]:
+            what = "model" if f[2] == "model" else int(f[2][4:])
+            out[(what, f[3])] = read_exr(f[4])
+    return out
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--eval", required=True, help="an evaluation run of the close-up (its refs/ and renders/)")
+    ap.add_argument("--preset", required=True)
+    ap.add_argument("--lights", nargs="+", required=True, help="distant lights or environment of that run")
+    ap.add_argument("--maps", nargs="+", required=True,
+                    help="map files of the ply: their predictions' mean is 'the maps' (the first two also give the "
+                         "maps' own noise)")
+    ap.add_argument("--models", nargs="+", required=True, help="model files")
+    ap.add_argument("--renders", nargs="*", default=[],
+                    help="with one light: per model, its render (an EXR, e.g. model_draws.py --eval's) or '-' for "
+                         "none; without it the run's own native render goes with the first model")
+    ap.add_argument("--out", required=True, help="directory for the predicted images and results.json")
+    a = ap.parse_args(argv)
+    os.makedirs(a.out, exist_ok=True)
+    stem = f"closeup_{a.preset}_{{light}}"
+    if a.renders and (len(a.lights) != 1 or len(a.renders) != len(a.models)):
+        ap.error("--renders: one light, and one render or '-' per model")
+    maps = predicted(a, os.path.join(a.out, "maps"), os.path.abspath(a.models[0]), [os.path.abspath(m) for m in a.maps])
+    results = {}
+    for light in a.lights:
+        ref_a = read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + "_A.exr"))
+        ref_b = read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + "_B.exr"))
+        mean_maps = np.mean([maps[(k + 1, light)] for k in range(len(a.maps))], axis=0)
+        row = {"floor": flip(ref_b, ref_a), "floor_noise_free": flip(ref_a + (ref_b - ref_a) / math.sqrt(2.0), ref_a),
+               "maps": flip(mean_maps, ref_a),
+               "maps_ab": flip(maps[(2, light)], maps[(1, light)]) if len(a.maps) > 1 else None, "models": {}}
+        results[light] = row
+    for k, model in enumerate(a.models):
+        name = os.path.basename(model)[:-5]
+        p = predicted(a, os.path.join(a.out, f"model{k + 1}"), os.path.abspath(model), [])
+        for light in a.lights:
+            ref_a = read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + "_A.exr"))
+            mean_maps = np.mean([maps[(j + 1, light)] for j in range(len(a.maps))], axis=0)
+            m = {"path": model, "prediction": flip(p[("model", light)], ref_a),
+                 "fitting": flip(p[("model", light)], mean_maps)}
+            render = None
+            if a.renders:
+                render = a.renders[k] if a.renders[k] != "-" else None
+            elif not a.renders and k == 0:
+                render = os.path.join(a.eval, "renders", stem.format(light=light) + "_native_1024spp_seed1.exr")
+            if render and os.path.exists(render):
+                m["render"], m["render_file"] = flip(read_exr(render), ref_a), render
+            results[light]["models"][f"{k + 1}: {name}"] = m
+    with open(os.path.join(a.out, "results.json"), "w") as f:
+        json.dump(results, f, indent=1)
+    print("HDR-FLIP over the frame (its silhouettes' / interior's share)")
+    print("| light | floor | noise-free floor | maps | maps A/B | model | prediction | fitting | render |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for light, row in results.items():
+        head = f"| {light} | {cell(row['floor'])} | {cell(row['floor_noise_free'])} | {cell(row['maps'])} | " \
+               f"{cell(row['maps_ab'])} |"
+        for name, m in row["models"].items():
+            print(f"{head} {name} | {cell(m['prediction'])} | {cell(m['fitting'])} | {cell(m.get('render'))} |")
+            head = "| | | | | |"
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
