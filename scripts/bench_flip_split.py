@@ -9,9 +9,10 @@ with an evaluation run's explicit-fiber references A and B:
   * floor: FLIP(B, A), the harness's noise floor (two noisy images);
   * noise-free floor: FLIP(A + (B - A) / sqrt 2, A) — the difference has the variance of A's own noise, so this is
     what a perfect noise-free image scores against A;
-  * maps: FLIP(maps' prediction, A) — the aggregation error (far field, the maps' bins) plus A's noise: the best
-    any far-field model of the ply scores; "maps A/B" is FLIP between the first two map files' predictions (their
-    own noise);
+  * maps: FLIP(maps' prediction, A), nearest bin and interpolated between the bins' centres — the aggregation
+    error (far field, the maps' bins) plus A's noise and the maps' own: "maps A/B" is FLIP between the first two
+    map files' predictions (their own noise), so the maps bound what a far-field model scores only where it is
+    small;
   * each model: FLIP(its prediction, A), and FLIP(its prediction, the maps' prediction) — the fitting error alone,
     both noise-free; and, where given, FLIP of its render (the run's native render or --renders) against A.
 
@@ -62,7 +63,7 @@ def cell(f: dict | None) -> str:
     return f"{f['mean']:.3f} ({f['silhouette']:.3f} / {f['interior']:.3f})" if f else ""
 
 
-def predicted(a, prefix: str, model: str, maps: list[str]) -> dict:
+def predicted(a, prefix: str, model: str, maps: list[str], interpolate: bool = False) -> dict:
     """{(what, light): image}: what is "model" or the index of a map file (1, 2, ...). The model also makes the
     scene one curve (without it cycles-scene writes explicit fibers)."""
     size = argparse.Namespace(width=SIZE[0], height=SIZE[1])
@@ -71,7 +72,7 @@ def predicted(a, prefix: str, model: str, maps: list[str]) -> dict:
            "--predict-lights", *a.lights, "--width", str(SIZE[0]), "--height", str(SIZE[1]),
            "--predict-image", prefix, "--model", model, "--out", prefix + ".xml"]
     if maps:
-        cmd += ["--predict-maps", *maps]
+        cmd += ["--predict-maps", *maps] + (["--predict-interpolate"] if interpolate else [])
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         sys.exit(f"bench_flip_split: {' '.join(cmd)} failed:\n{r.stderr}")
@@ -102,15 +103,20 @@ def main(argv: list[str]) -> int:
     stem = f"closeup_{a.preset}_{{light}}"
     if a.renders and (len(a.lights) != 1 or len(a.renders) != len(a.models)):
         ap.error("--renders: one light, and one render or '-' per model")
-    maps = predicted(a, os.path.join(a.out, "maps"), os.path.abspath(a.models[0]), [os.path.abspath(m) for m in a.maps])
+    files = [os.path.abspath(m) for m in a.maps]
+    maps = predicted(a, os.path.join(a.out, "maps"), os.path.abspath(a.models[0]), files)
+    interp = predicted(a, os.path.join(a.out, "maps_interpolated"), os.path.abspath(a.models[0]), files, True)
     results = {}
     for light in a.lights:
         ref_a = read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + "_A.exr"))
         ref_b = read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + "_B.exr"))
         mean_maps = np.mean([maps[(k + 1, light)] for k in range(len(a.maps))], axis=0)
+        mean_interp = np.mean([interp[(k + 1, light)] for k in range(len(a.maps))], axis=0)
+        two = len(a.maps) > 1
         row = {"floor": flip(ref_b, ref_a), "floor_noise_free": flip(ref_a + (ref_b - ref_a) / math.sqrt(2.0), ref_a),
-               "maps": flip(mean_maps, ref_a),
-               "maps_ab": flip(maps[(2, light)], maps[(1, light)]) if len(a.maps) > 1 else None, "models": {}}
+               "maps": flip(mean_maps, ref_a), "maps_interpolated": flip(mean_interp, ref_a),
+               "maps_ab": flip(maps[(2, light)], maps[(1, light)]) if two else None,
+               "maps_interpolated_ab": flip(interp[(2, light)], interp[(1, light)]) if two else None, "models": {}}
         results[light] = row
     for k, model in enumerate(a.models):
         name = os.path.basename(model)[:-5]
@@ -131,11 +137,12 @@ def main(argv: list[str]) -> int:
     with open(os.path.join(a.out, "results.json"), "w") as f:
         json.dump(results, f, indent=1)
     print("HDR-FLIP over the frame (its silhouettes' / interior's share)")
-    print("| light | floor | noise-free floor | maps | maps A/B | model | prediction | fitting | render |")
+    print("| light | floor | noise-free floor | maps: nearest, interpolated | maps A/B: nearest, interpolated | model | "
+          "prediction | fitting | render |")
     print("|---|---|---|---|---|---|---|---|---|")
     for light, row in results.items():
-        head = f"| {light} | {cell(row['floor'])} | {cell(row['floor_noise_free'])} | {cell(row['maps'])} | " \
-               f"{cell(row['maps_ab'])} |"
+        head = f"| {light} | {cell(row['floor'])} | {cell(row['floor_noise_free'])} | {cell(row['maps'])}, " \
+               f"{cell(row['maps_interpolated'])} | {cell(row['maps_ab'])}, {cell(row['maps_interpolated_ab'])} |"
         for name, m in row["models"].items():
             print(f"{head} {name} | {cell(m['prediction'])} | {cell(m['fitting'])} | {cell(m.get('render'))} |")
             head = "| | | | | |"

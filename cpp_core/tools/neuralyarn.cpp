@@ -370,7 +370,7 @@ struct SceneCommand {
   std::vector<int> region;
   std::vector<std::string> predict_maps, predict_lights;
   std::string predict_lobes = "RM", predict_image;
-  bool predict_fallback = false;
+  bool predict_fallback = false, predict_interpolate = false;
 
   explicit SceneCommand(CLI::App &app)
       : cmd(app.add_subcommand("cycles-scene", "Write the single-ply close-up (explicit fibers, or aggregated with --model) "
@@ -500,6 +500,9 @@ struct SceneCommand {
                     "With --predict-region: also predict with these radiance distribution maps (.nyrdm) as the "
                     "ply's scattering (the tabulated far field)")
         ->check(CLI::ExistingFile);
+    cmd->add_flag("--predict-interpolate", predict_interpolate,
+                  "With --predict-maps: the maps interpolated linearly between their bins' centres in each angle "
+                  "instead of the bin a direction pair falls in (a predicted image without the bins' steps)");
     cmd->add_option("--out", outs,
                     "Scene file to write: .xml (Cycles XML) or .json (the scene description that the add-on's "
                     "Blender builder reads, docs/file_formats.md); give it more than once for one scene in both")
@@ -533,9 +536,11 @@ struct SceneCommand {
     if (!region.empty() || !predict_image.empty()) {
       predict(scene);
     }
-    else if (!predict_maps.empty() || !predict_lights.empty() || predict_fallback || predict_lobes != "RM") {
-      throw std::runtime_error("--predict-maps, --predict-lights, --predict-lobes and --predict-fallback need "
-                               "--predict-region or --predict-image");
+    else if (!predict_maps.empty() || !predict_lights.empty() || predict_fallback || predict_lobes != "RM" ||
+             predict_interpolate)
+    {
+      throw std::runtime_error("--predict-maps, --predict-lights, --predict-lobes, --predict-fallback and "
+                               "--predict-interpolate need --predict-region or --predict-image");
     }
     return 0;
   }
@@ -621,7 +626,8 @@ struct SceneCommand {
     }
     for (size_t k = 0; k < predict_maps.size(); k++) {
       const rdm::RdmMaps maps = rdm::load_maps(predict_maps[k]);
-      print(scenes::maps_far_field(maps, lobes), "maps", " " + predict_maps[k], "maps" + std::to_string(k + 1));
+      const scenes::MapLookup lookup = predict_interpolate ? scenes::MapLookup::kInterpolated : scenes::MapLookup::kNearest;
+      print(scenes::maps_far_field(maps, lobes, lookup), "maps", " " + predict_maps[k], "maps" + std::to_string(k + 1));
     }
   }
 };

@@ -38,6 +38,34 @@ FarField constant_far_field(double albedo)
   return f;
 }
 
+/* Maps of 4 x 8 x 6 x 12 bins whose R in bin (ti, pi, to, po) is r(ti, pi, to, po, channel), M everywhere m,
+ * and exit energy exit(ti, pi) in every channel. */
+template<class R, class Exit> RdmMaps test_maps(R r, float m, Exit exit)
+{
+  RdmMaps maps;
+  maps.bins = MapResolution{4, 8, 6, 12};
+  const size_t n = maps.bins.incident() * maps.bins.outgoing() * 3;
+  maps.r.resize(n);
+  maps.m.assign(n, m);
+  maps.exit_energy.resize(maps.bins.incident() * 3);
+  for (int ti = 0; ti < 4; ti++) {
+    for (int pi = 0; pi < 8; pi++) {
+      for (int to = 0; to < 6; to++) {
+        for (int po = 0; po < 12; po++) {
+          const size_t k = maps.map_index(ti, pi, to, po);
+          for (int c = 0; c < 3; c++) {
+            maps.r[k + size_t(c)] = r(ti, pi, to, po, c);
+          }
+        }
+      }
+      for (int c = 0; c < 3; c++) {
+        maps.exit_energy[maps.incident_index(ti, pi) * 3 + size_t(c)] = exit(ti, pi);
+      }
+    }
+  }
+  return maps;
+}
+
 TEST(CloseupPrediction, WhiteFurnaceIsOneOnThePlyAndTheBackground)
 {
   const auto &env = find_light_rig("environment");
@@ -154,26 +182,9 @@ TEST(CloseupPrediction, MapsAreLookedUpInTheirBins)
 {
   /* Every bin holds its own index code in R and 0 in M: the lookup of a direction pair inside a bin
    * returns that bin's code. */
-  RdmMaps maps;
-  maps.bins = MapResolution{4, 8, 6, 12};
-  const size_t n = maps.bins.incident() * maps.bins.outgoing() * 3;
-  maps.r.resize(n);
-  maps.m.assign(n, 0.0f);
-  maps.exit_energy.resize(maps.bins.incident() * 3);
   auto code = [](int ti, int pi, int to, int po) { return float(((ti * 10 + pi) * 10 + to) * 100 + po); };
-  for (int ti = 0; ti < 4; ti++) {
-    for (int pi = 0; pi < 8; pi++) {
-      for (int to = 0; to < 6; to++) {
-        for (int po = 0; po < 12; po++) {
-          const size_t k = maps.map_index(ti, pi, to, po);
-          maps.r[k] = maps.r[k + 1] = maps.r[k + 2] = code(ti, pi, to, po);
-        }
-      }
-      for (int c = 0; c < 3; c++) {
-        maps.exit_energy[maps.incident_index(ti, pi) * 3 + size_t(c)] = ti * 10 + pi;
-      }
-    }
-  }
+  const RdmMaps maps = test_maps([&](int ti, int pi, int to, int po, int) { return code(ti, pi, to, po); }, 0.0f,
+                                 [](int ti, int pi) { return float(ti * 10 + pi); });
   const FarField f = maps_far_field(maps);
   auto dir = [](double theta, double phi) {
     return ny::make_vec3(float(std::sin(theta) * std::cos(phi)), float(std::sin(theta) * std::sin(phi)),
@@ -187,15 +198,47 @@ TEST(CloseupPrediction, MapsAreLookedUpInTheirBins)
   EXPECT_EQ(f.albedo(wi).r, 26.0);
 }
 
+TEST(CloseupPrediction, InterpolatedMapsAreLinearBetweenTheBinsCentres)
+{
+  /* Every bin holds a linear function of its centre's four angles (in degrees) in R and a constant in M: the
+   * interpolation returns that function between centres, the nearest bin's value where theta lies beyond the
+   * first or last centre, and it wraps around phi. */
+  /* Bin centres: theta_i 11.25 + 22.5 ti, phi_i -157.5 + 45 pi, theta_o 15 + 30 to, phi_o -165 + 30 po. */
+  auto linear = [](double ti, double pi, double to, double po) { return 1000.0 + 4.0 * ti + 2.0 * pi + to + 0.5 * po; };
+  const RdmMaps maps = test_maps(
+      [&](int ti, int pi, int to, int po, int c) {
+        const double v = linear(11.25 + 22.5 * ti, -157.5 + 45.0 * pi, 15.0 + 30.0 * to, -165.0 + 30.0 * po);
+        return float(c == 0 ? v : c == 1 ? 2.0 * v : 0.0);
+      },
+      0.25f, [](int ti, int) { return float(11.25 + 22.5 * ti); });
+  const FarField f = maps_far_field(maps, Lobes::kRM, neuralyarn::scenes::MapLookup::kInterpolated);
+  auto dir = [](double theta, double phi) {
+    return ny::make_vec3(float(std::sin(theta * kDeg) * std::cos(phi * kDeg)),
+                         float(std::sin(theta * kDeg) * std::sin(phi * kDeg)), float(std::cos(theta * kDeg)));
+  };
+  /* Inside the centres' span on every axis. */
+  const Rgb3 v = f.eval(dir(40.0, 10.0), dir(100.0, -20.0));
+  EXPECT_NEAR(v.r, linear(40.0, 10.0, 100.0, -20.0) + 0.25, 1e-3);
+  EXPECT_NEAR(v.g, 2.0 * linear(40.0, 10.0, 100.0, -20.0) + 0.25, 2e-3);
+  EXPECT_NEAR(v.b, 0.25, 1e-6);
+  /* theta_o 5 deg, before the first centre (15): held at it. */
+  EXPECT_NEAR(f.eval(dir(40.0, 10.0), dir(5.0, -20.0)).r, linear(40.0, 10.0, 15.0, -20.0) + 0.25, 1e-3);
+  /* phi_o 175 deg, between the last centre (165) and the first (-165, i.e. 195): halfway between their values
+   * at a third of the way (10 of 30 degrees). */
+  const double last = linear(40.0, 10.0, 100.0, 165.0), first = linear(40.0, 10.0, 100.0, -165.0);
+  EXPECT_NEAR(f.eval(dir(40.0, 10.0), dir(100.0, 175.0)).r, last + (first - last) / 3.0 + 0.25, 1e-3);
+  /* The albedo: linear in theta_i between centres, constant in phi_i. */
+  EXPECT_NEAR(f.albedo(dir(40.0, 170.0)).g, 40.0, 1e-4);
+  /* At a bin's centre the interpolation is the nearest bin's value. */
+  const FarField nearest = maps_far_field(maps);
+  const ny::Vec3 wi = dir(33.75, 22.5), wo = dir(75.0, 45.0);
+  EXPECT_NEAR(f.eval(wi, wo).r, nearest.eval(wi, wo).r, 1e-3);
+}
+
 TEST(CloseupPrediction, MapsSplitIntoTheirLobes)
 {
   /* R = 1 and M = 2 in every bin: one lobe's far field holds its own map alone. */
-  RdmMaps maps;
-  maps.bins = MapResolution{4, 8, 6, 12};
-  const size_t n = maps.bins.incident() * maps.bins.outgoing() * 3;
-  maps.r.assign(n, 1.0f);
-  maps.m.assign(n, 2.0f);
-  maps.exit_energy.assign(maps.bins.incident() * 3, 0.5f);
+  const RdmMaps maps = test_maps([](int, int, int, int, int) { return 1.0f; }, 2.0f, [](int, int) { return 0.5f; });
   const ny::Vec3 wi = ny::make_vec3(0.3f, 0.2f, 0.9327379f), wo = ny::make_vec3(-0.6f, 0.0f, 0.8f);
   EXPECT_EQ(maps_far_field(maps, Lobes::kR).eval(wi, wo).g, 1.0);
   EXPECT_EQ(maps_far_field(maps, Lobes::kM).eval(wi, wo).g, 2.0);

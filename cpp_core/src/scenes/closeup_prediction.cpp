@@ -102,10 +102,86 @@ FarField model_far_field(const model::YarnModel &model, Lobes lobes)
   return f;
 }
 
-FarField maps_far_field(const rdm::RdmMaps &maps, Lobes lobes)
+namespace {
+
+/* The two bin centres about `angle` on an axis of n bins over [lo, hi] and their linear weights; beyond the first
+ * or last centre both are that bin (theta) or the axis wraps (phi). */
+struct AxisTaps {
+  int bin[2];
+  double weight[2];
+};
+
+AxisTaps axis_taps(double angle, double lo, double hi, int n, bool wraps)
 {
+  const double u = (angle - lo) / (hi - lo) * n - 0.5, f = std::floor(u);
+  int b0 = int(f), b1 = b0 + 1;
+  const double t = u - f;
+  if (wraps) {
+    b0 = (b0 % n + n) % n, b1 = (b1 % n + n) % n;
+  }
+  else {
+    b0 = std::clamp(b0, 0, n - 1), b1 = std::clamp(b1, 0, n - 1);
+  }
+  return {{b0, b1}, {1.0 - t, t}};
+}
+
+/* theta and phi of a unit vector in the maps' frame, as rdm::incident_bin and outgoing_bin read them. */
+double angle_theta(const ny::Vec3 &w) { return std::acos(std::clamp(double(w.z), -1.0, 1.0)); }
+double angle_phi(const ny::Vec3 &w) { return std::atan2(double(w.y), double(w.x)); }
+
+FarField interpolated_maps_far_field(const rdm::RdmMaps &maps, double r_on, double m_on, Lobes lobes)
+{
+  const rdm::MapResolution &b = maps.bins;
   FarField f;
+  f.eval = [&maps, &b, r_on, m_on](const ny::Vec3 &wi, const ny::Vec3 &wo) {
+    const AxisTaps ti = axis_taps(angle_theta(wi), 0.0, 0.5 * kPi, b.theta_i, false),
+                   pi = axis_taps(angle_phi(wi), -kPi, kPi, b.phi_i, true),
+                   to = axis_taps(angle_theta(wo), 0.0, kPi, b.theta_o, false),
+                   po = axis_taps(angle_phi(wo), -kPi, kPi, b.phi_o, true);
+    Rgb3 sum;
+    for (int a = 0; a < 2; a++) {
+      for (int c = 0; c < 2; c++) {
+        for (int d = 0; d < 2; d++) {
+          for (int e = 0; e < 2; e++) {
+            const double w = ti.weight[a] * pi.weight[c] * to.weight[d] * po.weight[e];
+            const size_t k = maps.map_index(ti.bin[a], pi.bin[c], to.bin[d], po.bin[e]);
+            sum.r += w * (r_on * maps.r[k] + m_on * maps.m[k]);
+            sum.g += w * (r_on * maps.r[k + 1] + m_on * maps.m[k + 1]);
+            sum.b += w * (r_on * maps.r[k + 2] + m_on * maps.m[k + 2]);
+          }
+        }
+      }
+    }
+    return sum;
+  };
+  f.albedo = [&maps, &b, lobes](const ny::Vec3 &wi) {
+    if (lobes != Lobes::kRM) {
+      single_lobe_albedo();
+    }
+    const AxisTaps ti = axis_taps(angle_theta(wi), 0.0, 0.5 * kPi, b.theta_i, false),
+                   pi = axis_taps(angle_phi(wi), -kPi, kPi, b.phi_i, true);
+    Rgb3 sum;
+    for (int a = 0; a < 2; a++) {
+      for (int c = 0; c < 2; c++) {
+        const double w = ti.weight[a] * pi.weight[c];
+        const size_t k = maps.incident_index(ti.bin[a], pi.bin[c]) * 3;
+        sum.r += w * maps.exit_energy[k], sum.g += w * maps.exit_energy[k + 1], sum.b += w * maps.exit_energy[k + 2];
+      }
+    }
+    return sum;
+  };
+  return f;
+}
+
+}  // namespace
+
+FarField maps_far_field(const rdm::RdmMaps &maps, Lobes lobes, MapLookup lookup)
+{
   const double r_on = lobes == Lobes::kM ? 0.0 : 1.0, m_on = lobes == Lobes::kR ? 0.0 : 1.0;
+  if (lookup == MapLookup::kInterpolated) {
+    return interpolated_maps_far_field(maps, r_on, m_on, lobes);
+  }
+  FarField f;
   f.eval = [&maps, r_on, m_on](const ny::Vec3 &wi, const ny::Vec3 &wo) {
     int ti, pi, to, po;
     rdm::incident_bin(maps.bins, wi.x, wi.y, wi.z, &ti, &pi);

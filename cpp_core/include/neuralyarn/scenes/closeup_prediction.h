@@ -48,9 +48,14 @@ Lobes parse_lobes(const std::string &name);
  * transparent closure (a delta that the rigs' lights never lie on, and 1 x the white background). */
 FarField model_far_field(const model::YarnModel &model, Lobes lobes = Lobes::kRM);
 
-/* The maps: the bin of (w_i, w_o), R + M; the albedo is the bin's exit energy (T + R + M). The maps must
- * outlive the returned functions. */
-FarField maps_far_field(const rdm::RdmMaps &maps, Lobes lobes = Lobes::kRM);
+/* How a direction pair reads the maps: the bin it falls in, or the bins' values interpolated linearly in each
+ * angle between their centres (theta_i, phi_i, theta_o, phi_o: 16 bins; phi wraps, theta holds its first and last
+ * centre's value beyond them), which removes the bins' steps from a predicted image (the maps' own noise stays). */
+enum class MapLookup { kNearest, kInterpolated };
+
+/* The maps: R + M at (w_i, w_o); the albedo is the exit energy (T + R + M) at w_i. The maps must outlive the
+ * returned functions. */
+FarField maps_far_field(const rdm::RdmMaps &maps, Lobes lobes = Lobes::kRM, MapLookup lookup = MapLookup::kNearest);
 
 /* The model's stock-Blender fallback (its "fallback" tables, model/fallback.h) as Blender renders it:
  * transparent() and the weighted built-in lobes. Throws std::runtime_error when the model has none. */
