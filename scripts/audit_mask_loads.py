@@ -30,7 +30,8 @@ import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
 
-FUNCTION = re.compile(r"^;; Function (.+?) \(")
+# ";; Function NAME (MANGLED, funcdef_no=..."; the mangled name tells overloads apart.
+FUNCTION = re.compile(r"^;; Function (.*) \((\S+), funcdef_no=")
 # .MASK_LOAD (address, alignment, mask) with a vector result; .MASK_STORE (address, alignment, mask, value).
 MASK_LOAD = re.compile(r"\bvect_\S+ = \.MASK_LOAD \([^,]+, [^,]+, ([^,)]+)\)")
 MASK_STORE = re.compile(r"\.MASK_STORE \(")
@@ -47,7 +48,7 @@ def masked_sites(dump: str) -> dict[str, tuple[int, int]]:
         for line in f:
             m = FUNCTION.match(line)
             if m:
-                function = m.group(1)
+                function = f"{m.group(1)} [{m.group(2)}]"
                 continue
             load = MASK_LOAD.search(line)
             if load or MASK_STORE.search(line):
@@ -75,8 +76,22 @@ def progress(done: int, total: int, name: str) -> None:
         print(f"\r[{done}/{total}] {name[:60]:60}", end="" if done < total else "\n", file=sys.stderr, flush=True)
 
 
+def object_of(dump: str) -> str:
+    """GCC names a dump after its object: X.cpp.o's is X.cpp.cpp.252t.optimized."""
+    return re.sub(r"\.[^./]+\.\d+t\.optimized$", ".o", dump)
+
+
 def scan_dumps(root: str) -> int:
     dumps = sorted(glob.glob(os.path.join(root, "**", "*.optimized"), recursive=True))
+    # Only the translation units the build compiles now: a deleted or renamed source leaves its dump behind.
+    db = os.path.join(root, "compile_commands.json")
+    if os.path.exists(db):
+        outputs = set()
+        for e in compile_commands(root):
+            args = e["arguments"] if "arguments" in e else shlex.split(e["command"])
+            if "-o" in args:
+                outputs.add(os.path.normpath(os.path.join(e["directory"], args[args.index("-o") + 1])))
+        dumps = [d for d in dumps if os.path.normpath(object_of(d)) in outputs]
     if not dumps:
         print(f"audit_mask_loads: no GCC tree dumps (*.optimized) under {root}: the build keeps them only with "
               "GCC before 14 and NY_NATIVE (CMakeLists.txt)", file=sys.stderr)
@@ -102,6 +117,9 @@ def compile_commands(build: str) -> list[dict]:
 
 def dump_command(entry: dict, dump: str) -> list[str]:
     args = entry["arguments"] if "arguments" in entry else shlex.split(entry["command"])
+    # A compiler launcher first (Cycles' build starts every compile with ccache): run the compiler itself.
+    while args and os.path.basename(args[0]) in ("ccache", "sccache"):
+        args = args[1:]
     kept, skip = [], False
     for a in args:
         if skip:
@@ -170,10 +188,14 @@ def main(argv: list[str]) -> int:
                     help="with --build: translation units whose path contains one of these (default cpp_core/ tests/)")
     ap.add_argument("--jobs", type=int, default=2, help="with --build: compilers at once")
     a = ap.parse_args(argv)
+    root = a.dumps or a.build
+    if root and not os.path.isdir(root):
+        print(f"audit_mask_loads: no build directory {root}", file=sys.stderr)
+        return 2
     if a.dumps:
-        return scan_dumps(a.dumps) if os.path.isdir(a.dumps) else 2
+        return scan_dumps(a.dumps)
     if a.build:
-        return recompile(a.build, a.only, a.jobs) if os.path.isdir(a.build) else 2
+        return recompile(a.build, a.only, a.jobs)
     return control(*a.control)
 
 

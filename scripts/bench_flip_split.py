@@ -7,16 +7,20 @@ model and with the radiance distribution maps themselves — what a tabulated cl
 with an evaluation run's explicit-fiber references A and B:
 
   * floor: FLIP(B, A), the harness's noise floor (two noisy images);
-  * perfect: what a noise-free image without error scores against a reference as noisy as A — FLIP(m, m + n) with
-    m the first model's prediction standing in for the truth and n = (A - B) / sqrt 2, A's noise (FLIP weighs a
-    smooth image against a grainy one otherwise than two grainy ones: this, not the floor, is the best a
+  * perfect: what a noise-free image without error scores against a reference as noisy as A — FLIP(m, max(m + n,
+    0)) with m the first model's prediction standing in for the truth and n = (A - B) / sqrt 2, A's noise (FLIP
+    weighs a smooth image against a grainy one otherwise than two grainy ones: this, not the floor, is the best a
     noise-free method can score);
   * maps: FLIP(maps' prediction, A), nearest bin and interpolated between the bins' centres — the aggregation
     error (far field, the maps' bins) plus A's noise and the maps' own: "maps A/B" is FLIP between the first two
     map files' predictions (their own noise), so the maps bound what a far-field model scores only where it is
     small;
   * each model: FLIP(its prediction, A), and FLIP(its prediction, the maps' prediction) — the fitting error alone,
-    both noise-free; and, where given, FLIP of its render (the run's native render or --renders) against A.
+    both noise-free; and, where given, FLIP of its render (the run's native render or --renders) against A;
+  * profiles: the rms (%, luminance) of an image's row means over the ply's rows against A's (across the ply), and
+    of its 10-pixel blocks along the ply over those rows (along it), for B, the maps (interpolated) and each model;
+    and each model's FLIP with its row means replaced by the maps' (how much a right profile across the ply
+    would give).
 
   .venv/bin/python scripts/bench_flip_split.py --eval build/eval_gabardine_axis --preset gabardine --lights axis \\
       --maps TRAIN.nyrdm build/bench_lobes/gabardine_3001_L32.nyrdm build/bench_lobes/gabardine_3002_L32.nyrdm \\
@@ -34,18 +38,24 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from images import read_exr  # noqa: E402
+from images import LUMINANCE, read_exr  # noqa: E402
 import evaluate  # noqa: E402
 
 SIZE = (160, 80)  # the close-up's image (evaluate.py DEFAULTS)
 
 
+def ply_rows() -> slice:
+    """The ply's rows: the central region's and the silhouette row it leaves out on each side."""
+    rows, _ = evaluate.ply_band(evaluate.central_region(evaluate.CLOSEUP_DISTANCE, evaluate.CLOSEUP_FOV, *SIZE))
+    return rows
+
+
 def bands() -> dict:
     """The frame's rows in three parts: the silhouettes (two rows either side of the ply's first and last row,
     where the pixel filter mixes ply and background and camera rays graze it), the interior between them, and the
-    background. The ply's rows are the central region's and one more at each side (evaluate.central_region)."""
-    rows, _ = evaluate.central_region(evaluate.CLOSEUP_DISTANCE, evaluate.CLOSEUP_FOV, *SIZE)
-    top, bottom = rows.start - 1, rows.stop
+    background."""
+    rows = ply_rows()
+    top, bottom = rows.start, rows.stop - 1
     silhouette = [r for r in range(SIZE[1]) if abs(r - top) <= 2 or abs(r - bottom) <= 2]
     return {"silhouette": silhouette, "interior": list(range(top + 3, bottom - 2)),
             "background": [r for r in range(SIZE[1]) if r < top - 2 or r > bottom + 2]}
@@ -59,6 +69,26 @@ def flip(test: np.ndarray, ref: np.ndarray) -> dict:
                                              parameters={"ppd": evaluate.FLIP_PPD})
     error = np.asarray(error).reshape(ref.shape[:2])
     return {"mean": float(mean), **{b: float(error[rows].sum() / error.size) for b, rows in bands().items()}}
+
+
+def profile_errors(img: np.ndarray, ref: np.ndarray) -> dict:
+    """rms of the relative luminance error of the row means over the ply's rows (across) and of the 10-pixel
+    blocks along the ply over them (along), %."""
+    rows = ply_rows()
+
+    def rms(a, b):
+        return float(100.0 * np.sqrt(np.mean((a / b - 1.0) ** 2)))
+
+    def blocks(x):
+        return np.array([(x[rows, c:c + 10] @ LUMINANCE).mean() for c in range(0, x.shape[1], 10)])
+    return {"across": rms(img[rows].mean(axis=1) @ LUMINANCE, ref[rows].mean(axis=1) @ LUMINANCE),
+            "along": rms(blocks(img), blocks(ref))}
+
+
+def with_row_means(img: np.ndarray, of: np.ndarray) -> np.ndarray:
+    """img with each row's mean colour replaced by `of`'s (a black row stays black)."""
+    mine, theirs = img.mean(axis=1, keepdims=True), of.mean(axis=1, keepdims=True)
+    return img * np.where(mine > 0.0, theirs / np.where(mine > 0.0, mine, 1.0), 1.0)
 
 
 def cell(f: dict | None) -> str:
@@ -83,7 +113,7 @@ def predicted(a, prefix: str, model: str, maps: list[str], interpolate: bool = F
         f = line.split()
         if f[:2] == ["predicted", "image"]:
             what = "model" if f[2] == "model" else int(f[2][4:])
-            out[(what, f[3])] = read_exr(f[4])
+            out[(what, f[3])] = read_exr(line.split(" ", 4)[4])
     return out
 
 
@@ -118,16 +148,20 @@ def main(argv: list[str]) -> int:
         row = {"floor": flip(ref_b, ref_a),
                "maps": flip(mean_maps, ref_a), "maps_interpolated": flip(mean_interp, ref_a),
                "maps_ab": flip(maps[(2, light)], maps[(1, light)]) if two else None,
-               "maps_interpolated_ab": flip(interp[(2, light)], interp[(1, light)]) if two else None, "models": {}}
+               "maps_interpolated_ab": flip(interp[(2, light)], interp[(1, light)]) if two else None, "models": {},
+               "profiles": {"B": profile_errors(ref_b, ref_a), "maps": profile_errors(mean_interp, ref_a)}}
         results[light] = row
     for k, model in enumerate(a.models):
-        name = os.path.basename(model)[:-5]
+        name = os.path.splitext(os.path.basename(model))[0]
         p = predicted(a, os.path.join(a.out, f"model{k + 1}"), os.path.abspath(model), [])
         for light in a.lights:
             ref_a = read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + "_A.exr"))
             mean_maps = np.mean([maps[(j + 1, light)] for j in range(len(a.maps))], axis=0)
+            mean_interp = np.mean([interp[(j + 1, light)] for j in range(len(a.maps))], axis=0)
             m = {"path": model, "prediction": flip(p[("model", light)], ref_a),
-                 "fitting": flip(p[("model", light)], mean_maps)}
+                 "fitting": flip(p[("model", light)], mean_maps),
+                 "profiles": profile_errors(p[("model", light)], ref_a),
+                 "with_maps_row_means": flip(with_row_means(p[("model", light)], mean_interp), ref_a)}
             if k == 0:
                 ref_b = read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + "_B.exr"))
                 noisy = np.maximum(p[("model", light)] + (ref_a - ref_b) / math.sqrt(2.0), 0.0)
@@ -140,8 +174,10 @@ def main(argv: list[str]) -> int:
             if render and os.path.exists(render):
                 m["render"], m["render_file"] = flip(read_exr(render), ref_a), render
             results[light]["models"][f"{k + 1}: {name}"] = m
-    with open(os.path.join(a.out, "results.json"), "w") as f:
-        json.dump(results, f, indent=1)
+    out = os.path.join(a.out, "results.json")
+    with open(out + ".tmp", "w") as f:
+        json.dump({"command": ["scripts/bench_flip_split.py", *argv], "lights": results}, f, indent=1)
+    os.replace(out + ".tmp", out)
     print("HDR-FLIP over the frame (its silhouettes' / interior's share)")
     print("| light | floor | perfect | maps: nearest, interpolated | maps A/B: nearest, interpolated | model | "
           "prediction | fitting | render |")
@@ -152,6 +188,18 @@ def main(argv: list[str]) -> int:
         for name, m in row["models"].items():
             print(f"{head} {name} | {cell(m['prediction'])} | {cell(m['fitting'])} | {cell(m.get('render'))} |")
             head = "| | | | | |"
+    print("\nProfiles against A, rms % (across the ply's rows / along it in 10-pixel blocks), and each model's FLIP"
+          " with the maps' row means")
+    print("| light | B | maps (interpolated) | model | its profiles | its FLIP with the maps' row means |")
+    print("|---|---|---|---|---|---|")
+
+    def pr(x):
+        return f"{x['across']:.1f} / {x['along']:.1f}"
+    for light, row in results.items():
+        head = f"| {light} | {pr(row['profiles']['B'])} | {pr(row['profiles']['maps'])} |"
+        for name, m in row["models"].items():
+            print(f"{head} {name} | {pr(m['profiles'])} | {m['with_maps_row_means']['mean']:.3f} |")
+            head = "| | | |"
     return 0
 
 

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <exception>
 #include <filesystem>
@@ -485,20 +486,20 @@ struct SceneCommand {
                     "without it")
         ->type_name("PREFIX");
     cmd->add_option("--predict-lights", predict_lights,
-                    "With --predict-region: predict under these rigs (default: the scene's), each map file "
-                    "loaded once for all of them")
+                    "With --predict-region or --predict-image: predict under these rigs (default: the scene's), "
+                    "each map file loaded once for all of them")
         ->delimiter(',');
     cmd->add_flag("--predict-fallback", predict_fallback,
-                  "With --predict-region and --model: also predict the model's stock-Blender fallback (its "
-                  "fallback tables, as Blender renders them)");
+                  "With --predict-region or --predict-image, and --model: also predict the model's stock-Blender "
+                  "fallback (its fallback tables, as Blender renders them)");
     cmd->add_option("--predict-lobes", predict_lobes,
-                    "With --predict-region: the lobes of the model and the maps to predict: RM (what renders), or R "
-                    "or M alone (which lobe a difference is in; distant lights only)")
+                    "With --predict-region or --predict-image: the lobes of the model and the maps to predict: RM "
+                    "(what renders), or R or M alone (which lobe a difference is in; distant lights only)")
         ->check(CLI::IsMember({"RM", "R", "M"}))
         ->capture_default_str();
     cmd->add_option("--predict-maps", predict_maps,
-                    "With --predict-region: also predict with these radiance distribution maps (.nyrdm) as the "
-                    "ply's scattering (the tabulated far field)")
+                    "With --predict-region or --predict-image: also predict with these radiance distribution maps "
+                    "(.nyrdm) as the ply's scattering (the tabulated far field)")
         ->check(CLI::ExistingFile);
     cmd->add_flag("--predict-interpolate", predict_interpolate,
                   "With --predict-maps: the maps interpolated linearly between their bins' centres in each angle "
@@ -594,6 +595,9 @@ struct SceneCommand {
     if (lobes != scenes::Lobes::kRM && predict_fallback) {
       throw std::runtime_error("--predict-fallback predicts the fallback whole: no --predict-lobes");
     }
+    if (predict_interpolate && predict_maps.empty()) {
+      throw std::runtime_error("--predict-interpolate reads the --predict-maps files: give some");
+    }
     /* After the options' own errors: they name what the user asked for wrongly before the scene's shape. */
     const scenes::CloseupCamera camera = straight_curve_camera(scene);
     const auto print = [&](const scenes::FarField &f, const char *what, const std::string &suffix,
@@ -617,17 +621,24 @@ struct SceneCommand {
         }
       }
     };
+    /* Every input read before anything is written: a bad map file leaves no partial set of images. */
+    std::optional<model::YarnModel> m;
     if (!opt.model.empty()) {
-      const model::YarnModel m = model::load_model(opt.model);
-      print(scenes::model_far_field(m, lobes), "model", "", "model");
+      m = model::load_model(opt.model);
+    }
+    std::vector<rdm::RdmMaps> maps;
+    for (const std::string &path : predict_maps) {
+      maps.push_back(rdm::load_maps(path));
+    }
+    if (m) {
+      print(scenes::model_far_field(*m, lobes), "model", "", "model");
       if (predict_fallback) {
-        print(scenes::fallback_far_field(m), "fallback", "", "fallback");
+        print(scenes::fallback_far_field(*m), "fallback", "", "fallback");
       }
     }
-    for (size_t k = 0; k < predict_maps.size(); k++) {
-      const rdm::RdmMaps maps = rdm::load_maps(predict_maps[k]);
-      const scenes::MapLookup lookup = predict_interpolate ? scenes::MapLookup::kInterpolated : scenes::MapLookup::kNearest;
-      print(scenes::maps_far_field(maps, lobes, lookup), "maps", " " + predict_maps[k], "maps" + std::to_string(k + 1));
+    const scenes::MapLookup lookup = predict_interpolate ? scenes::MapLookup::kInterpolated : scenes::MapLookup::kNearest;
+    for (size_t k = 0; k < maps.size(); k++) {
+      print(scenes::maps_far_field(maps[k], lobes, lookup), "maps", " " + predict_maps[k], "maps" + std::to_string(k + 1));
     }
   }
 };

@@ -141,9 +141,10 @@ TEST(CloseupPrediction, DistantLightArrivesInTheHitsFrame)
 
 TEST(CloseupPrediction, ImageIsEveryPixelsPredictionInRasterOrder)
 {
-  /* A far field that varies across the ply (the hit's normal) and with the light: the image's rows run from
-   * the top (+y, the rows facing the grazing rig's light) down, and any block of it averages to the region's
-   * prediction. A 48 x 24 image keeps the test short. */
+  /* A far field that varies across the ply (the hit's normal) and with the light. Each pixel is the prediction
+   * of its own 1 x 1 region, so blocks average to the region's prediction (that pins the pixels' indices); the
+   * top-against-bottom check pins the rows' order (row 0 the top, +y, the rows facing the grazing rig's light).
+   * A 48 x 24 image keeps the test short. */
   FarField f;
   f.eval = [](const ny::Vec3 &wi, const ny::Vec3 &wo) {
     const double c = std::max(0.0, double(wo.z));
@@ -223,10 +224,16 @@ TEST(CloseupPrediction, InterpolatedMapsAreLinearBetweenTheBinsCentres)
   EXPECT_NEAR(v.b, 0.25, 1e-6);
   /* theta_o 5 deg, before the first centre (15): held at it. */
   EXPECT_NEAR(f.eval(dir(40.0, 10.0), dir(5.0, -20.0)).r, linear(40.0, 10.0, 15.0, -20.0) + 0.25, 1e-3);
-  /* phi_o 175 deg, between the last centre (165) and the first (-165, i.e. 195): halfway between their values
-   * at a third of the way (10 of 30 degrees). */
+  /* phi_o 175 deg, between the last centre (165) and the first (-165, i.e. 195): a third of the way from the
+   * last's value to the first's (10 of 30 degrees). */
   const double last = linear(40.0, 10.0, 100.0, 165.0), first = linear(40.0, 10.0, 100.0, -165.0);
   EXPECT_NEAR(f.eval(dir(40.0, 10.0), dir(100.0, 175.0)).r, last + (first - last) / 3.0 + 0.25, 1e-3);
+  /* theta_o 178 deg, past the last centre (165), and theta_i 89 deg, past its last (78.75): held at them. */
+  EXPECT_NEAR(f.eval(dir(40.0, 10.0), dir(178.0, -20.0)).r, linear(40.0, 10.0, 165.0, -20.0) + 0.25, 1e-3);
+  EXPECT_NEAR(f.eval(dir(89.0, 10.0), dir(100.0, -20.0)).r, linear(78.75, 10.0, 100.0, -20.0) + 0.25, 1e-3);
+  /* phi_i 170 deg, between its last centre (157.5) and the first (-157.5, i.e. 202.5): 12.5 of 45 degrees. */
+  const double last_i = linear(40.0, 157.5, 100.0, -20.0), first_i = linear(40.0, -157.5, 100.0, -20.0);
+  EXPECT_NEAR(f.eval(dir(40.0, 170.0), dir(100.0, -20.0)).r, last_i + (first_i - last_i) * 12.5 / 45.0 + 0.25, 1e-3);
   /* The albedo: linear in theta_i between centres, constant in phi_i. */
   EXPECT_NEAR(f.albedo(dir(40.0, 170.0)).g, 40.0, 1e-4);
   /* At a bin's centre the interpolation is the nearest bin's value. */

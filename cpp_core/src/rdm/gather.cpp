@@ -434,6 +434,19 @@ int bin_of(double value, double lo, double hi, int n)
 
 double bin_center(int index, double lo, double hi, int n) { return lo + (hi - lo) * (index + 0.5) / n; }
 
+BinTaps bin_taps(double value, double lo, double hi, int n, bool wraps)
+{
+  const double u = (value - lo) / (hi - lo) * n - 0.5, f = std::floor(u);
+  int b0 = int(f), b1 = b0 + 1;
+  if (wraps) {
+    b0 = (b0 % n + n) % n, b1 = (b1 % n + n) % n;
+  }
+  else {
+    b0 = std::clamp(b0, 0, n - 1), b1 = std::clamp(b1, 0, n - 1);
+  }
+  return {{b0, b1}, {1.0 - (u - f), u - f}};
+}
+
 void incident_bin(const MapResolution &b, double x, double y, double z, int *ti, int *pi)
 {
   *ti = bin_of(std::acos(std::clamp(z, -1.0, 1.0)), 0.0, 0.5 * kPi, b.theta_i);

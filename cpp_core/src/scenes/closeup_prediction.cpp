@@ -104,27 +104,6 @@ FarField model_far_field(const model::YarnModel &model, Lobes lobes)
 
 namespace {
 
-/* The two bin centres about `angle` on an axis of n bins over [lo, hi] and their linear weights; beyond the first
- * or last centre both are that bin (theta) or the axis wraps (phi). */
-struct AxisTaps {
-  int bin[2];
-  double weight[2];
-};
-
-AxisTaps axis_taps(double angle, double lo, double hi, int n, bool wraps)
-{
-  const double u = (angle - lo) / (hi - lo) * n - 0.5, f = std::floor(u);
-  int b0 = int(f), b1 = b0 + 1;
-  const double t = u - f;
-  if (wraps) {
-    b0 = (b0 % n + n) % n, b1 = (b1 % n + n) % n;
-  }
-  else {
-    b0 = std::clamp(b0, 0, n - 1), b1 = std::clamp(b1, 0, n - 1);
-  }
-  return {{b0, b1}, {1.0 - t, t}};
-}
-
 /* theta and phi of a unit vector in the maps' frame, as rdm::incident_bin and outgoing_bin read them. */
 double angle_theta(const ny::Vec3 &w) { return std::acos(std::clamp(double(w.z), -1.0, 1.0)); }
 double angle_phi(const ny::Vec3 &w) { return std::atan2(double(w.y), double(w.x)); }
@@ -134,10 +113,10 @@ FarField interpolated_maps_far_field(const rdm::RdmMaps &maps, double r_on, doub
   const rdm::MapResolution &b = maps.bins;
   FarField f;
   f.eval = [&maps, &b, r_on, m_on](const ny::Vec3 &wi, const ny::Vec3 &wo) {
-    const AxisTaps ti = axis_taps(angle_theta(wi), 0.0, 0.5 * kPi, b.theta_i, false),
-                   pi = axis_taps(angle_phi(wi), -kPi, kPi, b.phi_i, true),
-                   to = axis_taps(angle_theta(wo), 0.0, kPi, b.theta_o, false),
-                   po = axis_taps(angle_phi(wo), -kPi, kPi, b.phi_o, true);
+    const rdm::BinTaps ti = rdm::bin_taps(angle_theta(wi), 0.0, 0.5 * kPi, b.theta_i, false),
+                       pi = rdm::bin_taps(angle_phi(wi), -kPi, kPi, b.phi_i, true),
+                       to = rdm::bin_taps(angle_theta(wo), 0.0, kPi, b.theta_o, false),
+                       po = rdm::bin_taps(angle_phi(wo), -kPi, kPi, b.phi_o, true);
     Rgb3 sum;
     for (int a = 0; a < 2; a++) {
       for (int c = 0; c < 2; c++) {
@@ -158,8 +137,8 @@ FarField interpolated_maps_far_field(const rdm::RdmMaps &maps, double r_on, doub
     if (lobes != Lobes::kRM) {
       single_lobe_albedo();
     }
-    const AxisTaps ti = axis_taps(angle_theta(wi), 0.0, 0.5 * kPi, b.theta_i, false),
-                   pi = axis_taps(angle_phi(wi), -kPi, kPi, b.phi_i, true);
+    const rdm::BinTaps ti = rdm::bin_taps(angle_theta(wi), 0.0, 0.5 * kPi, b.theta_i, false),
+                       pi = rdm::bin_taps(angle_phi(wi), -kPi, kPi, b.phi_i, true);
     Rgb3 sum;
     for (int a = 0; a < 2; a++) {
       for (int c = 0; c < 2; c++) {

@@ -148,6 +148,14 @@ RdmMaps mean_of_maps(const RdmMaps &a, const RdmMaps &b);
 int bin_of(double value, double lo, double hi, int n);
 double bin_center(int index, double lo, double hi, int n);
 
+/* The two bin centres about `value` on an axis of n bins over [lo, hi] and their linear weights (summing to 1);
+ * beyond the first or last centre both are that bin, or, with `wraps`, the axis is periodic (azimuths). */
+struct BinTaps {
+  int bin[2];
+  double weight[2];
+};
+BinTaps bin_taps(double value, double lo, double hi, int n, bool wraps);
+
 /* The bins of a direction (x, y, z) in the entry frame (z = the ply normal; unit length): incident
  * (theta_i in [0, pi/2], clamped) and outgoing (theta_o in [0, pi]). */
 void incident_bin(const MapResolution &b, double x, double y, double z, int *ti, int *pi);
