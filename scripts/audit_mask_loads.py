@@ -90,8 +90,8 @@ def scan_dumps(root: str) -> int:
         for e in compile_commands(root):
             args = e["arguments"] if "arguments" in e else shlex.split(e["command"])
             if "-o" in args:
-                outputs.add(os.path.normpath(os.path.join(e["directory"], args[args.index("-o") + 1])))
-        dumps = [d for d in dumps if os.path.normpath(object_of(d)) in outputs]
+                outputs.add(os.path.abspath(os.path.join(e["directory"], args[args.index("-o") + 1])))
+        dumps = [d for d in dumps if os.path.abspath(object_of(d)) in outputs]
     if not dumps:
         print(f"audit_mask_loads: no GCC tree dumps (*.optimized) under {root}: the build keeps them only with "
               "GCC before 14 and NY_NATIVE (CMakeLists.txt)", file=sys.stderr)
