@@ -138,12 +138,13 @@ def main(argv: list[str]) -> int:
     files = [os.path.abspath(m) for m in a.maps]
     maps = predicted(a, os.path.join(a.out, "maps"), os.path.abspath(a.models[0]), files)
     interp = predicted(a, os.path.join(a.out, "maps_interpolated"), os.path.abspath(a.models[0]), files, True)
-    results = {}
+    results, shared = {}, {}
     for light in a.lights:
-        ref_a = read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + "_A.exr"))
-        ref_b = read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + "_B.exr"))
+        ref_a, ref_b = (read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + f"_{r}.exr")) for r in "AB")
         mean_maps = np.mean([maps[(k + 1, light)] for k in range(len(a.maps))], axis=0)
         mean_interp = np.mean([interp[(k + 1, light)] for k in range(len(a.maps))], axis=0)
+        # Read and averaged once; every model is compared with them.
+        shared[light] = (ref_a, ref_b, mean_maps, mean_interp)
         two = len(a.maps) > 1
         row = {"floor": flip(ref_b, ref_a),
                "maps": flip(mean_maps, ref_a), "maps_interpolated": flip(mean_interp, ref_a),
@@ -155,15 +156,12 @@ def main(argv: list[str]) -> int:
         name = os.path.splitext(os.path.basename(model))[0]
         p = predicted(a, os.path.join(a.out, f"model{k + 1}"), os.path.abspath(model), [])
         for light in a.lights:
-            ref_a = read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + "_A.exr"))
-            mean_maps = np.mean([maps[(j + 1, light)] for j in range(len(a.maps))], axis=0)
-            mean_interp = np.mean([interp[(j + 1, light)] for j in range(len(a.maps))], axis=0)
+            ref_a, ref_b, mean_maps, mean_interp = shared[light]
             m = {"path": model, "prediction": flip(p[("model", light)], ref_a),
                  "fitting": flip(p[("model", light)], mean_maps),
                  "profiles": profile_errors(p[("model", light)], ref_a),
                  "with_maps_row_means": flip(with_row_means(p[("model", light)], mean_interp), ref_a)}
             if k == 0:
-                ref_b = read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + "_B.exr"))
                 noisy = np.maximum(p[("model", light)] + (ref_a - ref_b) / math.sqrt(2.0), 0.0)
                 results[light]["perfect"] = flip(p[("model", light)], noisy)
             render = None
