@@ -14,7 +14,9 @@ any model files given, prints:
     frame; the close-up's central region too) and HDR-FLIP against the run's reference A (and the mean error
     against the mean of references A and B);
 and the maps' own prediction against references A and B (what no network changes: the far field's error and
-the references' noise).
+the references' noise). With --noise-maps (two more independent gathers, as a bake's check gathers) and two
+--maps-b files it also prints the noise-weighted scores of D56: each cell weighted by 1 / sqrt(s^2 + floor^2), s the
+relative standard error of what the model is compared with.
 
   bash scripts/evaluate.sh --out build/eval_m --scenes yarn --methods yarns --presets fleece \\
       --lights back grazing axis --distances 120 --spp 64 --ref-spp 512
@@ -66,7 +68,7 @@ def regions(centre: tuple[slice, slice] | None) -> dict:
 def predict(a, scene_args: list[str], model: str, region: tuple) -> dict:
     """The region's mean colour under each fit light, predicted with `model` ("model") and with each map file (its
     path): {(what, light): rgb}."""
-    maps = [a.maps] + a.maps_b
+    maps = [a.maps] + a.maps_b + a.noise_maps
     out = run([evaluate.CLI, "cycles-scene", "--preset", a.preset, *scene_args, "--model", model,
                "--lights", a.fit_lights[0], "--predict-lights", *a.fit_lights, "--width", str(SIZE[0]),
                "--height", str(SIZE[1]), "--predict-region", *map(str, region), "--predict-maps", *maps,
@@ -77,6 +79,14 @@ def predict(a, scene_args: list[str], model: str, region: tuple) -> dict:
         if f[:1] == ["predicted"]:
             got[(f[1] if f[1] == "model" else f[6], f[5])] = np.array([float(x) for x in f[2:5]])
     return got
+
+
+def map_paths(path: str) -> int:
+    """The paths of a map file (its header, docs/file_formats.md)."""
+    with open(path, "rb") as f:
+        f.read(12)
+        header = json.loads(f.read(int.from_bytes(f.read(8), "little")))
+    return int(header["gather"]["paths"])
 
 
 def rgb(v) -> str:
@@ -91,6 +101,11 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--maps", required=True, help="map file to train on and to check against")
     ap.add_argument("--maps-b", nargs="*", default=[],
                     help="independent map files of the same yarn (other path seeds): 'maps B' is their mean")
+    ap.add_argument("--noise-maps", nargs="*", default=[],
+                    help="two more independent map files of the same yarn (the bake's check gathers): each cell's "
+                         "noise, for the noise-weighted scores (D56)")
+    ap.add_argument("--noise-floor", type=float, default=0.05,
+                    help="relative noise below which a cell's weight no longer grows (default 0.05: the goal's 5 %%)")
     ap.add_argument("--scene", choices=["yarn", "closeup"], default="yarn",
                     help="the yarn level's straight yarn (default) or the ply level's close-up")
     ap.add_argument("--eval", help="an evaluation run's directory (its scenes and references): render the models "
@@ -110,6 +125,8 @@ def main(argv: list[str]) -> int:
 
     def maps_b_mean(p: dict, light: str) -> np.ndarray:
         return np.mean([p[(m, light)] for m in a.maps_b], axis=0)
+    if a.noise_maps and len(a.noise_maps) != 2:
+        ap.error("--noise-maps takes two map files")
     if a.lights and not a.eval:
         ap.error("--lights renders in an evaluation run's scenes: give --eval")
     os.makedirs(os.path.join(a.out, "scenes"), exist_ok=True)
@@ -196,6 +213,31 @@ def main(argv: list[str]) -> int:
               "against the training maps; against maps B")
         for r in rows:
             print(f"  {r['model']}: {all_regions(r['fit']):.2f}; " + (f"{all_regions(r['fit_b']):.2f}" if a.maps_b else "—"))
+        print()
+    if a.noise_maps or len(a.maps_b) == 2:
+        def rel_noise(p: dict, pair: list[str], target: np.ndarray, scale: float, L: str) -> np.ndarray:
+            """A cell's relative standard error: two independent gathers differ by sqrt(2) sigma of one; `scale`
+            takes that sigma to the target's paths."""
+            return np.abs(p[(pair[0], L)] - p[(pair[1], L)]) / np.sqrt(2.0) * scale / np.maximum(target, 1e-30)
+
+        def weighted(r: dict, key: str, pair: list[str], scale: float, target) -> float:
+            num = den = 0.0
+            for reg, p in maps_pred.items():
+                for L in a.fit_lights:
+                    w = 1.0 / np.sqrt(rel_noise(p, pair, target(p, L), scale, L) ** 2 + a.noise_floor ** 2)
+                    num += float(np.sum(w * np.abs(r[key][reg][L])))
+                    den += float(np.sum(w))
+            return 100 * num / den
+
+        n_train = map_paths(a.maps)
+        print(f"Noise-weighted (D56): each cell weighted 1 / sqrt(s^2 + {a.noise_floor:g}^2), s the relative noise of "
+              "what it is compared with; against the training maps (s from --noise-maps); against maps B (s from "
+              "its two files)")
+        for r in rows:
+            t = (f"{weighted(r, 'fit', a.noise_maps, np.sqrt(map_paths(a.noise_maps[0]) / n_train), lambda p, L: p[(a.maps, L)]):.2f}"
+                 if a.noise_maps else "—")
+            b = (f"{weighted(r, 'fit_b', a.maps_b, np.sqrt(0.5), maps_b_mean):.2f}" if len(a.maps_b) == 2 else "—")
+            print(f"  {r['model']}: {t}; {b}")
         print()
     if a.maps_b:
         # The maps' own disagreement in the same mean: a model closer to B by less than this is not told apart (D54).
