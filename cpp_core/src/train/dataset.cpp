@@ -52,17 +52,13 @@ float interpolate_incident(const rdm::RdmMaps &maps, const std::vector<float> &t
                            double theta, double phi)
 {
   const rdm::MapResolution &b = maps.bins;
-  const double ft = theta / (0.5 * kPi) * b.theta_i - 0.5;
-  const double fp = (phi + kPi) / (2.0 * kPi) * b.phi_i - 0.5;
-  const int t0 = int(std::floor(ft)), p0 = int(std::floor(fp));
-  const double wt = ft - t0, wp = fp - p0;
-  auto at = [&](int t, int p) {
-    t = std::min(std::max(t, 0), b.theta_i - 1);
-    p = ((p % b.phi_i) + b.phi_i) % b.phi_i;
-    return double(table[maps.incident_index(t, p) * size_t(channels) + size_t(c)]);
+  const rdm::BinTaps t = rdm::bin_taps(theta, 0.0, 0.5 * kPi, b.theta_i, false),
+                     p = rdm::bin_taps(phi, -kPi, kPi, b.phi_i, true);
+  auto at = [&](int i, int j) {
+    return double(table[maps.incident_index(t.bin[i], p.bin[j]) * size_t(channels) + size_t(c)]);
   };
-  return float((1 - wt) * ((1 - wp) * at(t0, p0) + wp * at(t0, p0 + 1)) +
-               wt * ((1 - wp) * at(t0 + 1, p0) + wp * at(t0 + 1, p0 + 1)));
+  return float(t.weight[0] * (p.weight[0] * at(0, 0) + p.weight[1] * at(0, 1)) +
+               t.weight[1] * (p.weight[0] * at(1, 0) + p.weight[1] * at(1, 1)));
 }
 }  // namespace
 
