@@ -17,6 +17,9 @@ with an evaluation run's explicit-fiber references A and B:
     small;
   * each model: FLIP(its prediction, A), and FLIP(its prediction, the maps' prediction) — the fitting error alone,
     both noise-free; and, where given, FLIP of its render (the run's native render or --renders) against A;
+  * with --ladder: FLIP of the path-weighted mean of the first k map files' predictions (k = 1 ... K, the files in
+    the order given, so smallest first), and F(N) = F_inf + b / sqrt(N) fitted to them: the far field's FLIP at
+    N paths and without the maps' noise, extrapolated (the aggregation error's own FLIP);
   * profiles: the rms (%, luminance) of an image's row means over the ply's rows against A's (across the ply), and
     of its 10-pixel blocks along the ply over those rows (along it), for B, the maps (interpolated) and each model;
     and each model's FLIP with its row means replaced by the maps' (how much a right profile across the ply
@@ -91,6 +94,40 @@ def with_row_means(img: np.ndarray, of: np.ndarray) -> np.ndarray:
     return img * np.where(mine > 0.0, theirs / np.where(mine > 0.0, mine, 1.0), 1.0)
 
 
+def map_gather(path: str) -> dict:
+    """The gather's paths and seed of a map file (its header, docs/file_formats.md)."""
+    with open(path, "rb") as f:
+        f.read(12)
+        header = json.loads(f.read(int.from_bytes(f.read(8), "little")))
+    return header["gather"]
+
+
+def ladder(files: list[str], nearest: list[np.ndarray], interpolated: list[np.ndarray], ref: np.ndarray) -> dict:
+    """FLIP of the path-weighted mean of the first k maps' images against `ref`, k = 1 ... K, and the least-squares
+    fit F(N) = F_inf + b / sqrt(N) over them: an image's noise falls as 1 / sqrt(N), and FLIP with it."""
+    gathers = [map_gather(f) for f in files]
+    seeds = [g["seed"] for g in gathers]
+    if len(set(seeds)) != len(seeds):
+        # Path k's random stream is (seed, k): two files of one seed share their first paths.
+        sys.exit(f"bench_flip_split: --ladder needs independent maps, but path seeds repeat: {seeds}")
+    paths = [int(g["paths"]) for g in gathers]
+    steps = []
+    for k in range(1, len(files) + 1):
+        w = np.array(paths[:k], dtype=float) / sum(paths[:k])
+        step = {"files": k, "paths": float(sum(paths[:k]))}
+        for kind, images in (("nearest", nearest), ("interpolated", interpolated)):
+            step[kind] = flip(sum(wi * im for wi, im in zip(w, images[:k])), ref)["mean"]
+        steps.append(step)
+    fit = {}
+    x = np.array([1.0 / math.sqrt(s["paths"]) for s in steps])
+    for kind in ("nearest", "interpolated"):
+        y = np.array([s[kind] for s in steps])
+        A = np.stack([np.ones_like(x), x], axis=1)
+        (f_inf, b), *_ = np.linalg.lstsq(A, y, rcond=None)
+        fit[kind] = {"F_inf": float(f_inf), "b": float(b), "rms": float(np.sqrt(np.mean((A @ [f_inf, b] - y) ** 2)))}
+    return {"steps": steps, "fit": fit}
+
+
 def cell(f: dict | None) -> str:
     return f"{f['mean']:.3f} ({f['silhouette']:.3f} / {f['interior']:.3f})" if f else ""
 
@@ -129,6 +166,9 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--renders", nargs="*", default=[],
                     help="with one light: per model, its render (an EXR, e.g. model_draws.py --eval's) or '-' for "
                          "none; without it the run's own native render goes with the first model")
+    ap.add_argument("--ladder", action="store_true",
+                    help="also FLIP of the path-weighted mean of the first k map files, k = 1 ... K, and its "
+                         "extrapolation to infinitely many paths (give the files smallest first)")
     ap.add_argument("--out", required=True, help="directory for the predicted images and results.json")
     a = ap.parse_args(argv)
     os.makedirs(a.out, exist_ok=True)
@@ -151,6 +191,9 @@ def main(argv: list[str]) -> int:
                "maps_ab": flip(maps[(2, light)], maps[(1, light)]) if two else None,
                "maps_interpolated_ab": flip(interp[(2, light)], interp[(1, light)]) if two else None, "models": {},
                "profiles": {"B": profile_errors(ref_b, ref_a), "maps": profile_errors(mean_interp, ref_a)}}
+        if a.ladder:
+            row["ladder"] = ladder(files, [maps[(k + 1, light)] for k in range(len(files))],
+                                   [interp[(k + 1, light)] for k in range(len(files))], ref_a)
         results[light] = row
     for k, model in enumerate(a.models):
         name = os.path.splitext(os.path.basename(model))[0]
@@ -198,6 +241,18 @@ def main(argv: list[str]) -> int:
         for name, m in row["models"].items():
             print(f"{head} {name} | {pr(m['profiles'])} | {m['with_maps_row_means']['mean']:.3f} |")
             head = "| | | |"
+    for light, row in results.items() if a.ladder else ():
+        lad = row["ladder"]
+        print(f"\nThe maps' FLIP against A by paths ({light}): the path-weighted mean of the first k files, nearest / "
+              "interpolated")
+        print("| files | paths | FLIP nearest | FLIP interpolated |")
+        print("|---|---|---|---|")
+        for r in lad["steps"]:
+            print(f"| {r['files']} | {r['paths']:.3g} | {r['nearest']:.4f} | {r['interpolated']:.4f} |")
+        for kind in ("nearest", "interpolated"):
+            fit = lad["fit"][kind]
+            print(f"  {kind}: F(N) = {fit['F_inf']:.4f} + {fit['b']:.1f} / sqrt(N), rms residual {fit['rms']:.4f}")
+
     return 0
 
 
