@@ -94,18 +94,10 @@ def with_row_means(img: np.ndarray, of: np.ndarray) -> np.ndarray:
     return img * np.where(mine > 0.0, theirs / np.where(mine > 0.0, mine, 1.0), 1.0)
 
 
-def map_gather(path: str) -> dict:
-    """The gather's paths and seed of a map file (its header, docs/file_formats.md)."""
-    with open(path, "rb") as f:
-        f.read(12)
-        header = json.loads(f.read(int.from_bytes(f.read(8), "little")))
-    return header["gather"]
-
-
 def ladder(files: list[str], nearest: list[np.ndarray], interpolated: list[np.ndarray], ref: np.ndarray) -> dict:
     """FLIP of the path-weighted mean of the first k maps' images against `ref`, k = 1 ... K, and the least-squares
     fit F(N) = F_inf + b / sqrt(N) over them: an image's noise falls as 1 / sqrt(N), and FLIP with it."""
-    gathers = [map_gather(f) for f in files]
+    gathers = [evaluate.map_gather(f) for f in files]
     seeds = [g["seed"] for g in gathers]
     if len(set(seeds)) != len(seeds):
         # Path k's random stream is (seed, k): two files of one seed share their first paths.

@@ -335,6 +335,15 @@ def light_rigs() -> dict[str, str]:
     return cli_table("--list-lights")
 
 
+def map_gather(path: str) -> dict:
+    """The `gather` object of a radiance distribution map file's header (paths, seed, ...; docs/file_formats.md)."""
+    with open(path, "rb") as f:
+        if f.read(8) != b"NYRDM\r\n\x1a":
+            raise ValueError(f"{path}: not a radiance distribution map file (.nyrdm)")
+        f.read(4)  # the format version
+        return json.loads(f.read(int.from_bytes(f.read(8), "little")))["gather"]
+
+
 def ply_length(distance: float, a) -> float:
     """The close-up's ply length at a camera distance: 48 at the close-up's 12, growing with the frame's width
     at the ply (its ends out of the frame and far from the central region)."""

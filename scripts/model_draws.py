@@ -81,14 +81,6 @@ def predict(a, scene_args: list[str], model: str, region: tuple) -> dict:
     return got
 
 
-def map_paths(path: str) -> int:
-    """The paths of a map file (its header, docs/file_formats.md)."""
-    with open(path, "rb") as f:
-        f.read(12)
-        header = json.loads(f.read(int.from_bytes(f.read(8), "little")))
-    return int(header["gather"]["paths"])
-
-
 def rgb(v) -> str:
     return " / ".join(f"{100 * x:+.1f}" for x in v)
 
@@ -229,12 +221,13 @@ def main(argv: list[str]) -> int:
                     den += float(np.sum(w))
             return 100 * num / den
 
-        n_train = map_paths(a.maps)
+        n_train = int(evaluate.map_gather(a.maps)["paths"])
+        n_noise = int(evaluate.map_gather(a.noise_maps[0])["paths"]) if a.noise_maps else 0
         print(f"Noise-weighted (D56): each cell weighted 1 / sqrt(s^2 + {a.noise_floor:g}^2), s the relative noise of "
               "what it is compared with; against the training maps (s from --noise-maps); against maps B (s from "
               "its two files)")
         for r in rows:
-            t = (f"{weighted(r, 'fit', a.noise_maps, np.sqrt(map_paths(a.noise_maps[0]) / n_train), lambda p, L: p[(a.maps, L)]):.2f}"
+            t = (f"{weighted(r, 'fit', a.noise_maps, np.sqrt(n_noise / n_train), lambda p, L: p[(a.maps, L)]):.2f}"
                  if a.noise_maps else "—")
             b = (f"{weighted(r, 'fit_b', a.maps_b, np.sqrt(0.5), maps_b_mean):.2f}" if len(a.maps_b) == 2 else "—")
             print(f"  {r['model']}: {t}; {b}")

@@ -396,3 +396,22 @@ def test_summary_reads_results_older_than_its_fields():
     assert rows
     # the columns "frame lum %" and "frame floor %": the 12th and 13th cells of a row
     assert all(ln.split("|")[11].strip() == "-" and ln.split("|")[12].strip() == "-" for ln in rows), rows[0]
+
+
+def test_map_gather_reads_a_maps_paths_and_seed_and_refuses_other_files(tmp_path):
+    """bench_flip_split.py --ladder weights maps by their paths and refuses two of one seed, and model_draws.py scales
+    the check gathers' noise by them: both read the map file's own header, not a name or an argument."""
+    import sys
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    import evaluate as harness
+    maps = tmp_path / "tiny.nyrdm"
+    r = subprocess.run([os.path.join(BUILD, "cpp_core", "neuralyarn"), "gather", "--preset", "fleece", "--paths", "2e4",
+                        "--seed", "7", "--bins", "4x8x4x8", "--out", str(maps)], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    g = harness.map_gather(str(maps))
+    assert (g["paths"], g["seed"]) == (20000, 7)
+    model = tmp_path / "model.json"
+    model.write_text("{}")
+    with pytest.raises(ValueError, match="not a radiance distribution map file"):
+        harness.map_gather(str(model))
