@@ -19,7 +19,8 @@ with an evaluation run's explicit-fiber references A and B:
     both noise-free; and, where given, FLIP of its render (the run's native render or --renders) against A;
   * with --ladder: FLIP of the path-weighted mean of the first k map files' predictions (k = 1 ... K, the files in
     the order given, so smallest first), and F(N) = F_inf + b / sqrt(N) fitted to them: the far field's FLIP at
-    N paths and without the maps' noise, extrapolated (the aggregation error's own FLIP);
+    N paths and without the maps' noise, extrapolated (the aggregation error's own FLIP) — trustworthy only while the
+    last step moves FLIP as the fit says: where the curve has flattened, its last value is the far field's FLIP;
   * profiles: the rms (%, luminance) of an image's row means over the ply's rows against A's (across the ply), and
     of its 10-pixel blocks along the ply over those rows (along it), for B, the maps (interpolated) and each model;
     and each model's FLIP with its row means replaced by the maps' (how much a right profile across the ply
@@ -241,9 +242,13 @@ def main(argv: list[str]) -> int:
         print("|---|---|---|---|")
         for r in lad["steps"]:
             print(f"| {r['files']} | {r['paths']:.3g} | {r['nearest']:.4f} | {r['interpolated']:.4f} |")
+        last, before = lad["steps"][-1], lad["steps"][-2] if len(lad["steps"]) > 1 else None
         for kind in ("nearest", "interpolated"):
             fit = lad["fit"][kind]
-            print(f"  {kind}: F(N) = {fit['F_inf']:.4f} + {fit['b']:.1f} / sqrt(N), rms residual {fit['rms']:.4f}")
+            step = (f"; the last step ({last['paths'] / before['paths']:.2g}x the paths) moved it by "
+                    f"{last[kind] - before[kind]:+.4f}, where the fit says {fit['b'] * (last['paths'] ** -0.5 - before['paths'] ** -0.5):+.4f}"
+                    if before else "")
+            print(f"  {kind}: F(N) = {fit['F_inf']:.4f} + {fit['b']:.1f} / sqrt(N), rms residual {fit['rms']:.4f}{step}")
 
     return 0
 
