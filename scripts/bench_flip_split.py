@@ -95,15 +95,19 @@ def with_row_means(img: np.ndarray, of: np.ndarray) -> np.ndarray:
     return img * np.where(mine > 0.0, theirs / np.where(mine > 0.0, mine, 1.0), 1.0)
 
 
-def ladder(files: list[str], nearest: list[np.ndarray], interpolated: list[np.ndarray], ref: np.ndarray) -> dict:
-    """FLIP of the path-weighted mean of the first k maps' images against `ref`, k = 1 ... K, and the least-squares
-    fit F(N) = F_inf + b / sqrt(N) over them: an image's noise falls as 1 / sqrt(N), and FLIP with it."""
+def ladder_paths(files: list[str]) -> list[int]:
+    """The map files' paths, read from their headers; two files of one path seed are refused before any work (path
+    k's random stream is (seed, k): they share their first paths)."""
     gathers = [evaluate.map_gather(f) for f in files]
     seeds = [g["seed"] for g in gathers]
     if len(set(seeds)) != len(seeds):
-        # Path k's random stream is (seed, k): two files of one seed share their first paths.
         sys.exit(f"bench_flip_split: --ladder needs independent maps, but path seeds repeat: {seeds}")
-    paths = [int(g["paths"]) for g in gathers]
+    return [int(g["paths"]) for g in gathers]
+
+
+def ladder(paths: list[int], nearest: list[np.ndarray], interpolated: list[np.ndarray], ref: np.ndarray) -> dict:
+    """FLIP of the path-weighted mean of the first k maps' images against `ref`, k = 1 ... K, and the least-squares
+    fit F(N) = F_inf + b / sqrt(N) over them: an image's noise falls as 1 / sqrt(N), and FLIP with it."""
     steps = []
     for k in range(1, len(files) + 1):
         w = np.array(paths[:k], dtype=float) / sum(paths[:k])
@@ -169,6 +173,7 @@ def main(argv: list[str]) -> int:
     if a.renders and (len(a.lights) != 1 or len(a.renders) != len(a.models)):
         ap.error("--renders: one light, and one render or '-' per model")
     files = [os.path.abspath(m) for m in a.maps]
+    paths = ladder_paths(files) if a.ladder else []
     maps = predicted(a, os.path.join(a.out, "maps"), os.path.abspath(a.models[0]), files)
     interp = predicted(a, os.path.join(a.out, "maps_interpolated"), os.path.abspath(a.models[0]), files, True)
     results, shared = {}, {}
@@ -185,7 +190,7 @@ def main(argv: list[str]) -> int:
                "maps_interpolated_ab": flip(interp[(2, light)], interp[(1, light)]) if two else None, "models": {},
                "profiles": {"B": profile_errors(ref_b, ref_a), "maps": profile_errors(mean_interp, ref_a)}}
         if a.ladder:
-            row["ladder"] = ladder(files, [maps[(k + 1, light)] for k in range(len(files))],
+            row["ladder"] = ladder(paths, [maps[(k + 1, light)] for k in range(len(files))],
                                    [interp[(k + 1, light)] for k in range(len(files))], ref_a)
         results[light] = row
     for k, model in enumerate(a.models):
