@@ -109,7 +109,7 @@ def ladder(paths: list[int], nearest: list[np.ndarray], interpolated: list[np.nd
     """FLIP of the path-weighted mean of the first k maps' images against `ref`, k = 1 ... K, and the least-squares
     fit F(N) = F_inf + b / sqrt(N) over them: an image's noise falls as 1 / sqrt(N), and FLIP with it."""
     steps = []
-    for k in range(1, len(files) + 1):
+    for k in range(1, len(paths) + 1):
         w = np.array(paths[:k], dtype=float) / sum(paths[:k])
         step = {"files": k, "paths": float(sum(paths[:k]))}
         for kind, images in (("nearest", nearest), ("interpolated", interpolated)):
