@@ -179,8 +179,9 @@ def main(argv: list[str]) -> int:
     results, shared = {}, {}
     for light in a.lights:
         ref_a, ref_b = (read_exr(os.path.join(a.eval, "refs", stem.format(light=light) + f"_{r}.exr")) for r in "AB")
-        mean_maps = np.mean([maps[(k + 1, light)] for k in range(len(a.maps))], axis=0)
-        mean_interp = np.mean([interp[(k + 1, light)] for k in range(len(a.maps))], axis=0)
+        nearest = [maps[(k + 1, light)] for k in range(len(files))]
+        interpolated = [interp[(k + 1, light)] for k in range(len(files))]
+        mean_maps, mean_interp = np.mean(nearest, axis=0), np.mean(interpolated, axis=0)
         # Read and averaged once; every model is compared with them.
         shared[light] = (ref_a, ref_b, mean_maps, mean_interp)
         two = len(a.maps) > 1
@@ -190,8 +191,7 @@ def main(argv: list[str]) -> int:
                "maps_interpolated_ab": flip(interp[(2, light)], interp[(1, light)]) if two else None, "models": {},
                "profiles": {"B": profile_errors(ref_b, ref_a), "maps": profile_errors(mean_interp, ref_a)}}
         if a.ladder:
-            row["ladder"] = ladder(paths, [maps[(k + 1, light)] for k in range(len(files))],
-                                   [interp[(k + 1, light)] for k in range(len(files))], ref_a)
+            row["ladder"] = ladder(paths, nearest, interpolated, ref_a)
         results[light] = row
     for k, model in enumerate(a.models):
         name = os.path.splitext(os.path.basename(model))[0]

@@ -65,14 +65,14 @@ def regions(centre: tuple[slice, slice] | None) -> dict:
     return out
 
 
-def predict(a, scene_args: list[str], model: str, region: tuple) -> dict:
-    """The region's mean colour under each fit light, predicted with `model` ("model") and with each map file (its
-    path): {(what, light): rgb}."""
-    maps = [a.maps] + a.maps_b + a.noise_maps
+def predict(a, scene_args: list[str], model: str, region: tuple, maps: list[str]) -> dict:
+    """The region's mean colour under each fit light, predicted with `model` ("model") and with each map file in
+    `maps` (its path): {(what, light): rgb}. The maps' predictions do not depend on the model (it only makes the
+    scene one curve), so they are asked for once per region, not with every model."""
     out = run([evaluate.CLI, "cycles-scene", "--preset", a.preset, *scene_args, "--model", model,
                "--lights", a.fit_lights[0], "--predict-lights", *a.fit_lights, "--width", str(SIZE[0]),
-               "--height", str(SIZE[1]), "--predict-region", *map(str, region), "--predict-maps", *maps,
-               "--out", os.path.join(a.out, "predict.xml")])
+               "--height", str(SIZE[1]), "--predict-region", *map(str, region),
+               *(["--predict-maps", *maps] if maps else []), "--out", os.path.join(a.out, "predict.xml")])
     got = {}
     for line in out.splitlines():
         f = line.split()
@@ -147,7 +147,10 @@ def main(argv: list[str]) -> int:
             print(f"model_draws: training seed {seed}", file=sys.stderr, flush=True)
             run([evaluate.CLI, "train", "--maps", a.maps, "--out", path, "--train-seed", str(seed), *extra])
         models.append((f"seed {seed}", path))
-    rows, maps_pred = [], {}
+    # Every map file (~200 MB each) read once per region, with the first model making the scene one curve.
+    maps_pred = {region_name: predict(a, scene_args, models[0][1], region, [a.maps] + a.maps_b + a.noise_maps)
+                 for region_name, region in where.items()} if models else {}
+    rows = []
     for name, path in models:
         check = os.path.join(a.out, os.path.basename(path)[:-5] + "_check.json")
         run([evaluate.CLI, "check", path, "--maps", a.maps, "--json", check])
@@ -155,13 +158,12 @@ def main(argv: list[str]) -> int:
             row = {"model": name, "M_l1": float(np.mean(json.load(f)["lobes"]["M"]["l1"])), "fit": {}, "fit_b": {},
                    "render": {}}
         for region_name, region in where.items():
-            p = predict(a, scene_args, path, region)
+            p = {**maps_pred[region_name], **predict(a, scene_args, path, region, [])}
             row["fit"][region_name], row["fit_b"][region_name] = {}, {}
             for L in a.fit_lights:
                 row["fit"][region_name][L] = list(p[("model", L)] / p[(a.maps, L)] - 1.0)
                 if a.maps_b:
                     row["fit_b"][region_name][L] = list(p[("model", L)] / maps_b_mean(p, L) - 1.0)
-            maps_pred[region_name] = p
         for light in a.lights:
             with open(os.path.join(a.eval, "scenes", stem.format(light=light) + f"_{method}_seed1.xml")) as f:
                 xml = re.sub(r'model="[^"]*"', f'model="{path}"', f.read())
