@@ -9,6 +9,7 @@
 
 #include "chi2.h"
 #include "neuralyarn/kernel/sampling.h"
+#include "neuralyarn/rdm/normal_ziggurat.h"
 #include "neuralyarn/units.h"
 #include "quadrature.h"
 
@@ -112,6 +113,56 @@ TEST(UniformSphere, SamplesFollowPdf)
       [](ny::Vec3) { return double(ny::uniform_sphere_pdf()); }, 1000000, 20, 40, 3000);
   ASSERT_TRUE(r.failure.empty()) << r.failure;
   EXPECT_LE(r.interior_mass, 1.0 + 1e-4);
+  EXPECT_GT(r.p_value, 0.01) << "chi2 " << r.chi2 << " dof " << r.dof;
+}
+
+/* The random walk's normal (host code): the ziggurat's layers and its draws. */
+TEST(NormalZiggurat, LayersHaveEqualArea)
+{
+  using Z = neuralyarn::rdm::NormalZiggurat;
+  const Z &z = Z::get();
+  /* Layer 0: the rectangle up to r and the tail beyond it, integral_r^inf exp(-x^2 / 2) = sqrt(pi / 2) erfc(r / sqrt 2). */
+  const double tail = std::sqrt(kPi / 2.0) * std::erfc(Z::kR / std::sqrt(2.0));
+  EXPECT_NEAR((Z::kR * z.f[0] + tail) / Z::kArea, 1.0, 1e-9);
+  EXPECT_NEAR(z.x[0] * z.f[0] / Z::kArea, 1.0, 1e-12);
+  for (int i = 1; i < Z::kLayers; i++) {
+    EXPECT_NEAR(z.x[i] * (z.f[i + 1] - z.f[i]) / Z::kArea, 1.0, 1e-8) << "layer " << i;
+    EXPECT_NEAR(z.f[i], std::exp(-0.5 * z.x[i] * z.x[i]), 1e-15) << "layer " << i;
+    EXPECT_GT(z.x[i], z.x[i + 1]) << "layer " << i;
+  }
+}
+
+double standard_normal_pdf(double x) { return std::exp(-0.5 * x * x) / std::sqrt(2.0 * kPi); }
+
+TEST(NormalZiggurat, SamplesFollowTheNormal)
+{
+  const auto r = nytest::chi2_1d(
+      [](neuralyarn::Rng &rng) {
+        return neuralyarn::rdm::sample_standard_normal([&rng] { return neuralyarn::uniform_float(rng); });
+      },
+      standard_normal_pdf, 4000000, 400, 77);
+  ASSERT_TRUE(r.failure.empty()) << r.failure;
+  EXPECT_NEAR(r.interior_fraction, r.interior_mass, 1e-3);
+  EXPECT_GT(r.p_value, 0.01) << "chi2 " << r.chi2 << " dof " << r.dof;
+}
+
+/* |z| beyond 2: the wedges of the bottom layers and the tail past r = 3.44, which the whole-line test sees in
+ * a few cells only. */
+TEST(NormalZiggurat, TailFollowsTheNormal)
+{
+  const double cut = 2.0;
+  const double mass = std::erfc(cut / std::sqrt(2.0)); /* P(|z| > cut) */
+  const auto r = nytest::chi2_1d(
+      [&](neuralyarn::Rng &rng) {
+        for (;;) {
+          const double z = std::abs(neuralyarn::rdm::sample_standard_normal([&rng] { return neuralyarn::uniform_float(rng); }));
+          if (z > cut) {
+            return z;
+          }
+        }
+      },
+      [&](double x) { return x > cut ? 2.0 * standard_normal_pdf(x) / mass : 0.0; }, 1000000, 200, 78);
+  ASSERT_TRUE(r.failure.empty()) << r.failure;
   EXPECT_GT(r.p_value, 0.01) << "chi2 " << r.chi2 << " dof " << r.dof;
 }
 
