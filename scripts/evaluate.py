@@ -335,13 +335,22 @@ def light_rigs() -> dict[str, str]:
     return cli_table("--list-lights")
 
 
-def map_gather(path: str) -> dict:
-    """The `gather` object of a radiance distribution map file's header (paths, seed, ...; docs/file_formats.md)."""
+def map_header(path: str) -> dict:
+    """A radiance distribution map file's JSON header, with `payload_start` (the payload's byte offset in the
+    file) added (docs/file_formats.md)."""
     with open(path, "rb") as f:
         if f.read(8) != b"NYRDM\r\n\x1a":
             raise ValueError(f"{path}: not a radiance distribution map file (.nyrdm)")
         f.read(4)  # the format version
-        return json.loads(f.read(int.from_bytes(f.read(8), "little")))["gather"]
+        length = int.from_bytes(f.read(8), "little")
+        header = json.loads(f.read(length))
+    header["payload_start"] = 20 + length
+    return header
+
+
+def map_gather(path: str) -> dict:
+    """The `gather` object of a radiance distribution map file's header (paths, seed, ...)."""
+    return map_header(path)["gather"]
 
 
 def ply_length(distance: float, a) -> float:

@@ -415,3 +415,43 @@ def test_map_gather_reads_a_maps_paths_and_seed_and_refuses_other_files(tmp_path
     model.write_text("{}")
     with pytest.raises(ValueError, match="not a radiance distribution map file"):
         harness.map_gather(str(model))
+
+
+def test_compare_maps_finds_two_seeds_alike_and_a_shifted_map_apart(tmp_path):
+    """scripts/compare_maps.py is how a change to the walk that cannot keep the maps bit for bit (issue 21's
+    faster sampler) shows it keeps their expectation: two seeds of one build must give z-scores of RMS about 1,
+    and a copy of one map with M raised by 20 % (a bias far below what a glance at the maps would see) must not."""
+    import shutil
+    import sys
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    import compare_maps
+    import numpy as np
+    cli = os.path.join(BUILD, "cpp_core", "neuralyarn")
+    files = []
+    for seed in (21, 22):
+        out = tmp_path / f"fleece_{seed}.nyrdm"
+        r = subprocess.run([cli, "gather", "--preset", "fleece", "--paths", "4e5", "--seed", str(seed), "--bins",
+                            "4x8x4x8", "--variance", "--quiet", "--out", str(out)], capture_output=True, text=True,
+                           timeout=300)
+        assert r.returncode == 0, r.stderr
+        files.append(str(out))
+    alike = compare_maps.compare(*files)["maps"]
+    for name in ("r", "m"):
+        assert alike[name]["bins"] > 300, alike
+        assert 0.85 < alike[name]["rms"] < 1.2 and abs(alike[name]["mean"]) < 0.2, alike
+    shifted = str(tmp_path / "fleece_22_m_up.nyrdm")
+    shutil.copy(files[1], shifted)
+    arrays = compare_maps.read_arrays(shifted, ["m", "m_se"])
+    for name in ("m", "m_se"):
+        view = np.memmap(shifted, dtype=np.float32, mode="r+", offset=arrays[name].offset, shape=arrays[name].shape)
+        view *= 1.2
+        view.flush()
+    apart = compare_maps.compare(files[0], shifted)["maps"]
+    assert apart["m"]["rms"] > 1.5 and apart["m"]["mean"] < -0.5, apart
+    assert apart["r"] == alike["r"], "only M was changed"
+    with pytest.raises(ValueError, match="differ in bins"):
+        other = tmp_path / "coarse.nyrdm"
+        r = subprocess.run([cli, "gather", "--preset", "fleece", "--paths", "2e4", "--bins", "2x4x2x4", "--variance",
+                            "--quiet", "--out", str(other)], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+        compare_maps.compare(files[0], str(other))
