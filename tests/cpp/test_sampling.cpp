@@ -10,6 +10,7 @@
 #include "chi2.h"
 #include "neuralyarn/kernel/sampling.h"
 #include "neuralyarn/rdm/normal_ziggurat.h"
+#include "neuralyarn/rdm/von_mises_stream.h"
 #include "neuralyarn/units.h"
 #include "quadrature.h"
 
@@ -87,6 +88,22 @@ TEST_P(VonMisesTest, SamplesFollowPdf)
       [&](double x) { return double(ny::von_mises_pdf(float(x), float(kappa))); }, 1000000, 200, 2000 + GetParam());
   ASSERT_TRUE(r.failure.empty()) << "kappa " << kappa << ": " << r.failure;
   EXPECT_LE(r.interior_mass, 1.0 + 1e-4) << "kappa " << kappa;
+  EXPECT_GT(r.p_value, nytest::sidak_alpha(0.01, std::size(kKappas))) << "kappa " << kappa << ": chi2 " << r.chi2
+                                                                      << " dof " << r.dof;
+}
+
+/* The random walk's sampler (host code): the same density, the proposal's tangent from the quarter disc. */
+TEST_P(VonMisesTest, StreamSamplerFollowsPdf)
+{
+  const double kappa = kKappas[GetParam()];
+  const ny::VonMisesProposal p = ny::make_von_mises_proposal(float(kappa));
+  const auto r = nytest::chi2_1d(
+      [&](neuralyarn::Rng &rng) {
+        return 2.0 * std::atan(double(
+                         neuralyarn::rdm::sample_von_mises_half_tan(p, [&rng] { return neuralyarn::uniform_float(rng); })));
+      },
+      [&](double x) { return double(ny::von_mises_pdf(float(x), float(kappa))); }, 1000000, 200, 3000 + GetParam());
+  ASSERT_TRUE(r.failure.empty()) << "kappa " << kappa << ": " << r.failure;
   EXPECT_GT(r.p_value, nytest::sidak_alpha(0.01, std::size(kKappas))) << "kappa " << kappa << ": chi2 " << r.chi2
                                                                       << " dof " << r.dof;
 }

@@ -106,7 +106,7 @@ float CosSquaredRatioTable::operator()(float mu) const
 FiberLobeSampler::FiberLobeSampler(const ny::FiberBsdfParams &params, bool plain)
     : p_(params),
       plain_(plain),
-      kappa_TT_(1.0f / (params.gamma_TT * params.gamma_TT)),
+      von_mises_TT_(ny::make_von_mises_proposal(1.0f / (params.gamma_TT * params.gamma_TT))),
       ratio_R_(params.beta_R),
       ratio_TT_(params.beta_TT)
 {

@@ -152,15 +152,45 @@ NY_KERNEL_FN float von_mises_pdf(float delta, float kappa)
  * 1 + w = (r+1)(1+z)/(r+z), the proposal is exactly
  *     tan(theta / 2) = c tan(pi U / 2),   c = (1 - b) / (1 + b),
  * and the acceptance variable is Y = kappa (r - w) = kappa ((r - 1) + 2 sin^2(theta / 2)), where
- * r - 1 = (1 - b)^2 / (2 b). 1 - b itself is formed without cancellation (see below).
- *
- * u_angle in [0, 1) supplies the sign (its first half) and U (rescaled); u_accept in [0, 1) is the first
- * acceptance variate. Further variates, needed after a rejection (probability < 0.35 per round), come
- * from the hash chain. */
+ * r - 1 = (1 - b)^2 / (2 b). 1 - b itself is formed without cancellation (see below). */
+
+/* Best & Fisher's proposal for one concentration: tan(theta / 2) = c tan(pi U / 2), and the acceptance variable's
+ * offset r - 1. It depends on kappa alone, so a caller of one kappa (the random walk's TT lobe) makes it once.
+ *   tau = 1 + sqrt(1 + 4 kappa^2), b = (tau - sqrt(2 tau)) / (2 kappa). With
+ *   2 kappa - tau = -1 - 1 / (sqrt(1 + 4 kappa^2) + 2 kappa):
+ *   1 - b = (sqrt(2 tau) - 1 - 1 / (sqrt(1 + 4 kappa^2) + 2 kappa)) / (2 kappa). */
+struct VonMisesProposal {
+  float kappa, c, r_minus_1;
+};
+
+NY_KERNEL_FN VonMisesProposal make_von_mises_proposal(float kappa)
+{
+  const float root = sqrtf(1.0f + 4.0f * kappa * kappa);
+  const float tau = 1.0f + root;
+  const float one_minus_b = (sqrtf(2.0f * tau) - 1.0f - 1.0f / (root + 2.0f * kappa)) / (2.0f * kappa);
+  const float b = 1.0f - one_minus_b;
+  VonMisesProposal p;
+  p.kappa = kappa;
+  p.c = one_minus_b / (1.0f + b);
+  p.r_minus_1 = one_minus_b * one_minus_b / (2.0f * b);
+  return p;
+}
+
+/* Best & Fisher's acceptance of the proposal t = tan(theta / 2) (t = c tan(pi U / 2)) with variate v in [0, 1):
+ * Y = kappa ((r - 1) + 2 sin^2(theta / 2)), accepted when Y (2 - Y) > v (the squeeze) or ln(Y / v) + 1 >= Y. */
+NY_KERNEL_FN bool von_mises_accepts(NY_PRIVATE const VonMisesProposal &p, float t, float v)
+{
+  const float sh2 = t * t / (1.0f + t * t); /* sin^2(theta / 2) */
+  const float y = p.kappa * (p.r_minus_1 + 2.0f * sh2);
+  return y * (2.0f - y) - v > 0.0f || logf(y / v) + 1.0f - y >= 0.0f;
+}
+
 /* The sampler's core: returns t = tan(theta / 2) of the sampled angle theta in (-pi, pi], from which
  * callers form theta = 2 atan(t) or, without any inverse trigonometry, sin(theta) = 2t / (1 + t^2) and
  * cos(theta) = (1 - t^2) / (1 + t^2). (For kappa below kVonMisesUniformKappa the angle is uniform and t
- * = tan(pi u / 2) as well.) */
+ * = tan(pi u / 2) as well.) u_angle in [0, 1) supplies the sign (its first half) and U (rescaled); u_accept
+ * in [0, 1) is the first acceptance variate. Further variates, needed after a rejection (probability < 0.35
+ * per round), come from the hash chain. */
 NY_KERNEL_FN float sample_von_mises_half_tan(float kappa, float u_angle, float u_accept)
 {
   const bool negative = u_angle < 0.5f;
@@ -169,26 +199,14 @@ NY_KERNEL_FN float sample_von_mises_half_tan(float kappa, float u_angle, float u
     const float t = tanf(0.5f * kPi * u);
     return negative ? -t : t;
   }
-
-  /* tau = 1 + sqrt(1 + 4 kappa^2), b = (tau - sqrt(2 tau)) / (2 kappa). With
-   * 2 kappa - tau = -1 - 1 / (sqrt(1 + 4 kappa^2) + 2 kappa):
-   *   1 - b = (sqrt(2 tau) - 1 - 1 / (sqrt(1 + 4 kappa^2) + 2 kappa)) / (2 kappa). */
-  const float root = sqrtf(1.0f + 4.0f * kappa * kappa);
-  const float tau = 1.0f + root;
-  const float one_minus_b = (sqrtf(2.0f * tau) - 1.0f - 1.0f / (root + 2.0f * kappa)) / (2.0f * kappa);
-  const float b = 1.0f - one_minus_b;
-  const float c = one_minus_b / (1.0f + b);
-  const float r_minus_1 = one_minus_b * one_minus_b / (2.0f * b);
-
+  const VonMisesProposal p = make_von_mises_proposal(kappa);
   uint32_t chain = hash_pcg(float_bits(u_angle) ^ hash_pcg(float_bits(u_accept) + 0x9e3779b9u));
   float v = u_accept;
   float t = 0.0f;
   /* 64 rounds fail with probability < 0.35^64 ~ 1e-29; the last proposal is then returned. */
   for (int round = 0; round < 64; round++) {
-    t = c * tanf(0.5f * kPi * u);
-    const float sh2 = t * t / (1.0f + t * t); /* sin^2(theta / 2) */
-    const float y = kappa * (r_minus_1 + 2.0f * sh2);
-    if (y * (2.0f - y) - v > 0.0f || logf(y / v) + 1.0f - y >= 0.0f) {
+    t = p.c * tanf(0.5f * kPi * u);
+    if (von_mises_accepts(p, t, v)) {
       break;
     }
     u = hash_next_uniform(&chain);

@@ -34,6 +34,7 @@
 
 #include "neuralyarn/kernel/fiber_bsdf.h"
 #include "neuralyarn/rdm/normal_ziggurat.h"
+#include "neuralyarn/rdm/von_mises_stream.h"
 
 namespace neuralyarn::rdm {
 
@@ -79,7 +80,7 @@ class FiberLobeSampler {
 
   ny::FiberBsdfParams p_;
   bool plain_ = false;
-  float kappa_TT_;
+  ny::VonMisesProposal von_mises_TT_; /* kappa = 1 / gamma_TT^2 */
   CosSquaredRatioTable ratio_R_, ratio_TT_;
 };
 
@@ -146,8 +147,7 @@ bool FiberLobeSampler::sample(ny::Vec3 wi, ny::Rgb throughput, Uniform &&uniform
     sincosf(ny::kTwoPi * uniform() - ny::kPi, &sin_phi, &cos_phi);
   }
   else {
-    const float u1 = uniform(), u2 = uniform();
-    const float t = ny::sample_von_mises_half_tan(kappa_TT_, u1, u2);
+    const float t = sample_von_mises_half_tan(von_mises_TT_, uniform);
     const float inv = 1.0f / (1.0f + t * t);
     const float sd = 2.0f * t * inv, cd = (1.0f - t * t) * inv; /* sin, cos of the deviation delta */
     const float si_phi = cos_i > 0.0f ? wi.y / cos_i : 0.0f, ci_phi = cos_i > 0.0f ? wi.z / cos_i : 1.0f;
