@@ -4,7 +4,7 @@
 namespace neuralyarn::rdm {
 
 /* Each layer's right edge from the one below: f(x_{i+1}) = f(x_i) + v / x_i. With Marsaglia & Tsang's r and v
- * the top layer [0, x_127] x [f(x_127), 1] then has area v to ~1e-12 (tests/cpp/test_rdm.cpp checks it). */
+ * the top layer [0, x_127] x [f(x_127), 1] then has area v to ~1e-9 (tests/cpp/test_sampling.cpp checks every layer). */
 NormalZiggurat::NormalZiggurat()
 {
   const double f_r = std::exp(-0.5 * kR * kR);

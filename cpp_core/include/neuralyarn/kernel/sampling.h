@@ -154,8 +154,8 @@ NY_KERNEL_FN float von_mises_pdf(float delta, float kappa)
  * and the acceptance variable is Y = kappa (r - w) = kappa ((r - 1) + 2 sin^2(theta / 2)), where
  * r - 1 = (1 - b)^2 / (2 b). 1 - b itself is formed without cancellation (see below). */
 
-/* Best & Fisher's proposal for one concentration: tan(theta / 2) = c tan(pi U / 2), and the acceptance variable's
- * offset r - 1. It depends on kappa alone, so a caller of one kappa (the random walk's TT lobe) makes it once.
+/* The proposal's c and r - 1 for one concentration. They depend on kappa alone, so a caller of one kappa (the
+ * random walk's TT lobe) makes them once.
  *   tau = 1 + sqrt(1 + 4 kappa^2), b = (tau - sqrt(2 tau)) / (2 kappa). With
  *   2 kappa - tau = -1 - 1 / (sqrt(1 + 4 kappa^2) + 2 kappa):
  *   1 - b = (sqrt(2 tau) - 1 - 1 / (sqrt(1 + 4 kappa^2) + 2 kappa)) / (2 kappa). */
