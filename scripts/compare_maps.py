@@ -9,8 +9,8 @@ cannot keep them bit for bit; what it must keep is the distribution. Gather both
 standard error is at most --max-rel-se in both files (the standard error of a sparse bin is itself too noisy
 to divide by), the z-scores z = (a - b) / sqrt(se_a^2 + se_b^2): their mean, their RMS (1 when the maps
 differ by noise alone), the largest |z| and the share beyond 4; then the energies T, R, M of both summaries.
-Two seeds of one build give the RMS that noise alone gives (with the standard errors' own noise, a little
-above 1); a change that moves the expectation by a fraction of the noise per bin shows as a larger RMS
+Two seeds of one build give the RMS that noise alone gives (a little below 1 at paper-like bins: the standard
+errors' own noise and the selection of well-estimated bins; compare only beside such a pair); a change that moves the expectation by a fraction of the noise per bin shows as a larger RMS
 over the millions of bins of a paper-resolution map.
 """
 from __future__ import annotations
@@ -28,13 +28,13 @@ DTYPES = {"u64": np.uint64, "f32": np.float32, "f64": np.float64}
 
 
 def read_arrays(path: str, names: list[str]) -> dict[str, np.ndarray]:
-    """The named arrays of a map file (memory-mapped, read-only)."""
+    """The named arrays of a map file (memory-mapped, read-only); ValueError where one is missing."""
     header = evaluate.map_header(path)
     listed = {a["name"]: a for a in header["arrays"]}
     missing = [n for n in names if n not in listed]
     if missing:
         hint = " (gather with --variance)" if any(n.endswith("_se") for n in missing) else ""
-        raise SystemExit(f"{path}: no array {', '.join(missing)}{hint}")
+        raise ValueError(f"{path}: no array {', '.join(missing)}{hint}")
     out = {}
     for n in names:
         a = listed[n]

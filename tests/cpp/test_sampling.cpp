@@ -155,7 +155,7 @@ TEST(NormalZiggurat, SamplesFollowTheNormal)
 {
   const auto r = nytest::chi2_1d(
       [](neuralyarn::Rng &rng) {
-        return neuralyarn::rdm::sample_standard_normal([&rng] { return neuralyarn::uniform_float(rng); });
+        return neuralyarn::rdm::sample_standard_normal(neuralyarn::rdm::NormalZiggurat::get(), [&rng] { return neuralyarn::uniform_float(rng); });
       },
       standard_normal_pdf, 4000000, 400, 77);
   ASSERT_TRUE(r.failure.empty()) << r.failure;
@@ -172,7 +172,7 @@ TEST(NormalZiggurat, TailFollowsTheNormal)
   const auto r = nytest::chi2_1d(
       [&](neuralyarn::Rng &rng) {
         for (;;) {
-          const double z = std::abs(neuralyarn::rdm::sample_standard_normal([&rng] { return neuralyarn::uniform_float(rng); }));
+          const double z = std::abs(neuralyarn::rdm::sample_standard_normal(neuralyarn::rdm::NormalZiggurat::get(), [&rng] { return neuralyarn::uniform_float(rng); }));
           if (z > cut) {
             return z;
           }

@@ -76,18 +76,19 @@ class FiberLobeSampler {
  private:
   /* theta ~ TN(mu, beta) on [-pi/2, pi/2], |mu| <= pi/2: normal draws until one falls inside (the interval
    * holds at least half the normal's mass), or after kRejectionMaxRounds misses (p < 2^-64) the inverse CDF. */
-  template<class Uniform> static float sample_theta(float mu, float beta, Uniform &uniform);
+  template<class Uniform> float sample_theta(float mu, float beta, Uniform &uniform) const;
 
   ny::FiberBsdfParams p_;
   bool plain_ = false;
   ny::VonMisesProposal von_mises_TT_; /* kappa = 1 / gamma_TT^2 */
+  const NormalZiggurat *normal_ = &NormalZiggurat::get(); /* a pointer: the sampler stays assignable */
   CosSquaredRatioTable ratio_R_, ratio_TT_;
 };
 
-template<class Uniform> float FiberLobeSampler::sample_theta(float mu, float beta, Uniform &uniform)
+template<class Uniform> float FiberLobeSampler::sample_theta(float mu, float beta, Uniform &uniform) const
 {
   for (int round = 0; round < kRejectionMaxRounds; round++) {
-    const float theta = float(double(mu) + double(beta) * sample_standard_normal(uniform));
+    const float theta = float(double(mu) + double(beta) * sample_standard_normal(*normal_, uniform));
     if (theta >= -ny::kHalfPi && theta <= ny::kHalfPi) {
       return theta;
     }

@@ -28,14 +28,13 @@ struct NormalZiggurat {
   double x[kLayers + 1]; /* right edges, x[128] = 0        */
   double f[kLayers + 1]; /* exp(-x^2 / 2) at them          */
   NormalZiggurat();
-  /* The tables, built once. */
+  /* The tables, built once; a caller in a hot loop keeps the reference (no guard check per draw). */
   static const NormalZiggurat &get();
 };
 
-/* A standard normal variate; `uniform()` returns numbers in [0, 1) (24 bits or more). */
-template<class Uniform> double sample_standard_normal(Uniform &&uniform)
+/* A standard normal variate from the tables `zig`; `uniform()` returns numbers in [0, 1) (24 bits or more). */
+template<class Uniform> double sample_standard_normal(const NormalZiggurat &zig, Uniform &&uniform)
 {
-  const NormalZiggurat &zig = NormalZiggurat::get();
   for (;;) {
     const int bits = int(double(uniform()) * 256.0); /* top eight bits: layer and sign */
     const int i = bits >> 1;
