@@ -12,7 +12,7 @@ typedef unsigned int uint32_t;
 extern "C" {
 float sqrtf(float), expf(float), logf(float), sinf(float), cosf(float), tanf(float), asinf(float),
     acosf(float), atanf(float), atan2f(float, float), fabsf(float), fminf(float, float), fmaxf(float, float),
-    fmodf(float, float), erfcf(float);
+    fmodf(float, float), erfcf(float), rintf(float);
 }
 #define NY_KERNEL_DEVICE
 #define NY_KERNEL_FN inline
@@ -20,3 +20,4 @@ float sqrtf(float), expf(float), logf(float), sinf(float), cosf(float), tanf(flo
 #define NY_PRIVATE
 #define NY_CONSTANT static constexpr __attribute__((address_space(2))) /* Metal: static constant constexpr */
 #define NY_FLOAT_AS_UINT(f) __builtin_bit_cast(uint32_t, f)
+#define NY_UINT_AS_FLOAT(u) __builtin_bit_cast(float, u)

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <type_traits>
 #include <string>
 
 #include "neuralyarn/kernel/platform.h" /* NY_SIMD_LOOP */
@@ -198,6 +199,9 @@ void lanes_matvec(int R, int K, const S *m, long rs, long ks, const S *init, con
 
 template<class S> S head_value(int head, S z)
 {
+  if constexpr (std::is_same_v<S, float>) {
+    return ny::mlp_apply_head(head, z); /* the kernel's head (its fast_exp): what is trained is what renders */
+  }
   if (head == ny::kMlpHeadSigmoid) {
     return z >= 0 ? S(1) / (S(1) + std::exp(-z)) : std::exp(z) / (S(1) + std::exp(z));
   }
@@ -305,7 +309,13 @@ S Mlp<S>::pass(const Mat &X, const Mat *T, const Columns &columns, Loss loss, S 
       for (int i = 0; i < n_out; i++) {
         const S *z = Z + i * kLanes;
         S *out = An + i * kLanes;
-        if (!hidden) {
+        if (!hidden && std::is_same_v<S, float> && head == ny::kMlpHeadExp) {
+          NY_SIMD_LOOP /* the kernel's exp head, vectorised: M's outputs */
+          for (int t = 0; t < kLanes; t++) {
+            out[t] = S(ny::mlp_exp_head(float(z[t])));
+          }
+        }
+        else if (!hidden) {
           for (int t = 0; t < kLanes; t++) {
             out[t] = head_value<S>(head, z[t]);
           }

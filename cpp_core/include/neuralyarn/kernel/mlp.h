@@ -42,18 +42,22 @@ NY_KERNEL_FN int mlp_param_count(int L, NY_PRIVATE const int *widths)
   return n;
 }
 
+/* The exp head: e^z with z clamped to kMlpMaxExpArgument by a comparison, which is fminf's value (a NaN gives the
+ * bound) but stays inline, so that the host's loops over many outputs vectorise with fast_exp. */
+NY_KERNEL_FN float mlp_exp_head(float z) { return fast_exp(z < kMlpMaxExpArgument ? z : kMlpMaxExpArgument); }
+
 NY_KERNEL_FN float mlp_apply_head(int head, float z)
 {
   if (head == kMlpHeadSigmoid) {
     /* 1 / (1 + e^-z), written so that neither branch overflows. */
     if (z >= 0.0f) {
-      return 1.0f / (1.0f + expf(-z));
+      return 1.0f / (1.0f + fast_exp(-z));
     }
-    const float e = expf(z);
+    const float e = fast_exp(z);
     return e / (1.0f + e);
   }
   if (head == kMlpHeadExp) {
-    return expf(fminf(z, kMlpMaxExpArgument));
+    return mlp_exp_head(z);
   }
   return z;
 }

@@ -12,7 +12,7 @@
 // On the host and in Cycles' CPU kernel the only library this layer touches is the C math library (<cmath>
 // float functions: sqrtf, expf, ...). A GPU device (NY_KERNEL_DEVICE, which Cycles' __KERNEL_GPU__ sets)
 // includes no library header at all: the kernel language, or Cycles' util headers included before these,
-// give those functions and uint32_t, and NY_FLOAT_AS_UINT the bit cast. Pointers and references say where
+// give those functions and uint32_t, and NY_FLOAT_AS_UINT / NY_UINT_AS_FLOAT the bit casts. Pointers and references say where
 // their data lives: NY_GLOBAL (the model's array in device memory: Cycles' ccl_global) or NY_PRIVATE (the
 // thread's own values: ccl_private), so that address-space languages (Metal, OpenCL-style oneAPI) take them;
 // on the host both are empty. tests/device compiles every header in device mode with clang, the global
@@ -22,6 +22,7 @@
 #if defined(__KERNEL_GPU__) && !defined(NY_KERNEL_DEVICE)
 #  define NY_KERNEL_DEVICE
 #  define NY_FLOAT_AS_UINT(f) __float_as_uint(f)
+#  define NY_UINT_AS_FLOAT(u) __uint_as_float(u)
 #endif
 #if defined(ccl_global) && !defined(NY_GLOBAL)
 #  define NY_GLOBAL ccl_global
@@ -209,6 +210,52 @@ NY_KERNEL_FN uint32_t float_bits(float f)
   std::memcpy(&u, &f, sizeof(u));
   return u;
 #endif
+}
+
+/* The float with these bits: the inverse of float_bits. */
+NY_KERNEL_FN float float_from_bits(uint32_t u)
+{
+#ifdef NY_UINT_AS_FLOAT
+  return NY_UINT_AS_FLOAT(u);
+#else
+  float f;
+  std::memcpy(&f, &u, sizeof(f));
+  return f;
+#endif
+}
+
+/* e^x without a library call: libm's expf cannot be vectorised or inlined, and the networks' heads and the
+ * host's quadratures over them call it at every output (docs/benchmarks.md, D58). Cephes' expf: x = n ln 2 + r
+ * with |r| <= ln 2 / 2 (ln 2 in two parts, the first exact times any n here), e^r by its degree-7 polynomial,
+ * 2^n from exponent bits in two halves so that denormal results and those up to FLT_MAX need no branch. The
+ * argument is clamped to [-104, 89], beyond which the float result is 0 or +inf anyway (the product rounds
+ * there by itself). Worst error against double exp: under 2 float ulps over the finite range
+ * (tests/cpp/test_special.cpp). NaN in gives NaN. */
+NY_KERNEL_FN float fast_exp(float x)
+{
+  /* Comparisons, not fmaxf/fminf (see fast_atan2); a NaN takes the lower bound here and is restored below. */
+  float xc = x > -104.0f ? x : -104.0f;
+  xc = xc < 89.0f ? xc : 89.0f;
+  const float t = xc * 1.44269504088896341f; /* log2(e) */
+  /* t to the nearest integer: rintf where the device has it as an instruction; on the CPU, where GCC calls libm
+   * for rintf below SSE4.1, by adding and removing 1.5 * 2^23 (exact while |t| < 2^22; the kernels' flags do
+   * not reassociate). */
+#ifdef NY_KERNEL_DEVICE
+  const float fn = rintf(t);
+#else
+  const float fn = (t + 12582912.0f) - 12582912.0f;
+#endif
+  const int n = (int)fn;
+  const float r = (xc - fn * 0.693359375f) + fn * 2.12194440e-4f;
+  /* The polynomial in Estrin's form: a shorter chain of dependent operations than Horner's, for the scalar
+   * calls whose latency shows. */
+  const float r2 = r * r, r4 = r2 * r2;
+  const float p = (1.0f + r) + r2 * ((5.0000001201e-1f + 1.6666665459e-1f * r) +
+                                     r2 * (4.1665795894e-2f + 8.3334519073e-3f * r) +
+                                     r4 * (1.3981999507e-3f + 1.9875691500e-4f * r));
+  const int na = n / 2, nb = n - na; /* each in [-75, 64]: 2^na and 2^nb are normal floats */
+  const float e = p * float_from_bits((uint32_t)(na + 127) << 23) * float_from_bits((uint32_t)(nb + 127) << 23);
+  return (x == x) ? e : x;
 }
 
 }  // namespace ny

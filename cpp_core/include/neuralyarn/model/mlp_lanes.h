@@ -69,10 +69,10 @@ void mlp_forward_sized_lanes(const float *p, int head, const float *shared, cons
   p = mlp_layer_lanes<H, H, L>(p, true, nullptr, h1, h2);
   mlp_layer_lanes<H, O, L>(p, false, nullptr, h2, z);
   if (head == ny::kMlpHeadExp) {
-    /* mlp_apply_head's exp head with its clamp as a comparison (fminf(z, c) = z < c ? z : c, NaN included),
-     * which the compiler keeps inline; the quadratures spend most of their time here. */
+    /* The head outside the loop, so that it vectorises: the quadratures spend much of their time here. */
+    NY_SIMD_LOOP
     for (int j = 0; j < O * L; j++) {
-      out[j] = expf(z[j] < ny::kMlpMaxExpArgument ? z[j] : ny::kMlpMaxExpArgument);
+      out[j] = ny::mlp_exp_head(z[j]);
     }
     return;
   }
