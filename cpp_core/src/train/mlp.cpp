@@ -211,6 +211,23 @@ template<class S> S head_value(int head, S z)
   return z;
 }
 
+/* head_value on a block of lanes; the float exp head (M's outputs) in a loop that vectorises. */
+template<class S> void head_lanes(int head, const S *z, S *out)
+{
+  if constexpr (std::is_same_v<S, float>) {
+    if (head == ny::kMlpHeadExp) {
+      NY_SIMD_LOOP
+      for (int t = 0; t < kLanes; t++) {
+        out[t] = ny::mlp_exp_head(z[t]);
+      }
+      return;
+    }
+  }
+  for (int t = 0; t < kLanes; t++) {
+    out[t] = head_value<S>(head, z[t]);
+  }
+}
+
 /* d head / dz, given z and y = head(z). */
 template<class S> S head_derivative(int head, S z, S y)
 {
@@ -309,16 +326,8 @@ S Mlp<S>::pass(const Mat &X, const Mat *T, const Columns &columns, Loss loss, S 
       for (int i = 0; i < n_out; i++) {
         const S *z = Z + i * kLanes;
         S *out = An + i * kLanes;
-        if (!hidden && std::is_same_v<S, float> && head == ny::kMlpHeadExp) {
-          NY_SIMD_LOOP /* the kernel's exp head, vectorised: M's outputs */
-          for (int t = 0; t < kLanes; t++) {
-            out[t] = S(ny::mlp_exp_head(float(z[t])));
-          }
-        }
-        else if (!hidden) {
-          for (int t = 0; t < kLanes; t++) {
-            out[t] = head_value<S>(head, z[t]);
-          }
+        if (!hidden) {
+          head_lanes<S>(head, z, out);
         }
         else if (shape_.activation == Activation::kElu) {
           for (int t = 0; t < kLanes; t++) {
