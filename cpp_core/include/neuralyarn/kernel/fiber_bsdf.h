@@ -170,7 +170,7 @@ NY_KERNEL_FN float fiber_pdf_lobes(NY_PRIVATE const FiberLobes &l, Vec3 wo)
   const float pdf_TT = fiber_theta_pdf(l.m_TT, l.tn_TT, theta_o) *
                        von_mises_pdf(wrap_angle(phi_o - l.phi_i - kPi), l.kappa_TT);
   const float pdf = l.p_R * pdf_R + (1.0f - l.p_R) * pdf_TT;
-  return pdf / fmaxf(cos_theta(wo), kFiberMinCosTheta);
+  return pdf / maxf(cos_theta(wo), kFiberMinCosTheta);
 }
 
 NY_KERNEL_FN Rgb fiber_eval_lobes(NY_PRIVATE const FiberLobes &l, Vec3 wo)

@@ -75,7 +75,7 @@ NY_KERNEL_FN Vec3 to_world(NY_PRIVATE const Frame &f, Vec3 v) { return f.x * v.x
 NY_KERNEL_FN float sin_theta(Vec3 w) { return clampf(w.x, -1.0f, 1.0f); }
 /* cos(theta) >= 0, computed from the normal-plane components: accurate near the poles, where
  * sqrt(1 - x^2) would lose all digits. */
-NY_KERNEL_FN float cos_theta(Vec3 w) { return fminf(sqrtf(w.y * w.y + w.z * w.z), 1.0f); }
+NY_KERNEL_FN float cos_theta(Vec3 w) { return minf(sqrtf(w.y * w.y + w.z * w.z), 1.0f); }
 NY_KERNEL_FN float theta_of(Vec3 w) { return fast_atan2(w.x, cos_theta(w)); }
 NY_KERNEL_FN float phi_of(Vec3 w) { return fast_atan2(w.y, w.z); }
 

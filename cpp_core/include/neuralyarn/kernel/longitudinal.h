@@ -77,11 +77,28 @@ NY_KERNEL_FN float one_minus_exp_neg(float x)
   return 1.0f - expf(-x);
 }
 
+/* What G_inf takes from the width alone, exp(-2 beta^2) and (1 - exp(-2 beta^2)) / 2: made once for every lobe of
+ * that width (the yarn closure's R nodes share beta_R and beta_TT, docs/decisions.md D59). */
+struct Cos2Width {
+  float beta;
+  float e;    /* exp(-2 beta^2)           */
+  float half; /* (1 - exp(-2 beta^2)) / 2 */
+};
+
+NY_KERNEL_FN Cos2Width make_cos2_width(float beta)
+{
+  Cos2Width w;
+  w.beta = beta;
+  w.e = expf(-2.0f * beta * beta);
+  w.half = 0.5f * one_minus_exp_neg(2.0f * beta * beta);
+  return w;
+}
+
 /* G over the whole line (see the file comment); d = pi/2 - |mu|. */
-NY_KERNEL_FN float cos2_gaussian_untruncated(float d, float beta)
+NY_KERNEL_FN float cos2_gaussian_untruncated(float d, NY_PRIVATE const Cos2Width &w)
 {
   const float s = sinf(d);
-  return 0.5f * one_minus_exp_neg(2.0f * beta * beta) + s * s * expf(-2.0f * beta * beta);
+  return w.half + s * s * w.e;
 }
 
 /* Catmull-Rom spline through p0..p3 at x in [0, 1] between p1 and p2. */
@@ -107,34 +124,48 @@ NY_KERNEL_FN float cos2_gaussian_ratio(float beta, float t)
 }
 
 /* G(mu, beta), see the file comment. Requires beta > 0. */
-NY_KERNEL_FN float cos2_gaussian_normalizer(float mu, float beta)
+NY_KERNEL_FN float cos2_gaussian_normalizer(float mu, NY_PRIVATE const Cos2Width &w)
 {
+  const float beta = w.beta;
   const float dist_to_bound = kHalfPi - fabsf(mu);
   if (dist_to_bound >= 6.0f * beta) {
-    return cos2_gaussian_untruncated(dist_to_bound, beta);
+    return cos2_gaussian_untruncated(dist_to_bound, w);
   }
   if (beta <= kCos2TableBetaMax) {
-    const float d = fmaxf(dist_to_bound, 0.0f);
-    return cos2_gaussian_untruncated(d, beta) * cos2_gaussian_ratio(beta, d / beta);
+    const float d = maxf(dist_to_bound, 0.0f);
+    return cos2_gaussian_untruncated(d, w) * cos2_gaussian_ratio(beta, d / beta);
   }
-  const float lo = fmaxf(-kHalfPi, mu - 9.0f * beta);
-  const float hi = fminf(kHalfPi, mu + 9.0f * beta);
+  const float lo = maxf(mu - 9.0f * beta, -kHalfPi);
+  const float hi = minf(mu + 9.0f * beta, kHalfPi);
   if (mu > lo && mu < hi) {
     return cos2_gaussian_panel(mu, beta, lo, mu) + cos2_gaussian_panel(mu, beta, mu, hi);
   }
   return cos2_gaussian_panel(mu, beta, lo, hi);
 }
 
+NY_KERNEL_FN float cos2_gaussian_normalizer(float mu, float beta)
+{
+  const Cos2Width w = make_cos2_width(beta);
+  return cos2_gaussian_normalizer(mu, w);
+}
+
 /* G(mu, beta) for a lobe wider than the table (a fiber's TT past 30 degrees) near a bound: one 16-node panel
  * over [mu - 6 beta, mu + 6 beta] clipped to [-pi/2, pi/2] (the tails beyond 6 beta hold 2e-9). Against dense
  * quadrature the worst relative error over beta in [5, 40] degrees and mu in [-pi/2, pi/2] is 1e-5, at half
  * the cost of the two-panel rule; lobes the table holds go to cos2_gaussian_normalizer. */
+NY_KERNEL_FN float cos2_gaussian_normalizer_wide(float mu, NY_PRIVATE const Cos2Width &w)
+{
+  const float beta = w.beta;
+  if (beta <= kCos2TableBetaMax || kHalfPi - fabsf(mu) >= 6.0f * beta) {
+    return cos2_gaussian_normalizer(mu, w); /* the table, or the closed form holds */
+  }
+  return cos2_gaussian_panel(mu, beta, maxf(mu - 6.0f * beta, -kHalfPi), minf(mu + 6.0f * beta, kHalfPi));
+}
+
 NY_KERNEL_FN float cos2_gaussian_normalizer_wide(float mu, float beta)
 {
-  if (beta <= kCos2TableBetaMax || kHalfPi - fabsf(mu) >= 6.0f * beta) {
-    return cos2_gaussian_normalizer(mu, beta); /* the table, or the closed form holds */
-  }
-  return cos2_gaussian_panel(mu, beta, fmaxf(-kHalfPi, mu - 6.0f * beta), fminf(kHalfPi, mu + 6.0f * beta));
+  const Cos2Width w = make_cos2_width(beta);
+  return cos2_gaussian_normalizer_wide(mu, w);
 }
 
 /* A longitudinal lobe gbar(.; mu, beta) with its normaliser computed once. */
@@ -144,14 +175,20 @@ struct LongitudinalLobe {
 };
 
 /* `wide`: G by cos2_gaussian_normalizer_wide (a fiber's TT, beta >= 5 degrees). */
-NY_KERNEL_FN LongitudinalLobe make_longitudinal_lobe(float mu, float beta, bool wide = false)
+NY_KERNEL_FN LongitudinalLobe make_longitudinal_lobe(float mu, NY_PRIVATE const Cos2Width &w, bool wide = false)
 {
   LongitudinalLobe lobe;
   lobe.mu = mu;
-  lobe.beta = beta;
-  const float G = wide ? cos2_gaussian_normalizer_wide(mu, beta) : cos2_gaussian_normalizer(mu, beta);
-  lobe.inv_beta_G = (G > 0.0f) ? 1.0f / (beta * G) : 0.0f;
+  lobe.beta = w.beta;
+  const float G = wide ? cos2_gaussian_normalizer_wide(mu, w) : cos2_gaussian_normalizer(mu, w);
+  lobe.inv_beta_G = (G > 0.0f) ? 1.0f / (w.beta * G) : 0.0f;
   return lobe;
+}
+
+NY_KERNEL_FN LongitudinalLobe make_longitudinal_lobe(float mu, float beta, bool wide = false)
+{
+  const Cos2Width w = make_cos2_width(beta);
+  return make_longitudinal_lobe(mu, w, wide);
 }
 
 /* gbar(theta) given g = normal_pdf((theta - mu) / beta): one g serves every lobe of that mean and width. */

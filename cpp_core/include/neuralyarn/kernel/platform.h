@@ -143,9 +143,14 @@ NY_KERNEL_FN float average(Rgb a) { return (a.r + a.g + a.b) * (1.0f / 3.0f); }
 /* Scalar helpers.                                                                                    */
 /* ------------------------------------------------------------------------------------------------ */
 
-NY_KERNEL_FN float clampf(float x, float lo, float hi) { return fminf(fmaxf(x, lo), hi); }
+/* max(a, b) and min(a, b) by a comparison, not fmaxf/fminf: GCC calls libm for those (NaN rules) unless math is
+ * finite-only, and they sat in every R node's eval (docs/decisions.md D59). fmaxf's and fminf's value for every a
+ * (a NaN a gives b) when b is not NaN, but for the sign of a zero against a zero: pass the bound second. */
+NY_KERNEL_FN float maxf(float a, float b) { return a > b ? a : b; }
+NY_KERNEL_FN float minf(float a, float b) { return a < b ? a : b; }
+NY_KERNEL_FN float clampf(float x, float lo, float hi) { return minf(maxf(x, lo), hi); }
 NY_KERNEL_FN float sqr(float x) { return x * x; }
-NY_KERNEL_FN float safe_sqrtf(float x) { return sqrtf(fmaxf(x, 0.0f)); }
+NY_KERNEL_FN float safe_sqrtf(float x) { return sqrtf(maxf(x, 0.0f)); }
 NY_KERNEL_FN float safe_asinf(float x) { return asinf(clampf(x, -1.0f, 1.0f)); }
 NY_KERNEL_FN float pow5(float x)
 {

@@ -113,7 +113,7 @@ constexpr float kMinUniform = 2.3283064e-10f; /* 2^-32 */
  * ~13 sigma of the mean for its mass to be a float); otherwise the result is a bound. */
 NY_KERNEL_FN float sample_truncated_normal(NY_PRIVATE const TruncatedNormal &tn, float u)
 {
-  u = fmaxf(u, kMinUniform);
+  u = maxf(u, kMinUniform);
   float z;
   const float p = tn.lower + u * tn.mass;
   if (p <= 0.5f) {

@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 //
-// Special functions needed by the exact samplers: the standard normal CDF and its inverse, and the
+// Special functions needed by the exact samplers: erfc, the standard normal CDF and its inverse, and the
 // exponentially scaled modified Bessel function I0 (the von Mises normaliser).
 //
 // Accuracy (checked against Boost.Math in double by tests/cpp/test_special.cpp): a few float ulps for
-// Phi and Phi^-1 over their whole range including the far tails, about 5e-7 relative for I0e.
+// erfc, Phi and Phi^-1 over their whole range including the far tails, about 5e-7 relative for I0e.
 #pragma once
 
 #include "platform.h"
@@ -14,12 +14,40 @@ namespace ny {
 /* Standard normal density. */
 NY_KERNEL_FN float normal_pdf(float z) { return kInvSqrtTwoPi * expf(-0.5f * z * z); }
 
+/* erfc(x) without libm's erfcf, which takes two exponentials per call and was a fifth of the yarn closure's
+ * per-shading-point work (docs/decisions.md D59). For a = |x|, h(a) = (1 + 2a) exp(a^2) erfc(a) runs smoothly
+ * from 1 to 2 / sqrt(pi) over [0, inf): h = 1 + (1 + t) Q(t) with t = (a - 2) / (a + 2) and Q of degree 8, in
+ * Estrin's form, holds it to 1.3e-8 relative (scripts/make_erfc_fit.py), so erfc(a) = exp(-a^2) h / (1 + 2a)
+ * keeps full relative precision deep into the tail, erfc(0) is 1 exactly, and erfc(-a) = 2 - erfc(a). Past
+ * a = 10.1 erfc is below float's smallest denormal. */
+NY_KERNEL_FN float fast_erfc(float x)
+{
+  const float a = fabsf(x);
+  if (!(a < 10.1f)) {
+    return x < 0.0f ? 2.0f : (a == a ? 0.0f : x); /* NaN stays NaN */
+  }
+  const float r = 1.0f / (a + 2.0f);
+  const float t = (a - 2.0f) * r, one_plus_t = 2.0f * a * r;
+  const float t2 = t * t, t4 = t2 * t2;
+  const float Q = ((0.276978403f - 0.369742364f * t) + t2 * (0.203710958f - 0.0396555625f * t)) +
+                  t4 * ((-0.0145488139f + 0.00648865988f * t) + t2 * (0.00214332598f - 0.000829156081f * t)) -
+                  0.000401109864f * (t4 * t4);
+  const float h = 1.0f + one_plus_t * Q;
+  /* exp(-a^2) with a^2 = s + d split exactly (Dekker: a's upper 12 significand bits squared are exact), as
+   * exp(-s) (1 - d): the rounding of a^2 alone costs up to a^2 ulps, 64 at a = 9. */
+  const float s = a * a;
+  const float a_hi = float_from_bits(float_bits(a) & 0xfffff000u), a_lo = a - a_hi;
+  const float d = ((a_hi * a_hi - s) + 2.0f * a_hi * a_lo) + a_lo * a_lo;
+  const float e = h / (1.0f + 2.0f * a) * (expf(-s) * (1.0f - d));
+  return x < 0.0f ? 2.0f - e : e;
+}
+
 /* Phi(z) = P(Z <= z). Written with erfc so that the lower tail keeps full relative precision down to
  * about z = -13 (where erf-based 0.5 * (1 + erf) would already have cancelled to zero at z = -5.5). */
-NY_KERNEL_FN float normal_cdf(float z) { return 0.5f * erfcf(-z * kInvSqrt2); }
+NY_KERNEL_FN float normal_cdf(float z) { return 0.5f * fast_erfc(-z * kInvSqrt2); }
 
 /* 1 - Phi(z) = Phi(-z), accurate in the upper tail. */
-NY_KERNEL_FN float normal_ccdf(float z) { return 0.5f * erfcf(z * kInvSqrt2); }
+NY_KERNEL_FN float normal_ccdf(float z) { return 0.5f * fast_erfc(z * kInvSqrt2); }
 
 /* Phi^-1(p) by Wichura's algorithm AS 241 (PPND16, Applied Statistics 37(3), 1988): rational
  * approximations in three regions, relative accuracy ~1e-16 in double and therefore float-exact here.

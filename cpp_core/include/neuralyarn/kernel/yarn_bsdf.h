@@ -453,7 +453,7 @@ NY_KERNEL_FN float yarn_reflection_scale(NY_PRIVATE const YarnBsdfParams &p, Vec
 /* Smallest escape factor 1 - P_T the M network is multiplied by (and its targets were divided by). */
 constexpr float kYarnMinEscape = 0.02f;
 
-NY_KERNEL_FN float yarn_escape(float P_T) { return fmaxf(1.0f - P_T, kYarnMinEscape); }
+NY_KERNEL_FN float yarn_escape(float P_T) { return maxf(1.0f - P_T, kYarnMinEscape); }
 
 /* The direction whose energies (P_T, the R lobe's weight, the M network's input and scale) serve w_i: w_i
  * itself, but beyond the calibration table's last theta_i centre that centre's direction at the same
@@ -534,6 +534,14 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
    * phi~_i + pi truncated to the upper half: without a share it is never evaluated nor sampled, no erfc). */
   l.n_R = (p.free_path > 0.0f || p.r_frames) ? kYarnRNodes : 1;
   const bool has_tt = average(l.tau) > 0.0f;
+  /* The normalisers' constants of each width once for all nodes (eval's alone). */
+  Cos2Width w_R = Cos2Width{p.fiber.beta_R, 0.0f, 0.0f}, w_TT = Cos2Width{p.fiber.beta_TT, 0.0f, 0.0f};
+  if (with_eval) {
+    w_R = make_cos2_width(p.fiber.beta_R);
+    if (has_tt) {
+      w_TT = make_cos2_width(p.fiber.beta_TT);
+    }
+  }
   for (int q = 0; q < l.n_R; q++) {
     NY_PRIVATE YarnRNode &n = l.node[q];
     n.pre = TwistRotation{1.0f, 0.0f};
@@ -553,11 +561,11 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
       const float s = p.free_path * yarn_r_node_path(q), a = -wi.y * s;
       n.ca = cosf(a);
       n.sa = sinf(a);
-      n.twist = make_twist_rotation(p.alpha * fmaxf(1.0f - s * wi.z, 0.0f));
+      n.twist = make_twist_rotation(p.alpha * maxf(1.0f - s * wi.z, 0.0f));
     }
     const Vec3 wi_q = l.n_R == 1 ? l.wi_f : yarn_to_r_node(n, wi);
     const float theta_q = theta_of(wi_q);
-    n.m_R = with_eval ? make_longitudinal_lobe(-theta_q, p.fiber.beta_R)
+    n.m_R = with_eval ? make_longitudinal_lobe(-theta_q, w_R)
                       : LongitudinalLobe{-theta_q, p.fiber.beta_R, 0.0f};
     n.tn_R = make_truncated_normal(-theta_q, p.fiber.beta_R, -kHalfPi, kHalfPi);
     n.tn_TT = n.tn_R;
@@ -569,7 +577,7 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
         l.tau = make_rgb(0.0f); /* every node's TT part must hold the lobe's energy, or none has a share */
       }
       n.tn_TT = make_truncated_normal(-theta_q, p.fiber.beta_TT, -kHalfPi, kHalfPi);
-      n.m_TT = with_eval ? make_longitudinal_lobe(-theta_q, p.fiber.beta_TT, true)
+      n.m_TT = with_eval ? make_longitudinal_lobe(-theta_q, w_TT, true)
                          : LongitudinalLobe{-theta_q, p.fiber.beta_TT, 0.0f};
     }
   }
@@ -679,7 +687,7 @@ constexpr float kYarnMinCosTheta = 1e-7f;
 NY_KERNEL_FN void yarn_pdf_R_factors(NY_PRIVATE const YarnLobes &l, NY_PRIVATE const YarnRTheta &t,
                                      NY_PRIVATE const YarnRPhi &a, NY_PRIVATE float *pdf_R, NY_PRIVATE float *pdf_TT)
 {
-  const float inv_cos = 1.0f / fmaxf(t.c, kYarnMinCosTheta);
+  const float inv_cos = 1.0f / maxf(t.c, kYarnMinCosTheta);
   *pdf_R = t.p_R * kInvPi * inv_cos;
   *pdf_TT = l.q_TT > 0.0f ? t.p_TT * a.p_TT * inv_cos : 0.0f;
 }
@@ -792,7 +800,7 @@ NY_KERNEL_FN float yarn_m_proxy_pdf(NY_PRIVATE const TruncatedNormal &tn_M, floa
                                     NY_PRIVATE const YarnOutgoing &o)
 {
   const float lobe = truncated_normal_pdf(tn_M, o.theta) * von_mises_pdf(o.phi, kappa_vm) /
-                     fmaxf(o.cos_theta, kYarnMinCosTheta);
+                     maxf(o.cos_theta, kYarnMinCosTheta);
   return kappa_M * lobe + (1.0f - kappa_M) * kInvFourPi;
 }
 
