@@ -46,7 +46,7 @@ const char *act_name(train::Activation a)
 
 }  // namespace
 
-int main(int argc, char **argv)
+int bench_main(int argc, char **argv)
 {
   CLI::App app{"Training benchmarks"};
   std::string maps_path, widths = "6-21-21-3", export_dir;
@@ -130,4 +130,16 @@ int main(int argc, char **argv)
     std::fflush(stdout);
   }
   return 0;
+}
+
+int main(int argc, char **argv)
+{
+  /* A map file that cannot be read or widths the maps cannot train: the message and a non-zero exit. */
+  try {
+    return bench_main(argc, argv);
+  }
+  catch (const std::exception &e) {
+    std::fprintf(stderr, "bench_train: error: %s\n", e.what());
+    return 1;
+  }
 }
