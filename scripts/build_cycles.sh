@@ -25,7 +25,10 @@ PATCH_HASH=$( (echo "neuralyarn-patch-set-1"; for p in "${PATCHES[@]}"; do sha25
 if [[ ! -f "$SRC/.neuralyarn-patches" ]] || [[ "$(cat "$SRC/.neuralyarn-patches")" != "$PATCH_HASH" ]]; then
   echo "applying ${#PATCHES[@]} patch(es) to a fresh copy of the source"
   rm -rf "$SRC.tmp"
-  cp -a "$PRISTINE" "$SRC.tmp"
+  # The tree's contents, not the path: a blender-src that is a link to a shared pristine tree would otherwise be
+  # copied as the link, and the patches would change the shared tree through it.
+  mkdir "$SRC.tmp"
+  cp -a "$PRISTINE/." "$SRC.tmp/"
   for p in "${PATCHES[@]}"; do
     if ! patch -d "$SRC.tmp" -p1 --forward --quiet < "$p"; then
       echo "error: patch $(basename "$p") does not apply to blender 4.3.2+dfsg (is the source tree the verified one?)" >&2
