@@ -22,8 +22,10 @@ A benchmark: prints, never a test.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
+from collections import defaultdict
 
 import numpy as np
 
@@ -45,8 +47,6 @@ def sparkles(img: np.ndarray) -> int:
 def same_scene(eval_dir: str, image: str | None) -> int:
     """The per-pixel comparison over an evaluate.sh run's renders (see the module's docstring); `image`: each
     group's seed-1 renders side by side, the sparkle pixels that no other native seed has in green."""
-    import json
-    from collections import defaultdict
     path = os.path.join(eval_dir, "results.json")
     if not os.path.isfile(path):
         raise SystemExit(f"bench_sparkle: {path} is missing (--eval takes the --out directory of an evaluate.sh run)")
