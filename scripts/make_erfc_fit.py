@@ -35,15 +35,13 @@ def fit(degree: int, points: int = 4000, iterations: int = 60) -> tuple[np.ndarr
     h = (1.0 + 2.0 * a) * special.erfcx(a)
     V = np.vander(t, degree + 1, increasing=True) * (1.0 + t)[:, None]  # h - 1 = (1 + t) Q(t)
     w = np.ones_like(t)
-    c = None
     for _ in range(iterations):  # Lawson: weights grow where the error is largest, towards equioscillation
         sw = np.sqrt(w) / h
         c, *_ = np.linalg.lstsq(V * sw[:, None], (h - 1.0) * sw, rcond=None)
         err = np.abs(1.0 + V @ c - h) / h
         w = w * err
         w /= w.sum()
-    err = np.abs(1.0 + V @ c - h) / h
-    return c, float(err.max())
+    return c, float(err.max())  # the error of the last fit
 
 
 def main() -> None:
