@@ -16,7 +16,8 @@ MAX_WEIGHT = 100.0
 
 CLOSURES = ("ggx", "diffuse", "translucent")
 MAX_LOBES = 8
-# Cycles clamps GGX roughness to [0, 1]; the fit (model/fallback.h) keeps alpha in [0.001, 1].
+# Cycles clamps GGX roughness to [0, 1]. The core writes alpha in [0.1, 1] since D60; files written before it
+# (down to 0.001) still read: their tables were fitted to their own lobes.
 ALPHA_MIN, ALPHA_MAX = 0.001, 1.0
 
 

@@ -367,6 +367,41 @@ TEST(Fallback, ShippedModelsCarryCurrentTables)
   }
 }
 
+/* fallback_lobes: alpha = 0.9147 beta where that is above the floor; no GGX lobe below kFallbackAlphaMin
+ * (a glossy fiber's R lobe as a stock GGX renders garments as glitter, D60), and the M ladder's lobes distinct
+ * and in order even where beta_M's alpha is below the floor. */
+TEST(Fallback, LobesKeepTheRoughnessFloorAndADistinctLadder)
+{
+  const double per_beta = std::sqrt(2.0 * std::log(2.0)) / (2.0 * std::sqrt(std::sqrt(2.0) - 1.0));
+  for (const double beta_R_deg : {0.5, 1.0, 3.0, 8.0, 20.0}) {
+    for (const double beta_M_deg : {0.5, 2.0, 6.0, 12.0, 20.0}) {
+      model::FallbackTables f;
+      f.beta_R_rad = beta_R_deg * kPi / 180.0;
+      f.beta_M_rad = beta_M_deg * kPi / 180.0;
+      const std::vector<model::FallbackLobe> lobes = model::fallback_lobes(f);
+      ASSERT_EQ(lobes.size(), 6u);
+      for (int k = 0; k < 4; k++) {
+        ASSERT_EQ(lobes[size_t(k)].closure, "ggx");
+        EXPECT_GE(lobes[size_t(k)].alpha_x, model::kFallbackAlphaMin) << beta_R_deg << " " << beta_M_deg << " " << k;
+        EXPECT_LE(lobes[size_t(k)].alpha_x, 1.0);
+        EXPECT_EQ(lobes[size_t(k)].alpha_y, 1.0);
+      }
+      EXPECT_LT(lobes[1].alpha_x, lobes[2].alpha_x) << beta_M_deg;
+      EXPECT_LT(lobes[2].alpha_x, lobes[3].alpha_x) << beta_M_deg;
+      const double aR = per_beta * f.beta_R_rad, aM = per_beta * f.beta_M_rad;
+      if (aR >= model::kFallbackAlphaMin) {
+        EXPECT_NEAR(lobes[0].alpha_x, aR, 1e-12);
+      }
+      if (aM >= 2.0 * model::kFallbackAlphaMin) {
+        EXPECT_NEAR(lobes[1].alpha_x, 0.5 * aM, 1e-12);
+        EXPECT_NEAR(lobes[2].alpha_x, aM, 1e-12);
+      }
+      EXPECT_EQ(lobes[4].closure, "diffuse");
+      EXPECT_EQ(lobes[5].closure, "translucent");
+    }
+  }
+}
+
 /* The host copy of Cycles' GGX (model/cycles_lobes.h): its importance-sampled albedo equals a brute
  * midpoint quadrature of its eval over the hemisphere, for a narrow anisotropic lobe (silk's R), a
  * medium one and an isotropic rough one, at normal, oblique and grazing views; the diffuse and

@@ -242,8 +242,10 @@ std::vector<FallbackLobe> fallback_lobes(const FallbackTables &f)
 {
   /* GGX slope half width at half maximum alpha sqrt(sqrt 2 - 1); theta_o moves twice the half vector. */
   const double per_beta = std::sqrt(2.0 * std::log(2.0)) / (2.0 * std::sqrt(std::sqrt(2.0) - 1.0));
-  auto alpha = [](double a) { return std::min(std::max(a, 0.001), 1.0); };
-  const double aR = alpha(per_beta * f.beta_R_rad), aM = per_beta * f.beta_M_rad;
+  auto alpha = [](double a) { return std::min(std::max(a, kFallbackAlphaMin), 1.0); };
+  /* The M ladder's base at least twice the floor, so that its lobes stay distinct under the floor. */
+  const double aR = alpha(per_beta * f.beta_R_rad);
+  const double aM = std::max(per_beta * f.beta_M_rad, 2.0 * kFallbackAlphaMin);
   return {{"ggx", aR, 1.0},
           {"ggx", alpha(0.5 * aM), 1.0},
           {"ggx", alpha(aM), 1.0},

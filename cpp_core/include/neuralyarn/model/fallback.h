@@ -18,8 +18,8 @@
 // What the fallbacks render (version 2): P_T transparent() plus a weighted sum of built-in closures,
 //
 //   sum_k W_k(view) lobe_k,   lobes (fallback_lobes()): GGX about the surface fibers' tangent t_f with
-//   alpha_x from beta_R, beta_M / 2, beta_M, 2.5 beta_M and alpha_y = 1 (uniform in the half-vector's
-//   azimuth, like the model's R lobe), diffuse(n), translucent(n);
+//   alpha_x from beta_R, beta_M / 2, beta_M, 2.5 beta_M (none below kFallbackAlphaMin) and alpha_y = 1
+//   (uniform in the half-vector's azimuth, like the model's R lobe), diffuse(n), translucent(n);
 //
 // with the RGB weights W_k fitted per view cell to the model's R + M lobes (yarn_eval_lobes) over all light
 // directions: non-negative least squares of the *relative* error, |sum_k W_k lobe_k - S| / (S + eps) with
@@ -100,9 +100,15 @@ struct FallbackOptions {
 
 FallbackTables compute_fallback(const YarnModel &model, const FallbackOptions &options = {});
 
+/* The narrowest GGX lobe a fallback uses: a stock GGX closure as narrow as a glossy fiber's R lobe renders
+ * garments as glitter that the native closure does not show; the floor was chosen by measuring that
+ * sparkle and the fallback's error per light (docs/decisions.md D60). */
+constexpr double kFallbackAlphaMin = 0.1;
+
 /* The lobes the weights refer to, from the scalars (beta_R_rad, beta_M_rad): alpha = 0.9147 beta gives a
  * GGX the half width at half maximum in theta_o of a Gaussian of width beta (the slope's half width
- * alpha sqrt(sqrt 2 - 1) doubled, against beta sqrt(2 ln 2)); clamped to [0.001, 1]. */
+ * alpha sqrt(sqrt 2 - 1) doubled, against beta sqrt(2 ln 2)); clamped to [kFallbackAlphaMin, 1], the M
+ * ladder's base (beta_M's alpha) to at least 2 kFallbackAlphaMin so that its three lobes stay distinct. */
 std::vector<FallbackLobe> fallback_lobes(const FallbackTables &scalars);
 
 /* A lobe's eval (f |cos theta_o|, Cycles' convention) and directional albedo, view v and light o in the
