@@ -105,6 +105,77 @@ TEST(YarnBsdf, ReflectionLobeEnergyIsHalfTheFiberR)
   }
 }
 
+/* A renderer's glossy filter (yarn_lobes_blur, Cycles' bsdf_blur): the R nodes' lobes become at least that
+ * wide, the R lobe keeps its energy (rho_R F / 2 by quadrature), the pdf still integrates to 1 and the sampler
+ * draws with the blurred lobes' density; a width below the model's changes nothing. */
+TEST(YarnBsdf, BlurWidensTheRLobeAndKeepsItsEnergy)
+{
+  const model::YarnModel m = synthetic_model("silk", 3);
+  const std::vector<float> flat = m.kernel_flat();
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+  const float beta_min = ny::yarn_beta_of_ggx_alpha(0.3f);
+  ASSERT_LT(p.fiber.beta_R, 0.5f * beta_min);
+  for (double theta_i : {0.3, 1.0, 1.45}) {
+    SCOPED_TRACE(theta_i);
+    const ny::Vec3 wi = from_polar(theta_i, 0.6);
+    const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+    ny::YarnLobes same = l;
+    ny::yarn_lobes_blur(same, 0.5f * p.fiber.beta_R);
+    EXPECT_EQ(std::memcmp(&same.node, &l.node, sizeof(l.node)), 0) << "a width below the model's changed a lobe";
+    ny::YarnLobes b = l;
+    ny::yarn_lobes_blur(b, beta_min);
+    for (int q = 0; q < b.n_R; q++) {
+      EXPECT_EQ(b.node[q].tn_R.sigma, beta_min);
+      EXPECT_EQ(b.node[q].m_R.beta, beta_min);
+      EXPECT_GE(b.node[q].tn_TT.sigma, beta_min);
+      EXPECT_EQ(b.node[q].tn_R.mu, l.node[q].tn_R.mu);
+    }
+    /* Energy of the blurred R lobe, node by node over its own frame (as ReflectionLobeEnergyIsHalfTheFiberR). */
+    const int nt = 1200, np = 256;
+    double e = 0.0;
+    for (int q = 0; q < b.n_R; q++) {
+      for (int i = 0; i < nt; i++) {
+        const double th = -kPi / 2 + kPi * (i + 0.5) / nt;
+        for (int j = 0; j < np; j++) {
+          const double ph = -kPi + 2 * kPi * (j + 0.5) / np;
+          ny::Rgb R, TT;
+          ny::yarn_eval_R_parts(b, q, ny::yarn_outgoing(ny::direction_from_angles(float(th), float(ph))), &R, &TT);
+          e += ny::average((ny::make_rgb(1.0f) - b.tau) * R + b.tau * TT) * std::cos(th) * (kPi / nt) * (2 * kPi / np) /
+               b.n_R;
+        }
+      }
+    }
+    EXPECT_NEAR(e, 0.5 * ny::average(l.weight_R), 2e-3 * ny::average(l.weight_R));
+    /* The blurred lobe is lower at its peak: the R node 0's value at its specular direction. */
+    const ny::Vec3 peak_f = ny::direction_from_angles(l.node[0].tn_R.mu, 0.0f);
+    ny::Rgb R0, TT0, R1, TT1;
+    ny::yarn_eval_R_parts(l, 0, ny::yarn_outgoing(peak_f), &R0, &TT0);
+    ny::yarn_eval_R_parts(b, 0, ny::yarn_outgoing(peak_f), &R1, &TT1);
+    EXPECT_LT(ny::average(R1), 0.5f * ny::average(R0));
+    /* The pdf over the sphere (yarn frame, midpoint rule) and the sampler's density at its own draws. */
+    const int mt = 720, mp = 720;
+    double total = 0.0;
+    for (int i = 0; i < mt; i++) {
+      const double th = kPi * (i + 0.5) / mt;
+      for (int j = 0; j < mp; j++) {
+        const double ph = 2 * kPi * (j + 0.5) / mp;
+        total += ny::yarn_pdf_lobes(p, b, from_polar(th, ph)) * std::sin(th) * (kPi / mt) * (2 * kPi / mp);
+      }
+    }
+    EXPECT_NEAR(total, 1.0, 5e-3);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    for (int k = 0; k < 2000; k++) {
+      ny::YarnSample s;
+      if (!ny::yarn_sample_lobes(p, b, u(rng), u(rng), u(rng), false, &s)) {
+        continue;
+      }
+      const float pdf = ny::yarn_pdf_lobes(p, b, s.wo);
+      ASSERT_NEAR(s.pdf, pdf, 1e-4f * pdf + 1e-6f) << k;
+    }
+  }
+}
+
 TEST(YarnBsdf, PdfIntegratesToOneAndSamplerMatchesIt)
 {
   /* The free path's R nodes, and a yarn's in the frames of its surface fibers (their own P_q turns). */

@@ -589,6 +589,36 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
   return l;
 }
 
+/* A renderer's glossy filter (Cycles' Filter Glossy, bsdf_blur): after rough bounces it may widen the glossy
+ * lobes to cut the noise of caustic paths, at the price of bias. Every R node's longitudinal lobes (the
+ * reflection's and the TT part's, and their proposals, which are the same Gaussians) become at least beta_min
+ * wide; their weights stay, so the R lobe's energy stays, and M (already broad) is left as it is. */
+NY_KERNEL_FN void yarn_lobes_blur(NY_PRIVATE YarnLobes &l, float beta_min)
+{
+  if (!(beta_min > 0.0f)) {
+    return;
+  }
+  for (int q = 0; q < l.n_R; q++) {
+    NY_PRIVATE YarnRNode &n = l.node[q];
+    if (n.tn_R.sigma < beta_min) {
+      n.m_R = make_longitudinal_lobe(n.tn_R.mu, beta_min, true);
+      n.tn_R = make_truncated_normal(n.tn_R.mu, beta_min, -kHalfPi, kHalfPi);
+    }
+    if (n.tn_TT.sigma < beta_min) {
+      n.m_TT = make_longitudinal_lobe(n.tn_TT.mu, beta_min, true);
+      n.tn_TT = make_truncated_normal(n.tn_TT.mu, beta_min, -kHalfPi, kHalfPi);
+    }
+  }
+}
+
+/* The longitudinal width whose Gaussian has the half width at half maximum in theta_o of a GGX lobe of roughness
+ * alpha (the slope's half width alpha sqrt(sqrt 2 - 1), doubled; model/fallback.h matches the other way): how
+ * a renderer's roughness, e.g. Cycles' blur roughness, becomes a width of this closure. */
+NY_KERNEL_FN float yarn_beta_of_ggx_alpha(float alpha)
+{
+  return alpha * 1.0932373f; /* 2 sqrt(sqrt 2 - 1) / sqrt(2 ln 2) */
+}
+
 /* The R lobe's energy from w_i, exactly: half of weight_R = c_R rho_R F, the half of the fiber's R lobe whose
  * azimuths leave the surface (each of its parts integrates to it, yarn_eval_R_parts). */
 NY_KERNEL_FN Rgb yarn_energy_R(NY_PRIVATE const YarnLobes &l) { return l.weight_R * 0.5f; }
