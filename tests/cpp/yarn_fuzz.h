@@ -2,7 +2,8 @@
 // Fuzzing the aggregated yarn BSDF (issue 19): eval, pdf and sample of kernel/yarn_bsdf.h on random models
 // (synthetic_model.h: random networks with biases from very dark to saturated, every preset's twist,
 // random proxies from an all-R needle to a uniform M), w_i and w_o anywhere on the sphere (with exactly
-// normal and exactly tangent w_i among them) and random numbers including the interval ends. Every output
+// normal and exactly tangent w_i among them), every third call with the lobes widened by a renderer's glossy
+// filter of random roughness (D61), and random numbers including the interval ends. Every output
 // must be finite and non-negative, and a sampled direction a unit vector. Work is split into chunks of
 // kFuzzChunk iterations whose model and random numbers depend only on (seed, chunk): the same result at any
 // thread count. Used by the CI test (test_yarn_bsdf.cpp, 10^7 calls) and by the on-demand program
@@ -77,12 +78,23 @@ inline FuzzResult fuzz_yarn_bsdf(long iterations, uint64_t seed, const std::func
         wi = ny::make_vec3(1.0f, 0.0f, 0.0f); /* exactly along the tangent, grazing */
       }
       const ny::Vec3 wo = ny::normalize(ny::make_vec3(S(rng), S(rng), S(rng)));
-      float pdf = 0;
-      const ny::Rgb f = ny::yarn_eval(p, wi, wo, &pdf);
-      const float pdf2 = ny::yarn_pdf(p, wi, wo);
+      float pdf = 0, pdf2 = 0;
+      ny::Rgb f;
       ny::YarnSample s;
       const float u1 = u(), u2 = u(), u3 = u();
-      const bool ok = ny::yarn_sample(p, wi, u1, u2, u3, (i & 1) != 0, &s);
+      bool ok;
+      if (i % 3 == 2) { /* a renderer's glossy filter (Cycles' bsdf_blur, D61): the stored lobes widened */
+        ny::YarnLobes l = ny::yarn_lobes(p, wi);
+        ny::yarn_lobes_blur(l, ny::yarn_beta_of_ggx_alpha(0.5f * U(rng)));
+        f = ny::yarn_eval_pdf_lobes(p, l, wo, &pdf);
+        pdf2 = ny::yarn_pdf_lobes(p, l, wo);
+        ok = ny::yarn_sample_lobes(p, l, u1, u2, u3, (i & 1) != 0, &s);
+      }
+      else {
+        f = ny::yarn_eval(p, wi, wo, &pdf);
+        pdf2 = ny::yarn_pdf(p, wi, wo);
+        ok = ny::yarn_sample(p, wi, u1, u2, u3, (i & 1) != 0, &s);
+      }
       const bool good = std::isfinite(f.r) && std::isfinite(f.g) && std::isfinite(f.b) && f.r >= 0 && f.g >= 0 &&
                         f.b >= 0 && std::isfinite(pdf) && pdf >= 0 && std::isfinite(pdf2) && pdf2 >= 0 &&
                         std::isfinite(s.weight.r) && std::isfinite(s.weight.g) && std::isfinite(s.weight.b) &&
