@@ -41,6 +41,26 @@ ny::Vec3 from_polar(double theta, double phi)
                        float(std::cos(theta)));
 }
 
+/* The R lobe's energy (mean channel) by the midpoint rule on an nt x np grid: each R node over its own fiber
+ * frame's (theta~, phi~), dw = cos theta~ dtheta~ dphi~, averaged over the nodes. */
+double r_lobe_energy(const ny::YarnLobes &l, int nt, int np)
+{
+  double e = 0.0;
+  for (int q = 0; q < l.n_R; q++) {
+    for (int i = 0; i < nt; i++) {
+      const double th = -kPi / 2 + kPi * (i + 0.5) / nt;
+      for (int j = 0; j < np; j++) {
+        const double ph = -kPi + 2 * kPi * (j + 0.5) / np;
+        ny::Rgb R, TT;
+        ny::yarn_eval_R_parts(l, q, ny::yarn_outgoing(ny::direction_from_angles(float(th), float(ph))), &R, &TT);
+        e += ny::average((ny::make_rgb(1.0f) - l.tau) * R + l.tau * TT) * std::cos(th) * (kPi / nt) *
+             (2 * kPi / np) / l.n_R;
+      }
+    }
+  }
+  return e;
+}
+
 /* Fallback tables of 4 x 4 cells: enough to follow them through a file. */
 model::FallbackTables small_fallback(const model::YarnModel &m)
 {
@@ -84,22 +104,8 @@ TEST(YarnBsdf, ReflectionLobeEnergyIsHalfTheFiberR)
       if (theta_i > 1.4) {
         EXPECT_GT(l.q_TT, 0.1f) << preset;
       }
-      /* Integrate each R node over its own fiber frame's (theta~, phi~): dw = cos theta~ dtheta~ dphi~. */
       ASSERT_EQ(l.n_R, ny::kYarnRNodes) << preset;
-      const int nt = 6000, np = 512;
-      double e = 0.0;
-      for (int q = 0; q < l.n_R; q++) {
-        for (int i = 0; i < nt; i++) {
-          const double th = -kPi / 2 + kPi * (i + 0.5) / nt;
-          for (int j = 0; j < np; j++) {
-            const double ph = -kPi + 2 * kPi * (j + 0.5) / np;
-            ny::Rgb R, TT;
-            ny::yarn_eval_R_parts(l, q, ny::yarn_outgoing(ny::direction_from_angles(float(th), float(ph))), &R, &TT);
-            e += ny::average((ny::make_rgb(1.0f) - l.tau) * R + l.tau * TT) * std::cos(th) * (kPi / nt) *
-                 (2 * kPi / np) / l.n_R;
-          }
-        }
-      }
+      const double e = r_lobe_energy(l, 6000, 512);
       EXPECT_NEAR(e, 0.5 * ny::average(l.weight_R), 2e-3 * ny::average(l.weight_R)) << preset << " " << theta_i;
     }
   }
@@ -130,21 +136,8 @@ TEST(YarnBsdf, BlurWidensTheRLobeAndKeepsItsEnergy)
       EXPECT_GE(b.node[q].tn_TT.sigma, beta_min);
       EXPECT_EQ(b.node[q].tn_R.mu, l.node[q].tn_R.mu);
     }
-    /* Energy of the blurred R lobe, node by node over its own frame (as ReflectionLobeEnergyIsHalfTheFiberR). */
-    const int nt = 1200, np = 256;
-    double e = 0.0;
-    for (int q = 0; q < b.n_R; q++) {
-      for (int i = 0; i < nt; i++) {
-        const double th = -kPi / 2 + kPi * (i + 0.5) / nt;
-        for (int j = 0; j < np; j++) {
-          const double ph = -kPi + 2 * kPi * (j + 0.5) / np;
-          ny::Rgb R, TT;
-          ny::yarn_eval_R_parts(b, q, ny::yarn_outgoing(ny::direction_from_angles(float(th), float(ph))), &R, &TT);
-          e += ny::average((ny::make_rgb(1.0f) - b.tau) * R + b.tau * TT) * std::cos(th) * (kPi / nt) * (2 * kPi / np) /
-               b.n_R;
-        }
-      }
-    }
+    /* Energy of the blurred R lobe (a wide lobe: a coarser grid than ReflectionLobeEnergyIsHalfTheFiberR's). */
+    const double e = r_lobe_energy(b, 1200, 256);
     EXPECT_NEAR(e, 0.5 * ny::average(l.weight_R), 2e-3 * ny::average(l.weight_R));
     /* The blurred lobe is lower at its peak: the R node 0's value at its specular direction. */
     const ny::Vec3 peak_f = ny::direction_from_angles(l.node[0].tn_R.mu, 0.0f);

@@ -598,15 +598,22 @@ NY_KERNEL_FN void yarn_lobes_blur(NY_PRIVATE YarnLobes &l, float beta_min)
   if (!(beta_min > 0.0f)) {
     return;
   }
+  const Cos2Width w = make_cos2_width(beta_min);
   for (int q = 0; q < l.n_R; q++) {
     NY_PRIVATE YarnRNode &n = l.node[q];
+    if (!(n.tn_R.sigma < beta_min) && !(n.tn_TT.sigma < beta_min)) {
+      continue;
+    }
+    /* Both parts share the node's mean -theta~_i (yarn_lobes): one widened lobe serves either. */
+    const LongitudinalLobe m = make_longitudinal_lobe(n.tn_R.mu, w, true);
+    const TruncatedNormal tn = make_truncated_normal(n.tn_R.mu, beta_min, -kHalfPi, kHalfPi);
     if (n.tn_R.sigma < beta_min) {
-      n.m_R = make_longitudinal_lobe(n.tn_R.mu, beta_min, true);
-      n.tn_R = make_truncated_normal(n.tn_R.mu, beta_min, -kHalfPi, kHalfPi);
+      n.m_R = m;
+      n.tn_R = tn;
     }
     if (n.tn_TT.sigma < beta_min) {
-      n.m_TT = make_longitudinal_lobe(n.tn_TT.mu, beta_min, true);
-      n.tn_TT = make_truncated_normal(n.tn_TT.mu, beta_min, -kHalfPi, kHalfPi);
+      n.m_TT = m;
+      n.tn_TT = tn;
     }
   }
 }
