@@ -44,9 +44,10 @@ def sparkles(img: np.ndarray) -> int:
     return int(sparkle_mask(img).sum())
 
 
-def same_scene(eval_dir: str, image: str | None) -> int:
+def same_scene(eval_dir: str, image: str | None, also: list[str] | None = None) -> int:
     """The per-pixel comparison over an evaluate.sh run's renders (see the module's docstring); `image`: each
-    group's seed-1 renders side by side, the sparkle pixels that no other native seed has in green."""
+    group's seed-1 renders side by side, the sparkle pixels that no other native seed has in green; `also`:
+    NAME=PATTERN, more renders of the run's scenes as a method NAME (PATTERN with {preset} and {seed})."""
     path = os.path.join(eval_dir, "results.json")
     if not os.path.isfile(path):
         raise SystemExit(f"bench_sparkle: {path} is missing (--eval takes the --out directory of an evaluate.sh run)")
@@ -58,10 +59,20 @@ def same_scene(eval_dir: str, image: str | None) -> int:
             continue
         key = (r["scene"], r["preset"], r["light"], r["distance"], r["spp"])
         img = read_exr(os.path.join(eval_dir, r["image"]))[..., :3]
-        groups[key][r["method"]][r["seed"]] = (sparkle_mask(img), img if r["seed"] == 1 else None)
+        groups[key][r["method"]][r["seed"]] = (sparkle_mask(img), img)
+    for spec in also or []:
+        name, sep, pattern = spec.partition("=")
+        if not sep or not name or "{seed}" not in pattern:
+            raise SystemExit(f"bench_sparkle: --also {spec!r}: expected NAME=PATTERN with {{seed}} (and {{preset}})")
+        for key, methods in groups.items():
+            for seed in methods.get("native", {}):
+                path = pattern.format(preset=key[1], seed=seed)
+                if os.path.isfile(path):
+                    img = read_exr(path)[..., :3]
+                    methods[name][seed] = (sparkle_mask(img), img)
     print("| scene | preset | light | spp | method | seeds | sparkle pixels (mean) | of them in no native render of "
-          "another seed (mean) | frame pixels |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "another seed (mean) | of those brighter than the native renders' 99th percentile (mean) | frame pixels |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     compared = 0
     panels = []
     for (scene, preset, light, distance, spp), methods in sorted(groups.items(), key=lambda kv: str(kv[0])):
@@ -71,19 +82,24 @@ def same_scene(eval_dir: str, image: str | None) -> int:
                   "(evaluate.sh --seeds 3)", file=sys.stderr)
             continue
         row = []
+        # What a viewer sees as glitter: an unmatched sparkle pixel as bright as the native image's brightest
+        # lit pixels (most of the count sits in dim gaps, where 10x a dark median is still dark).
+        lum = np.mean([img for _, img in native.values()], axis=0) @ LUMINANCE
+        p99 = np.percentile(lum[lum > 1e-4], 99.0) if (lum > 1e-4).any() else 0.0
         for method, masks in methods.items():
-            counts, new = [], []
+            counts, new, bright = [], [], []
             for seed, (mask, img) in masks.items():
                 seen = np.logical_or.reduce([m for s, (m, _) in native.items() if s != seed])
                 counts.append(int(mask.sum()))
                 new.append(int((mask & ~seen).sum()))
-                if img is not None:
+                bright.append(int((mask & ~seen & (img @ LUMINANCE > p99)).sum()))
+                if seed == 1:
                     shown = display(img, exposure_of(img)).copy()
                     shown[mask & ~seen] = (0.0, 1.0, 0.0)
                     row.append((f"{preset} {method}: {new[-1]} of {counts[-1]}", shown))
             size = next(iter(masks.values()))[0].size
             print(f"| {scene} | {preset} | {light} | {spp} | {method} | {len(masks)} | {np.mean(counts):.0f} | "
-                  f"{np.mean(new):.0f} | {size} |")
+                  f"{np.mean(new):.0f} | {np.mean(bright):.0f} | {size} |")
             compared += 1
         panels.append(row)
     if image and panels:
@@ -110,9 +126,12 @@ def main() -> int:
     ap.add_argument("--image", help="write the six renders side by side here (PNG; with --eval, each group's seed-1 "
                                     "renders, the sparkle pixels no other native seed has in green)")
     ap.add_argument("--eval", metavar="DIR", help="compare the renders of this evaluate.sh run pixel by pixel instead")
+    ap.add_argument("--also", nargs="+", metavar="NAME=PATTERN",
+                    help="with --eval: more renders of the run's scenes as a method NAME, PATTERN a path with {preset} "
+                         "and {seed} (e.g. a fallback re-rendered with other tables by fallback_render.py)")
     a = ap.parse_args()
     if a.eval:
-        return same_scene(a.eval, a.image)
+        return same_scene(a.eval, a.image, a.also)
     os.makedirs(a.out, exist_ok=True)
     panels = []
     for spp in (16, 64):
