@@ -706,7 +706,23 @@ class Commands : public ModelCommands {
     check_writable(out);
     fbopt_.threads = threads_;
     m.fallback = model::compute_fallback(m, fbopt_);
-    model::save_model(m, out);
+    /* Only the fallback object changes (and code_version, the writer's): a layout 4 or 5 kernel array stays as
+     * the file holds it (the loader reads it as layout 6), and the tables name that array. Files whose older
+     * arrays cannot carry tables (versions 1-3) are written in the current format. */
+    const auto written = j.contains("kernel_flat") ? j["kernel_flat"] : nlohmann::json();
+    const bool keep = written.is_array() && !written.empty() && written[0].is_number() &&
+                      (written[0].get<double>() == 4.0 || written[0].get<double>() == 5.0 ||
+                       written[0].get<double>() == double(ny::kYarnFlatFormat));
+    if (keep) {
+      m.fallback->kernel_flat_hash = model::fnv1a64_hex(written.get<std::vector<float>>());
+      j["fallback"] = model::fallback_to_json(*m.fallback);
+      j["code_version"] = std::string(kVersion) + "+" + kGitRevision;
+      model::model_from_json(j, source); /* loads as written (the tables name the array) before it replaces anything */
+      write_file_atomically(out, j.dump(1) + "\n", "");
+    }
+    else {
+      model::save_model(m, out);
+    }
     print_fallback(*m.fallback);
     std::printf("wrote %s\n", out.c_str());
     return 0;
