@@ -430,6 +430,16 @@ struct SceneCommand {
                     "Cloth layers: sheets of plies side by side, stacked away from the camera (1: the single ply)")
         ->check(CLI::Range(1, 256))
         ->capture_default_str();
+    cmd->add_option_function<std::vector<double>>(
+           "--layer-pitch",
+           [this](const std::vector<double> &v) {
+             opt.layer_pitch_y = v[0];
+             opt.layer_pitch_z = v.size() > 1 ? v[1] : v[0];
+           },
+           "With --layers: ply axes this far apart within a sheet, and (second value, default the first) between "
+           "sheets, in ply radii (default 2.05: touching but for a small gap; at least 2)")
+        ->expected(1, 2)
+        ->check(finite_range(2.0, 100.0));
     cmd->add_option("--level", opt.level,
                     "With --plies and --model (or --baseline): draw the plies (a ply-level model) or the file's yarns "
                     "(a yarn-level model); with --surface: the file's cloth surface (the surface level)")

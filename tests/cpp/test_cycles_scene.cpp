@@ -354,6 +354,36 @@ TEST(CyclesScene, LayersAreSheetsOfPliesStackedAwayFromTheCamera)
   EXPECT_THROW(scene_text(o), std::runtime_error);
 }
 
+TEST(CyclesScene, LayerPitchesSpaceThePliesWithinAndBetweenSheets)
+{
+  PlySceneOptions o;
+  o.model = std::string(NY_TEST_DATA_DIR) + "/../../models/fleece.json";
+  o.layers = 2;
+  o.layer_pitch_y = 3.0;
+  o.layer_pitch_z = 4.0;
+  const std::vector<double> nkeys = hair_attribute(scene_text(o), "nkeys"), p = hair_keys(scene_text(o));
+  /* ceil(12 tan 0.45 / 3) + 1 = 3 plies each side of the axis: 7 per sheet, two sheets. */
+  ASSERT_EQ(nkeys.size(), 2u * 7u);
+  double z_max = 0.0, y_max = 0.0;
+  for (size_t i = 0; i < p.size(); i += 3) {
+    y_max = std::max(y_max, std::abs(p[i + 1]));
+    z_max = std::max(z_max, p[i + 2]);
+  }
+  EXPECT_NEAR(y_max, 3 * 3.0, 1e-5);
+  EXPECT_NEAR(z_max, 4.0, 1e-5);
+  /* Plies that would overlap, a pitch that is not a number, and a pitch without layers are refused. */
+  for (const double bad : {1.99, 100.5, std::nan("")}) {
+    o.layer_pitch_y = bad;
+    EXPECT_THROW(scene_text(o), std::runtime_error) << bad;
+    o.layer_pitch_y = 3.0;
+    o.layer_pitch_z = bad;
+    EXPECT_THROW(scene_text(o), std::runtime_error) << bad;
+    o.layer_pitch_z = 4.0;
+  }
+  o.layers = 1;
+  EXPECT_THROW(scene_text(o), std::runtime_error);
+}
+
 TEST(CyclesScene, ArtistBounceLimitsAreBlendersDefaultsWithTheAddonsTransparency)
 {
   PlySceneOptions o;

@@ -142,6 +142,15 @@ LightRig check_options(const FiberPreset &preset, const PlySceneOptions &o)
   if (o.layers < 1 || o.layers > 256) {
     throw std::runtime_error("layers must be in [1, 256], got " + std::to_string(o.layers));
   }
+  for (const double pitch : {o.layer_pitch_y, o.layer_pitch_z}) {
+    if (!(pitch >= 2.0 && pitch <= 100.0)) {
+      throw std::runtime_error("a layer pitch must be in [2, 100] ply radii (below 2 the plies overlap), got " +
+                               std::to_string(pitch));
+    }
+  }
+  if (o.layers == 1 && (o.layer_pitch_y != 2.05 || o.layer_pitch_z != 2.05)) {
+    throw std::runtime_error("a layer pitch needs layers (2 or more): one layer is the single ply");
+  }
   if (!(o.light_scale > 0.0 && o.light_scale <= 1e6)) {
     throw std::runtime_error("light_scale must be in (0, 1e6], got " + std::to_string(o.light_scale));
   }
@@ -231,8 +240,8 @@ struct Placement {
 };
 
 /* The plies: one on the x axis, or `layers` sheets of plies side by side (along y, enough to fill the
- * frame's height at the camera's distance) stacked away from the camera (along +z), touching but for a
- * small gap. */
+ * frame's height at the camera's distance) stacked away from the camera (along +z), by default touching but
+ * for a small gap (the pitches). */
 std::vector<Placement> ply_placements(const PlySceneOptions &o)
 {
   std::vector<Placement> plies;
@@ -240,12 +249,11 @@ std::vector<Placement> ply_placements(const PlySceneOptions &o)
     plies.push_back({0.0, 0.0, o.ply_rotation_deg});
   }
   else {
-    constexpr double kPitch = 2.05;
-    const int half = int(std::ceil(o.camera_distance * std::tan(0.5 * kCloseupCameraFov) / kPitch)) + 1;
+    const int half = int(std::ceil(o.camera_distance * std::tan(0.5 * kCloseupCameraFov) / o.layer_pitch_y)) + 1;
     for (int k = 0; k < o.layers; k++) {
       for (int j = -half; j <= half; j++) {
         /* Each explicit ply another orientation of the cross-section (the golden angle apart). */
-        plies.push_back({kPitch * j, kPitch * k, o.ply_rotation_deg + 137.5 * double(plies.size())});
+        plies.push_back({o.layer_pitch_y * j, o.layer_pitch_z * k, o.ply_rotation_deg + 137.5 * double(plies.size())});
       }
     }
   }
