@@ -669,7 +669,14 @@ int main(int argc, char **argv)
   SurfaceCommand surface(app);
   auto model_commands = add_model_commands(app);
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  }
+  catch (const CLI::ParseError &e) {
+    /* CLI11 prints the message (naming the option) or the help; every usage error exits 1, as every other error
+     * of this tool, instead of CLI11's own codes (105 for a value out of range, 109 for an extra argument ...). */
+    return app.exit(e) == 0 ? 0 : 1;
+  }
 
   try {
     const int rc = model_commands->run();
