@@ -437,7 +437,8 @@ struct SceneCommand {
              opt.layer_pitch_z = v.size() > 1 ? v[1] : v[0];
            },
            "With --layers: ply axes this far apart within a sheet, and (second value, default the first) between "
-           "sheets, in ply radii (default 2.05: touching but for a small gap; at least 2)")
+           "sheets, in ply radii (at least 2)")
+        ->default_str(CLI::detail::to_string(scenes::kLayerPitch))
         ->expected(1, 2)
         ->check(finite_range(2.0, 100.0));
     cmd->add_option("--level", opt.level,

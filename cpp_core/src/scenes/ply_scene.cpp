@@ -148,7 +148,7 @@ LightRig check_options(const FiberPreset &preset, const PlySceneOptions &o)
                                std::to_string(pitch));
     }
   }
-  if (o.layers == 1 && (o.layer_pitch_y != 2.05 || o.layer_pitch_z != 2.05)) {
+  if (o.layers == 1 && (o.layer_pitch_y != kLayerPitch || o.layer_pitch_z != kLayerPitch)) {
     throw std::runtime_error("a layer pitch needs layers (2 or more): one layer is the single ply");
   }
   if (!(o.light_scale > 0.0 && o.light_scale <= 1e6)) {

@@ -58,6 +58,9 @@ std::string light_rig_names();
  * otherwise. */
 LightRig find_light_rig(const std::string &name);
 
+/* The layered scene's ply spacing by default, in ply radii: touching but for a small gap. */
+constexpr double kLayerPitch = 2.05;
+
 struct PlySceneOptions {
   int width = 320, height = 160;
   double ply_length = 16.0;     /* along x, centred on the origin (a 2:1 frame is 23 wide at the ply: the ends show) */
@@ -75,8 +78,8 @@ struct PlySceneOptions {
   double unit_scale = 1.0;       /* every length (ply, camera, lights) times this: a ply of radius 1e-3 or 1e3 */
   int layers = 1;                /* > 1: cloth layers, each a sheet of parallel plies side by side (along y),
                                   * stacked away from the camera (+z) — light through all of them */
-  double layer_pitch_y = 2.05;   /* with layers: ply axes this far apart within a sheet, in ply radii (>= 2: */
-  double layer_pitch_z = 2.05;   /* plies do not overlap; 2.05 touch but for a small gap), and between sheets */
+  double layer_pitch_y = kLayerPitch; /* with layers: ply axes this far apart within a sheet, in ply radii (>= 2: */
+  double layer_pitch_z = kLayerPitch; /* plies do not overlap), and between sheets */
   std::string plies;             /* instead of the straight ply: these ply centrelines (scenes/ply_curves.h, e.g. a
                                   * garment); explicit: each ply's fibers swept along it (geometry/sweep.h) */
   std::string level = "plies";   /* aggregated version of `plies`: "plies" (each ply a curve, a ply-level model) or
