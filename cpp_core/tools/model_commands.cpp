@@ -655,10 +655,15 @@ class Commands : public ModelCommands {
       const model::CentreBound b = model::bound_between_centres(&m, model::kBoundSub, threads_);
       if (b.nodes > 0) {
         refresh_fallback(&m);
+        model::save_model(m, out);
       }
-      model::save_model(m, out);
-      std::printf("bound between the calibration centres: %d of %d nodes lowered, smallest factor %.4f; wrote %s\n",
-                  b.nodes, m.calibration.theta_bins * m.calibration.phi_bins, b.smallest, out.c_str());
+      else if (out != model_) {
+        /* Nothing lowered: the model is the one read, so the file is too (an older layout stays as written). */
+        write_file_atomically(out, read_file(model_), "");
+      }
+      std::printf("bound between the calibration centres: %d of %d nodes lowered, smallest factor %.4f; %s %s\n",
+                  b.nodes, m.calibration.theta_bins * m.calibration.phi_bins, b.smallest,
+                  b.nodes == 0 && out == model_ ? "left unchanged" : "wrote", out.c_str());
     }
     const std::vector<float> flat = m.kernel_flat();
     const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());

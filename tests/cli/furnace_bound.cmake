@@ -1,6 +1,6 @@
 # `neuralyarn furnace MODEL --bound` (decisions D28): a shipped model is already bounded between its
-# calibration centres, so the verb lowers no node and writes the same kernel array and fallback tables (compared
-# with the model as this build writes it: a shipped file of an older layout is written in this one);
+# calibration centres, so the verb lowers no node and writes the file it read, byte for byte (a shipped file of an
+# older layout stays in it);
 # --out without --bound, and a model that does not exist, are refused and write nothing.
 # Arguments: -DCLI=<neuralyarn> -DMODEL=<shipped model> -DOUT=<directory>
 file(REMOVE_RECURSE ${OUT})
@@ -15,9 +15,13 @@ foreach(step IN ITEMS "${MODEL};${OUT}/resaved.json" "${OUT}/resaved.json;${OUT}
     message(FATAL_ERROR "the shipped model was not bounded already (${rc}):\n${out}\n${err}")
   endif()
 endforeach()
-# The written model is the one it read: same calibration and fallback tables (nothing to recompute).
+# The written model is the one it read: the same file, so the same calibration and fallback tables.
+file(READ ${MODEL} original)
 file(READ ${OUT}/resaved.json shipped)
 file(READ ${OUT}/bound.json written)
+if(NOT original STREQUAL shipped)
+  message(FATAL_ERROR "--bound rewrote a model it did not lower")
+endif()
 string(JSON shipped_cal GET "${shipped}" kernel_flat)
 string(JSON written_cal GET "${written}" kernel_flat)
 string(JSON shipped_fb GET "${shipped}" fallback)
