@@ -18,9 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
-import time
 
 import numpy as np
 
@@ -31,28 +29,24 @@ ROTATIONS = (0, 90, 180, 270)
 
 
 def render(a, args: list[str], name: str, spp: int) -> np.ndarray:
-    """Writes the scene and renders it with the patched Cycles; progress on stderr, the table on stdout."""
+    """Writes the scene and renders it with the patched Cycles (the harness's render: its errors, its progress line
+    on stderr; the table goes to stdout)."""
     xml, exr = os.path.join(a.out, name + ".xml"), os.path.join(a.out, name + ".exr")
     ev.cycles_scene([*args, "--out", xml])
-    t0 = time.monotonic()
-    r = subprocess.run([ev.CYCLES, "--background", "--quiet", "--samples", str(spp), "--threads", str(a.threads),
-                        "--width", str(a.width), "--height", str(a.height), "--output", exr, xml],
-                       capture_output=True, text=True)
-    if r.returncode != 0 or not os.path.isfile(exr):
-        tail = " ".join((r.stderr or r.stdout).strip().splitlines()[-2:])
-        raise SystemExit(f"bench_layer_pitch: {name}: cycles failed ({r.returncode}): {tail}")
-    print(f"bench_layer_pitch: {name}, {spp} spp: {time.monotonic() - t0:.1f} s", file=sys.stderr, flush=True)
+    try:
+        ev.render(a, xml, spp, exr, f"{name}, {spp} spp")
+    except ev.RenderFailed as e:
+        raise SystemExit(f"bench_layer_pitch: {name}: {e}")
     return read_exr(exr)[..., :3]
 
 
 def errors(img: np.ndarray, ref: np.ndarray) -> dict:
+    """Mean luminance and per-channel errors over the middle half of the frame and over the whole frame
+    (evaluate.metrics)."""
     h, w = ref.shape[:2]
-    centre = (slice(h // 4, h - h // 4), slice(w // 4, w - w // 4))
-    out = {}
-    for name, region in (("centre", centre), ("frame", (slice(None), slice(None)))):
-        m, r = img[region].mean(axis=(0, 1)), ref[region].mean(axis=(0, 1))
-        out[name] = {"luminance": float(m @ LUMINANCE / (r @ LUMINANCE) - 1.0), "rgb": [float(x) for x in m / r - 1.0]}
-    return out
+    m = ev.metrics(img, ref, (slice(h // 4, h - h // 4), slice(w // 4, w - w // 4)))
+    return {"centre": {"luminance": m["mean_luminance_error"], "rgb": m["mean_colour_error"]},
+            "frame": {"luminance": m["mean_luminance_error_frame"], "rgb": m["mean_colour_error_frame"]}}
 
 
 def main() -> int:
@@ -67,6 +61,7 @@ def main() -> int:
     ap.add_argument("--width", type=int, default=128)
     ap.add_argument("--height", type=int, default=64)
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per render")
     ap.add_argument("--out", default=os.path.join(ev.ROOT, "build", "bench_layer_pitch"))
     a = ap.parse_args()
     try:

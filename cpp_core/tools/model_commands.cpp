@@ -716,8 +716,7 @@ class Commands : public ModelCommands {
      * arrays cannot carry tables (versions 1-3) are written in the current format. */
     const auto written = j.contains("kernel_flat") ? j["kernel_flat"] : nlohmann::json();
     const bool keep = written.is_array() && !written.empty() && written[0].is_number() &&
-                      (written[0].get<double>() == 4.0 || written[0].get<double>() == 5.0 ||
-                       written[0].get<double>() == double(ny::kYarnFlatFormat));
+                      written[0].get<double>() >= 4.0; /* the loader took it, so it is layout 4, 5 or 6 */
     if (keep) {
       m.fallback->kernel_flat_hash = model::fnv1a64_hex(written.get<std::vector<float>>());
       j["fallback"] = model::fallback_to_json(*m.fallback);
