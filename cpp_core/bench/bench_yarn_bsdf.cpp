@@ -136,6 +136,8 @@ BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf, cotton, "cotton");
 BENCHMARK_CAPTURE(BM_yarn_lobes, cotton, "cotton");
 BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf_given_lobes, cotton, "cotton");
 BENCHMARK_CAPTURE(BM_yarn_sample, cotton, "cotton");
+BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf_given_lobes, silk, "silk");  // one R node (beta_R = 1 degree)
+BENCHMARK_CAPTURE(BM_yarn_sample, silk, "silk");
 BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf, gabardine, "gabardine");  // M 6-32-32-3 (D22)
 BENCHMARK_CAPTURE(BM_yarn_sample, gabardine, "gabardine");
 

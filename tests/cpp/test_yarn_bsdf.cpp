@@ -784,3 +784,74 @@ TEST(YarnBsdf, EvalAndPdfTogetherAreEvalAndPdfApart)
     EXPECT_GT(tt, 100);
   }
 }
+
+/* The closure runs the R nodes as vector lanes (yarn_R_lanes); the host's quadratures (the R shape fit, the
+ * 4D measure, the fallback tables) take each node's factors one at a time (yarn_eval_R_parts,
+ * yarn_pdf_R_parts). Both must be the same function to the bit, so that what a bake fits is what Cycles
+ * renders: free-path nodes, a yarn's surface frames, a single node, with and without the azimuth table and
+ * the TT part, w_o over the whole sphere. */
+TEST(YarnBsdf, RNodeLanesAreTheNodesOneByOne)
+{
+  std::vector<model::YarnModel> models = {synthetic_model("fleece", 6), synthetic_yarn_model("cotton", 6)};
+  model::YarnModel one_node = synthetic_model("polyester", 8);
+  one_node.r_free_path = 0.0;
+  models.push_back(one_node);
+  model::YarnModel no_table = synthetic_model("gabardine", 9);
+  no_table.r_shape = model::RShapeTable{};
+  models.push_back(no_table);
+  for (const char *preset : {"silk", "gabardine"}) {
+    models.push_back(model::load_model(model::builtin_model_path(preset)));
+  }
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  auto same = [](float a, float b) { return std::memcmp(&a, &b, sizeof(float)) == 0; };
+  for (size_t i = 0; i < models.size(); i++) {
+    const std::vector<float> flat = models[i].kernel_flat();
+    const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    int nonzero = 0, tt = 0, n_R_seen = 0, tabled = 0;
+    for (int k = 0; k < 20000; k++) {
+      const ny::Vec3 wi = from_polar((kPi / 2 + 0.05) * U(rng), 2 * kPi * U(rng) - kPi);
+      const ny::Vec3 wo = from_polar(kPi * U(rng), 2 * kPi * U(rng) - kPi);
+      const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+      ny::Rgb sum = ny::make_rgb(0.0f);
+      float pdf = 0.0f;
+      for (int q = 0; q < l.n_R; q++) {
+        const ny::YarnOutgoing o = ny::yarn_outgoing(ny::yarn_to_r_node(l.node[q], wo));
+        if (!(o.w.z > 0.0f)) {
+          continue;
+        }
+        ny::Rgb R, TT;
+        ny::yarn_eval_R_parts(l, q, o, &R, &TT);
+        sum = sum + ((ny::make_rgb(1.0f) - l.tau) * R + l.tau * TT); /* each node's value, then the sum */
+        float r, t;
+        ny::yarn_pdf_R_parts(l, q, o, &r, &t);
+        pdf += (1.0f - l.q_TT) * r + l.q_TT * t;
+      }
+      sum = sum * (1.0f / float(l.n_R));
+      pdf /= float(l.n_R);
+      const ny::YarnOutgoing o_base = ny::yarn_outgoing(ny::yarn_to_surface_fiber(p.twist, wo));
+      const ny::Rgb f = ny::yarn_eval_R(l, wo, o_base);
+      const float pdf_lanes = ny::yarn_pdf_R(l, wo, o_base);
+      ASSERT_TRUE(same(f.r, sum.r) && same(f.g, sum.g) && same(f.b, sum.b))
+          << "model " << i << " k " << k << ": " << f.r << " " << f.g << " " << f.b << " against " << sum.r << " "
+          << sum.g << " " << sum.b;
+      ASSERT_TRUE(same(pdf_lanes, pdf)) << "model " << i << " k " << k << ": " << pdf_lanes << " against " << pdf;
+      nonzero += f.g > 0.0f;
+      tt += l.q_TT > 0.0f;
+      tabled += l.az_bins > 0;
+      n_R_seen = std::max(n_R_seen, l.n_R);
+    }
+    EXPECT_GT(nonzero, 2000) << "model " << i; /* not 0 == 0 */
+    if (i == 0 || i == 1) {
+      EXPECT_EQ(n_R_seen, ny::kYarnRNodes) << "model " << i;
+      EXPECT_GT(tt, 1000) << "model " << i;
+    }
+    if (i == 2) {
+      EXPECT_EQ(n_R_seen, 1);
+    }
+    if (i == 3) {
+      EXPECT_EQ(tabled, 0);
+      EXPECT_EQ(tt, 0);
+    }
+  }
+}

@@ -175,30 +175,32 @@ NY_KERNEL_FN float wrap_angle(float a)
  * quotient of the smaller by the larger magnitude is reduced to |t| <= tan(pi/8) (t = (a - 1)/(a + 1) above
  * it, plus pi/4) and atan(t) is Cephes' atanf polynomial (relative error 1.9e-7); the octant is restored by
  * pi/2 - r, pi - r and the sign of y. Worst error against double atan2 over the sphere's directions: under
- * 3 float ulps of the result (tests/cpp/test_frames.cpp). atan2(0, 0) is 0; NaN in gives NaN. */
-NY_KERNEL_FN float fast_atan2(float y, float x)
+ * 3 float ulps of the result (tests/cpp/test_frames.cpp). atan2(0, 0) is 0; NaN in gives NaN. atan2_lanes is the
+ * same without the NaN test, for loops that run lanes side by side (a NaN there gives some number). */
+NY_KERNEL_FN float atan2_lanes(float y, float x)
 {
   const float ax = fabsf(x), ay = fabsf(y);
-  /* Comparisons, not fmaxf/fminf: GCC calls libm for those (NaN rules) unless math is finite-only. */
+  /* Comparisons, not fmaxf/fminf: GCC calls libm for those (NaN rules) unless math is finite-only. Every
+   * quotient is taken whether or not it is used, and selected after: a loop of these has no branches. */
   const float mx = ax > ay ? ax : ay, mn = ax > ay ? ay : ax;
-  const float a = mx > 0.0f ? mn / mx : 0.0f;
+  const float a = mn / (mx > 0.0f ? mx : 1.0f);
   const bool upper = a > 0.41421356f; /* tan(pi/8) */
-  const float t = upper ? (a - 1.0f) / (a + 1.0f) : a;
+  const float t_upper = (a - 1.0f) / (a + 1.0f);
+  const float t = upper ? t_upper : a;
   const float z = t * t;
   float r = (((8.05374449538e-2f * z - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z - 3.33329491539e-1f) * z * t + t;
-  if (upper) {
-    r += 0.78539816f; /* pi/4 */
-  }
-  if (ay > ax) {
-    r = kHalfPi - r;
-  }
-  if (x < 0.0f) {
-    r = kPi - r;
-  }
+  r = upper ? r + 0.78539816f : r; /* pi/4 */
+  r = ay > ax ? kHalfPi - r : r;
+  r = x < 0.0f ? kPi - r : r;
+  return (y < 0.0f) ? -r : r;
+}
+
+NY_KERNEL_FN float fast_atan2(float y, float x)
+{
   if (!(x == x && y == y)) {
     return x + y; /* NaN in, NaN out */
   }
-  return (y < 0.0f) ? -r : r;
+  return atan2_lanes(y, x);
 }
 
 /* True for a finite float (not NaN, not +-inf); written without std::isfinite so that it also works in

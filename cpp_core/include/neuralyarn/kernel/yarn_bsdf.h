@@ -647,21 +647,25 @@ NY_KERNEL_FN YarnOutgoing yarn_outgoing(Vec3 wo_f)
   return o;
 }
 
-/* pi nu(phi~_o | w_i): the R lobe's azimuthal density relative to the uniform 1 / pi (1 without a table). */
-NY_KERNEL_FN float yarn_r_azimuth(NY_PRIVATE const YarnLobes &l, float phi)
+/* pi nu(phi~_o | w_i) from the table (az_bins > 0): no test, so that the R nodes' lanes (yarn_R_lanes) load
+ * it unconditionally; the four rows written out, not a loop, for the same reason. */
+NY_KERNEL_FN float yarn_r_azimuth_table(NY_PRIVATE const YarnLobes &l, float phi)
 {
-  if (l.az_bins == 0) {
-    return 1.0f;
-  }
   const int n = l.az_bins;
   const float f = clampf((phi + kHalfPi) * kInvPi * (float)n - 0.5f, 0.0f, (float)(n - 1));
   const int k0 = (int)f < n - 1 ? (int)f : n - 1, k1 = k0 + 1 < n ? k0 + 1 : n - 1;
   const float w = f - (float)k0;
-  float nu = 0.0f;
-  for (int r = 0; r < 4; r++) {
-    nu += l.az_w[r] * ((1.0f - w) * l.az_row[r][k0] + w * l.az_row[r][k1]);
-  }
+  const float nu = l.az_w[0] * ((1.0f - w) * l.az_row[0][k0] + w * l.az_row[0][k1]) +
+                   l.az_w[1] * ((1.0f - w) * l.az_row[1][k0] + w * l.az_row[1][k1]) +
+                   l.az_w[2] * ((1.0f - w) * l.az_row[2][k0] + w * l.az_row[2][k1]) +
+                   l.az_w[3] * ((1.0f - w) * l.az_row[3][k0] + w * l.az_row[3][k1]);
   return kPi * nu;
+}
+
+/* pi nu(phi~_o | w_i): the R lobe's azimuthal density relative to the uniform 1 / pi (1 without a table). */
+NY_KERNEL_FN float yarn_r_azimuth(NY_PRIVATE const YarnLobes &l, float phi)
+{
+  return l.az_bins == 0 ? 1.0f : yarn_r_azimuth_table(l, phi);
 }
 
 /* Node q's two parts of the R lobe (below) are products of a factor of theta~_o and one of phi~_o: a
@@ -683,13 +687,14 @@ NY_KERNEL_FN YarnRTheta yarn_r_theta(NY_PRIVATE const YarnLobes &l, int q, float
   YarnRTheta t;
   t.c = cos_theta;
   /* A part's lobe and its proposal are one Gaussian (mean -theta~ of w_i in the node's frame, width beta_R or
-   * beta_TT; yarn_lobes): one normal_pdf for both. */
-  const float z_R = (theta - n.tn_R.mu) / n.tn_R.sigma, g_R = normal_pdf(z_R);
+   * beta_TT; yarn_lobes): one normal pdf for both, the lanes' (yarn_R_lanes), so that the host's quadratures
+   * integrate exactly what the closure evaluates. */
+  const float z_R = (theta - n.tn_R.mu) / n.tn_R.sigma, g_R = normal_pdf_lanes(z_R);
   t.L_R = longitudinal_eval_of(n.m_R, theta, g_R);
   t.p_R = truncated_normal_pdf_of(n.tn_R, z_R, g_R);
   t.L_TT = t.p_TT = 0.0f;
   if (l.q_TT > 0.0f) {
-    const float z_TT = (theta - n.tn_TT.mu) / n.tn_TT.sigma, g_TT = normal_pdf(z_TT);
+    const float z_TT = (theta - n.tn_TT.mu) / n.tn_TT.sigma, g_TT = normal_pdf_lanes(z_TT);
     t.L_TT = longitudinal_eval_of(n.m_TT, theta, g_TT);
     t.p_TT = truncated_normal_pdf_of(n.tn_TT, z_TT, g_TT);
   }
@@ -700,7 +705,14 @@ NY_KERNEL_FN YarnRPhi yarn_r_phi(NY_PRIVATE const YarnLobes &l, int q, float phi
 {
   YarnRPhi a;
   a.nu = yarn_r_azimuth(l, phi);
-  a.p_TT = l.q_TT > 0.0f ? truncated_normal_pdf(l.node[q].tn_TT_phi, phi) : 0.0f;
+  if (l.q_TT > 0.0f) {
+    NY_PRIVATE const TruncatedNormal &tn = l.node[q].tn_TT_phi;
+    const float z = (phi - tn.mu) / tn.sigma;
+    a.p_TT = truncated_normal_pdf_of(tn, z, normal_pdf_lanes(z));
+  }
+  else {
+    a.p_TT = 0.0f;
+  }
   return a;
 }
 
@@ -740,13 +752,6 @@ NY_KERNEL_FN void yarn_eval_R_parts(NY_PRIVATE const YarnLobes &l, int q, NY_PRI
   yarn_eval_R_factors(l, yarn_r_theta(l, q, o.theta, o.cos_theta), yarn_r_phi(l, q, o.phi), R, TT);
 }
 
-/* w_o in node q's frame: `o_base` (w_o in the surface-fiber frame) when that is the node's frame. */
-NY_KERNEL_FN YarnOutgoing yarn_r_node_outgoing(NY_PRIVATE const YarnLobes &l, int q, Vec3 wo,
-                                               NY_PRIVATE const YarnOutgoing &o_base)
-{
-  return l.n_R == 1 ? o_base : yarn_outgoing(yarn_to_r_node(l.node[q], wo));
-}
-
 /* Densities of node q's R proposal in solid angle (o: w_o in the node's frame). */
 NY_KERNEL_FN void yarn_pdf_R_parts(NY_PRIVATE const YarnLobes &l, int q, NY_PRIVATE const YarnOutgoing &o,
                                    NY_PRIVATE float *pdf_R, NY_PRIVATE float *pdf_TT)
@@ -758,38 +763,143 @@ NY_KERNEL_FN void yarn_pdf_R_parts(NY_PRIVATE const YarnLobes &l, int q, NY_PRIV
   yarn_pdf_R_factors(l, yarn_r_theta(l, q, o.theta, o.cos_theta), yarn_r_phi(l, q, o.phi), pdf_R, pdf_TT);
 }
 
-/* The R lobe at w_o (yarn frame; o_base: w_o in the surface-fiber frame), summed over the nodes with each
- * node's frame and angles computed once: S_R |cos theta_o| into *f_R and the R proposal's density (each node
- * drawn with probability 1 / n_R) into *pdf_R, either or both (a null pointer skips that part). */
+/* One theta~ (or phi~) Gaussian of each R node as arrays over the nodes: its truncated normal (mean, width,
+ * bounds in standard scores, 1 / (sigma mass)) and the longitudinal lobe's 1 / (beta G). */
+struct YarnGaussianLanes {
+  float mu[kYarnRNodes], sigma[kYarnRNodes], za[kYarnRNodes], zb[kYarnRNodes], sigma_mass[kYarnRNodes],
+      inv_beta_G[kYarnRNodes];
+};
+
+NY_KERNEL_FN void yarn_gaussian_lanes_set(NY_PRIVATE YarnGaussianLanes &g, int q, NY_PRIVATE const TruncatedNormal &tn,
+                                          float inv_beta_G)
+{
+  g.mu[q] = tn.mu;
+  g.sigma[q] = tn.sigma;
+  g.za[q] = tn.za;
+  g.zb[q] = tn.zb;
+  g.sigma_mass[q] = tn.mass > 0.0f ? tn.sigma * tn.mass : NY_INFINITY; /* no mass: density 0 */
+  g.inv_beta_G[q] = inv_beta_G;
+}
+
+/* truncated_normal_pdf_of() of lane q at standard score z (pdf: its normal pdf): the quotient taken always and
+ * selected after, so that a loop of it has no branch. */
+NY_KERNEL_FN float yarn_gaussian_lanes_pdf(NY_PRIVATE const YarnGaussianLanes &g, int q, float z, float pdf)
+{
+  const float v = pdf / g.sigma_mass[q];
+  return (z >= g.za[q] && z <= g.zb[q]) ? v : 0.0f;
+}
+
+/* The kYarnRNodes R nodes (n_R > 1) as lanes of one vector (issue 21; yarn_R_nodes): node q's eval and pdf at w_o
+ * into fr/fg/fb[q] and pd[q]
+ * (S_R |cos| of that node before the mean, and its proposal's density in solid angle; 0 where w_o leaves the
+ * node's fiber below its upper half). The values are those of yarn_eval_R_factors() and yarn_pdf_R_factors() in
+ * the same order of operations; the loop has no branches and no library calls so that the compiler runs the
+ * nodes side by side (the node data is copied to arrays first: loads of one field across an array of
+ * structures do not vectorise). */
+template<bool kAz, bool kTT>
+NY_KERNEL_FN void yarn_R_lanes(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE float *fr, NY_PRIVATE float *fg,
+                               NY_PRIVATE float *fb, NY_PRIVATE float *pd)
+{
+  /* Each node's frame (P_q, a_q, M_q), its two theta~ Gaussians (mean, width, bounds, sigma mass, the lobe's
+   * 1 / (beta G)) and the TT azimuth's. */
+  float pc[kYarnRNodes], ps[kYarnRNodes], ca[kYarnRNodes], sa[kYarnRNodes], tc[kYarnRNodes], ts[kYarnRNodes];
+  YarnGaussianLanes R, TT, TT_phi;
+  for (int q = 0; q < kYarnRNodes; q++) {
+    NY_PRIVATE const YarnRNode &n = l.node[q];
+    pc[q] = n.pre.c;
+    ps[q] = n.pre.s;
+    ca[q] = n.ca;
+    sa[q] = n.sa;
+    tc[q] = n.twist.c;
+    ts[q] = n.twist.s;
+    yarn_gaussian_lanes_set(R, q, n.tn_R, n.m_R.inv_beta_G);
+    if (kTT) {
+      yarn_gaussian_lanes_set(TT, q, n.tn_TT, n.m_TT.inv_beta_G);
+      yarn_gaussian_lanes_set(TT_phi, q, n.tn_TT_phi, 0.0f);
+    }
+  }
+  const Rgb w = l.weight_R, tau = l.tau;
+  const float q_TT = l.q_TT;
+  NY_SIMD_LOOP
+  for (int q = 0; q < kYarnRNodes; q++) {
+    /* yarn_to_r_node(): P_q, then R_x(a_q), then M_q (P_q is the identity (1, 0) for the free path's nodes). */
+    const float x0 = pc[q] * wo.x - ps[q] * wo.y, y0 = ps[q] * wo.x + pc[q] * wo.y;
+    const float y1 = ca[q] * y0 - sa[q] * wo.z, z1 = sa[q] * y0 + ca[q] * wo.z;
+    const float x2 = tc[q] * x0 - ts[q] * y1, y2 = ts[q] * x0 + tc[q] * y1;
+    const float c = minf(sqrtf(y2 * y2 + z1 * z1), 1.0f); /* cos_theta() */
+    const float theta = atan2_lanes(x2, c), phi = atan2_lanes(y2, z1);
+    const float z_R = (theta - R.mu[q]) / R.sigma[q], g_R = normal_pdf_lanes(z_R);
+    const float L_R = g_R * R.inv_beta_G[q];
+    const float p_R = yarn_gaussian_lanes_pdf(R, q, z_R, g_R);
+    const float nu = kAz ? yarn_r_azimuth_table(l, phi) : 1.0f;
+    float L_TT = 0.0f, p_TT = 0.0f, a_TT = 0.0f;
+    if (kTT) {
+      const float z = (theta - TT.mu[q]) / TT.sigma[q], g = normal_pdf_lanes(z);
+      L_TT = g * TT.inv_beta_G[q];
+      p_TT = yarn_gaussian_lanes_pdf(TT, q, z, g);
+      const float z_phi = (phi - TT_phi.mu[q]) / TT_phi.sigma[q];
+      a_TT = yarn_gaussian_lanes_pdf(TT_phi, q, z_phi, normal_pdf_lanes(z_phi));
+    }
+    const bool up = z1 > 0.0f; /* R leaves the node's fiber on the upper half only */
+    const float k_R = L_R * kInvTwoPi * c * nu, k_TT = L_TT * 0.5f * c * a_TT;
+    fr[q] = up ? (1.0f - tau.r) * (w.r * k_R) + tau.r * (w.r * k_TT) : 0.0f;
+    fg[q] = up ? (1.0f - tau.g) * (w.g * k_R) + tau.g * (w.g * k_TT) : 0.0f;
+    fb[q] = up ? (1.0f - tau.b) * (w.b * k_R) + tau.b * (w.b * k_TT) : 0.0f;
+    const float inv_cos = 1.0f / maxf(c, kYarnMinCosTheta);
+    pd[q] = up ? (1.0f - q_TT) * (p_R * kInvPi * inv_cos) + q_TT * (p_TT * a_TT * inv_cos) : 0.0f;
+  }
+}
+
+/* The R lobe at w_o (yarn frame; o_base: w_o in the surface-fiber frame), summed over the nodes: S_R |cos theta_o|
+ * into *f_R and the R proposal's density (each node drawn with probability 1 / n_R) into *pdf_R, either or both
+ * (a null pointer skips that part). */
 NY_KERNEL_FN void yarn_R_nodes(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVATE const YarnOutgoing &o_base,
                                NY_PRIVATE Rgb *f_R, NY_PRIVATE float *pdf_R)
 {
-  Rgb sum = make_rgb(0.0f);
-  float pdf = 0.0f;
-  for (int q = 0; q < l.n_R; q++) {
-    const YarnOutgoing o = yarn_r_node_outgoing(l, q, wo, o_base);
-    if (!(o.w.z > 0.0f)) {
-      continue; /* R leaves the node's fiber on the upper half only */
-    }
-    /* The factors once for eval and pdf (the TT azimuth's density is in both). */
-    const YarnRTheta t = yarn_r_theta(l, q, o.theta, o.cos_theta);
-    const YarnRPhi a = yarn_r_phi(l, q, o.phi);
-    if (f_R && l.valid) {
+  if (l.n_R == 1) {
+    /* The surface fiber alone: its frame is the base one, whose angles the caller has (the same values as a
+     * lane's, yarn_R_lanes, without the three other lanes). */
+    Rgb f = make_rgb(0.0f);
+    float pdf = 0.0f;
+    if (o_base.w.z > 0.0f) {
+      const YarnRTheta t = yarn_r_theta(l, 0, o_base.theta, o_base.cos_theta);
+      const YarnRPhi a = yarn_r_phi(l, 0, o_base.phi);
       Rgb R, TT;
       yarn_eval_R_factors(l, t, a, &R, &TT);
-      sum = sum + (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
-    }
-    if (pdf_R) {
+      f = (make_rgb(1.0f) - l.tau) * R + l.tau * TT;
       float r, tt;
       yarn_pdf_R_factors(l, t, a, &r, &tt);
-      pdf += (1.0f - l.q_TT) * r + l.q_TT * tt;
+      pdf = (1.0f - l.q_TT) * r + l.q_TT * tt;
     }
+    if (f_R) {
+      *f_R = l.valid ? f : make_rgb(0.0f);
+    }
+    if (pdf_R) {
+      *pdf_R = pdf;
+    }
+    return;
+  }
+  float fr[kYarnRNodes], fg[kYarnRNodes], fb[kYarnRNodes], pd[kYarnRNodes];
+  const bool tt = l.q_TT > 0.0f;
+  if (l.az_bins > 0) {
+    tt ? yarn_R_lanes<true, true>(l, wo, fr, fg, fb, pd) : yarn_R_lanes<true, false>(l, wo, fr, fg, fb, pd);
+  }
+  else {
+    tt ? yarn_R_lanes<false, true>(l, wo, fr, fg, fb, pd) : yarn_R_lanes<false, false>(l, wo, fr, fg, fb, pd);
   }
   if (f_R) {
-    *f_R = sum * (1.0f / (float)l.n_R);
+    Rgb sum = make_rgb(0.0f);
+    for (int q = 0; q < kYarnRNodes; q++) {
+      sum = sum + make_rgb(fr[q], fg[q], fb[q]);
+    }
+    *f_R = l.valid ? sum * (1.0f / (float)kYarnRNodes) : make_rgb(0.0f);
   }
   if (pdf_R) {
-    *pdf_R = pdf / (float)l.n_R;
+    float pdf = 0.0f;
+    for (int q = 0; q < kYarnRNodes; q++) {
+      pdf += pd[q];
+    }
+    *pdf_R = pdf / (float)kYarnRNodes;
   }
 }
 
