@@ -35,6 +35,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
+/* Equal to the bit (0 and -0 apart, NaN equal to itself): the paths that must compute one value. */
+bool bit_equal(float a, float b) { return std::memcmp(&a, &b, sizeof(float)) == 0; }
+
 ny::Vec3 from_polar(double theta, double phi)
 {
   return ny::make_vec3(float(std::sin(theta) * std::cos(phi)), float(std::sin(theta) * std::sin(phi)),
@@ -765,7 +768,6 @@ TEST(YarnBsdf, EvalAndPdfTogetherAreEvalAndPdfApart)
   }
   std::mt19937 rng(29);
   std::uniform_real_distribution<float> U(0.0f, 1.0f);
-  auto same = [](float a, float b) { return std::memcmp(&a, &b, sizeof(float)) == 0; };
   for (const model::YarnModel &m : models) {
     const std::vector<float> flat = m.kernel_flat();
     const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
@@ -778,8 +780,8 @@ TEST(YarnBsdf, EvalAndPdfTogetherAreEvalAndPdfApart)
       float pdf;
       const ny::Rgb f = ny::yarn_eval_pdf_lobes(p, l, wo, &pdf);
       const ny::Rgb f_apart = ny::yarn_eval_lobes(p, l, wo);
-      ASSERT_TRUE(same(pdf, ny::yarn_pdf_lobes(p, l, wo)));
-      ASSERT_TRUE(same(f.r, f_apart.r) && same(f.g, f_apart.g) && same(f.b, f_apart.b));
+      ASSERT_TRUE(bit_equal(pdf, ny::yarn_pdf_lobes(p, l, wo)));
+      ASSERT_TRUE(bit_equal(f.r, f_apart.r) && bit_equal(f.g, f_apart.g) && bit_equal(f.b, f_apart.b));
     }
     EXPECT_GT(tt, 100);
   }
@@ -804,7 +806,6 @@ TEST(YarnBsdf, RNodeLanesAreTheNodesOneByOne)
   }
   std::mt19937 rng(31);
   std::uniform_real_distribution<float> U(0.0f, 1.0f);
-  auto same = [](float a, float b) { return std::memcmp(&a, &b, sizeof(float)) == 0; };
   for (size_t i = 0; i < models.size(); i++) {
     const std::vector<float> flat = models[i].kernel_flat();
     const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
@@ -832,10 +833,10 @@ TEST(YarnBsdf, RNodeLanesAreTheNodesOneByOne)
       const ny::YarnOutgoing o_base = ny::yarn_outgoing(ny::yarn_to_surface_fiber(p.twist, wo));
       const ny::Rgb f = ny::yarn_eval_R(l, wo, o_base);
       const float pdf_lanes = ny::yarn_pdf_R(l, wo, o_base);
-      ASSERT_TRUE(same(f.r, sum.r) && same(f.g, sum.g) && same(f.b, sum.b))
+      ASSERT_TRUE(bit_equal(f.r, sum.r) && bit_equal(f.g, sum.g) && bit_equal(f.b, sum.b))
           << "model " << i << " k " << k << ": " << f.r << " " << f.g << " " << f.b << " against " << sum.r << " "
           << sum.g << " " << sum.b;
-      ASSERT_TRUE(same(pdf_lanes, pdf)) << "model " << i << " k " << k << ": " << pdf_lanes << " against " << pdf;
+      ASSERT_TRUE(bit_equal(pdf_lanes, pdf)) << "model " << i << " k " << k << ": " << pdf_lanes << " against " << pdf;
       nonzero += f.g > 0.0f;
       tt += l.q_TT > 0.0f;
       tabled += l.az_bins > 0;

@@ -418,19 +418,24 @@ struct YarnLobes {
 /* Whether node q turns first by its own P_q (a node of the R frames; the free path's nodes have none). */
 NY_KERNEL_FN bool yarn_r_node_has_pre(NY_PRIVATE const YarnRNode &n) { return n.pre.c != 1.0f || n.pre.s != 0.0f; }
 
+/* R_x(a) w about the yarn axis, given cos a and sin a (R_x(-a) with -sin a). */
+NY_KERNEL_FN Vec3 yarn_rotate_about_axis(float ca, float sa, Vec3 w)
+{
+  return make_vec3(w.x, ca * w.y - sa * w.z, sa * w.y + ca * w.z);
+}
+
 /* w (yarn frame) in node q's fiber frame, and back. */
 NY_KERNEL_FN Vec3 yarn_to_r_node(NY_PRIVATE const YarnRNode &n, Vec3 w)
 {
   if (yarn_r_node_has_pre(n)) {
     w = yarn_to_surface_fiber(n.pre, w);
   }
-  return yarn_to_surface_fiber(n.twist, make_vec3(w.x, n.ca * w.y - n.sa * w.z, n.sa * w.y + n.ca * w.z));
+  return yarn_to_surface_fiber(n.twist, yarn_rotate_about_axis(n.ca, n.sa, w));
 }
 
 NY_KERNEL_FN Vec3 r_node_to_yarn(NY_PRIVATE const YarnRNode &n, Vec3 w_f)
 {
-  const Vec3 w = surface_fiber_to_yarn(n.twist, w_f);
-  const Vec3 v = make_vec3(w.x, n.ca * w.y + n.sa * w.z, -n.sa * w.y + n.ca * w.z);
+  const Vec3 v = yarn_rotate_about_axis(n.ca, -n.sa, surface_fiber_to_yarn(n.twist, w_f));
   return yarn_r_node_has_pre(n) ? surface_fiber_to_yarn(n.pre, v) : v;
 }
 
@@ -822,12 +827,13 @@ NY_KERNEL_FN void yarn_R_lanes(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVAT
   const float q_TT = l.q_TT;
   NY_SIMD_LOOP
   for (int q = 0; q < kYarnRNodes; q++) {
-    /* yarn_to_r_node(): P_q, then R_x(a_q), then M_q (P_q is the identity (1, 0) for the free path's nodes). */
-    const float x0 = pc[q] * wo.x - ps[q] * wo.y, y0 = ps[q] * wo.x + pc[q] * wo.y;
-    const float y1 = ca[q] * y0 - sa[q] * wo.z, z1 = sa[q] * y0 + ca[q] * wo.z;
-    const float x2 = tc[q] * x0 - ts[q] * y1, y2 = ts[q] * x0 + tc[q] * y1;
-    const float c = minf(sqrtf(y2 * y2 + z1 * z1), 1.0f); /* cos_theta() */
-    const float theta = atan2_lanes(x2, c), phi = atan2_lanes(y2, z1);
+    /* yarn_to_r_node(), with P_q always applied (the identity (1, 0) for the free path's nodes); P_q, M_q and
+     * then cos_theta() written out: through a TwistRotation or a Vec3 argument here GCC 12 keeps the loop scalar. */
+    const Vec3 v = yarn_rotate_about_axis(ca[q], sa[q],
+                                          make_vec3(pc[q] * wo.x - ps[q] * wo.y, ps[q] * wo.x + pc[q] * wo.y, wo.z));
+    const Vec3 w_q = make_vec3(tc[q] * v.x - ts[q] * v.y, ts[q] * v.x + tc[q] * v.y, v.z);
+    const float c = minf(sqrtf(w_q.y * w_q.y + w_q.z * w_q.z), 1.0f);
+    const float theta = atan2_lanes(w_q.x, c), phi = atan2_lanes(w_q.y, w_q.z);
     const float z_R = (theta - R.mu[q]) / R.sigma[q], g_R = normal_pdf_lanes(z_R);
     const float L_R = g_R * R.inv_beta_G[q];
     const float p_R = yarn_gaussian_lanes_pdf(R, q, z_R, g_R);
@@ -840,7 +846,7 @@ NY_KERNEL_FN void yarn_R_lanes(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVAT
       const float z_phi = (phi - TT_phi.mu[q]) / TT_phi.sigma[q];
       a_TT = yarn_gaussian_lanes_pdf(TT_phi, q, z_phi, normal_pdf_lanes(z_phi));
     }
-    const bool up = z1 > 0.0f; /* R leaves the node's fiber on the upper half only */
+    const bool up = w_q.z > 0.0f; /* R leaves the node's fiber on the upper half only */
     const float k_R = L_R * kInvTwoPi * c * nu, k_TT = L_TT * 0.5f * c * a_TT;
     fr[q] = up ? (1.0f - tau.r) * (w.r * k_R) + tau.r * (w.r * k_TT) : 0.0f;
     fg[q] = up ? (1.0f - tau.g) * (w.g * k_R) + tau.g * (w.g * k_TT) : 0.0f;
