@@ -97,14 +97,79 @@ NY_KERNEL_FN NY_GLOBAL const float *mlp_layer(NY_GLOBAL const float *p, int n_in
   return a + (hidden ? no : 0);
 }
 
+/* Outputs of a compile-time hidden layer computed side by side: a block's width in floats (one AVX2 vector). */
+constexpr int kMlpBlock = 8;
+
+NY_KERNEL_FN constexpr int mlp_blocks(int n) { return (n + kMlpBlock - 1) / kMlpBlock; }
+
+/* mlp_layer<NI, NO> for a hidden layer, its outputs in whole blocks of kMlpBlock: every output is summed and
+ * activated exactly as there (bias, then the inputs in order, then PReLU: the same result bit for bit), but
+ * one loop of kMlpBlock lanes does a block of each input's column per statement. A width like 21 otherwise
+ * leaves GCC at -O2 (Cycles' kernel) with a vector loop and its remainder per input, the accumulators going
+ * through memory: the M network took 2.2x as long (docs/benchmarks.md, decisions D63). The padding lanes
+ * read up to kMlpBlock - 1 floats past each column, the biases and the slopes, which lie inside the next
+ * layer's parameters (mlp_forward_sized checks that the network is long enough); their outputs, past NO in
+ * `out` (mlp_blocks(NO) * kMlpBlock floats), are never read. */
+template<int NI, int NO>
+NY_KERNEL_FN NY_GLOBAL const float *mlp_hidden_layer_blocks(NY_GLOBAL const float *p, NY_PRIVATE const float *in,
+                                                           NY_PRIVATE float *out)
+{
+  constexpr int K = mlp_blocks(NO);
+  static_assert(K >= 1 && K <= 4, "mlp_hidden_layer_blocks: up to 4 blocks");
+  NY_GLOBAL const float *W = p;
+  NY_GLOBAL const float *b = W + NO * NI;
+  NY_GLOBAL const float *a = b + NO;
+  float z[K * kMlpBlock];
+  NY_SIMD_LOOP
+  for (int o = 0; o < K * kMlpBlock; o++) {
+    z[o] = b[o];
+  }
+  for (int i = 0; i < NI; i++) {
+    const float x = in[i];
+    NY_GLOBAL const float *col = W + i * NO;
+    /* The blocks written out, not a loop over them: a loop inside the lanes' loop keeps GCC 12 from
+     * vectorising it. */
+    NY_SIMD_LOOP
+    for (int o = 0; o < kMlpBlock; o++) {
+      z[o] += col[o] * x;
+      if (K > 1) {
+        z[kMlpBlock + o] += col[kMlpBlock + o] * x;
+      }
+      if (K > 2) {
+        z[2 * kMlpBlock + o] += col[2 * kMlpBlock + o] * x;
+      }
+      if (K > 3) {
+        z[3 * kMlpBlock + o] += col[3 * kMlpBlock + o] * x;
+      }
+    }
+  }
+  /* PReLU as a selection of two computed values: mlp_prelu's branch on the sign does not vectorise. */
+  NY_SIMD_LOOP
+  for (int o = 0; o < K * kMlpBlock; o++) {
+    const float az = a[o] * z[o];
+    out[o] = z[o] < 0.0f ? az : z[o];
+  }
+  return a + NO;
+}
+
 /* A network of two hidden layers of width H with compile-time widths I-H-H-O (`p` past the header). */
 template<int I, int H, int O>
 NY_KERNEL_FN void mlp_forward_sized(NY_GLOBAL const float *p, int head, NY_PRIVATE const float *input,
                                     NY_PRIVATE float *output)
 {
-  float h1[H], h2[H], z[O];
-  p = mlp_layer<I, H>(p, I, H, true, input, h1);
-  p = mlp_layer<H, H>(p, H, H, true, h1, h2);
+  /* The hidden layers' padding lanes read at most this far past the second one's slopes: into the output
+   * layer's H * O weights and O biases. */
+  static_assert(mlp_blocks(H) * kMlpBlock - H <= H * O + O, "mlp_forward_sized: network too short to pad");
+  float h1[mlp_blocks(H) * kMlpBlock], h2[mlp_blocks(H) * kMlpBlock], z[O];
+  /* A width of whole blocks (32) runs as fast or 6 % faster through mlp_layer's one loop (D63). */
+  if (H % kMlpBlock != 0) {
+    p = mlp_hidden_layer_blocks<I, H>(p, input, h1);
+    p = mlp_hidden_layer_blocks<H, H>(p, h1, h2);
+  }
+  else {
+    p = mlp_layer<I, H>(p, I, H, true, input, h1);
+    p = mlp_layer<H, H>(p, H, H, true, h1, h2);
+  }
   mlp_layer<H, O>(p, H, O, false, h2, z);
   for (int o = 0; o < O; o++) {
     output[o] = mlp_apply_head(head, z[o]);
