@@ -5,6 +5,7 @@
 // measured by bench_fiber_bsdf; both tables are in docs/benchmarks.md.
 //
 //   build/cpp_core/bench_yarn_bsdf --benchmark_min_time=0.3
+//   build/cpp_core/bench_yarn_bsdf_cycles_flags --benchmark_min_time=0.3   (compiled as Cycles compiles its kernel)
 #include <cmath>
 #include <vector>
 
@@ -111,6 +112,25 @@ void BM_yarn_eval_and_pdf_given_lobes(benchmark::State &state, const char *prese
   }
 }
 
+/* As the Cycles closure's sample: given the lobes of w_i, without the T lobe (Cycles' transparent closure). */
+void BM_yarn_sample_given_lobes(benchmark::State &state, const char *preset)
+{
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat(preset).data());
+  const Inputs &in = inputs();
+  std::vector<ny::YarnLobes> lobes;
+  for (const ny::Vec3 &wi : in.wi) {
+    lobes.push_back(ny::yarn_lobes(p, wi));
+  }
+  int i = 0;
+  ny::YarnSample s;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(ny::yarn_sample_lobes(p, lobes[size_t(i)], in.u[3 * i], in.u[3 * i + 1],
+                                                   in.u[3 * i + 2], false, &s));
+    benchmark::DoNotOptimize(s);
+    i = (i + 1) & (kPairs - 1);
+  }
+}
+
 void BM_yarn_sample(benchmark::State &state, const char *preset)
 {
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat(preset).data());
@@ -136,6 +156,8 @@ BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf, cotton, "cotton");
 BENCHMARK_CAPTURE(BM_yarn_lobes, cotton, "cotton");
 BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf_given_lobes, cotton, "cotton");
 BENCHMARK_CAPTURE(BM_yarn_sample, cotton, "cotton");
+BENCHMARK_CAPTURE(BM_yarn_sample_given_lobes, cotton, "cotton");
+BENCHMARK_CAPTURE(BM_yarn_lobes, silk, "silk");
 BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf_given_lobes, silk, "silk");  // one R node (beta_R = 1 degree)
 BENCHMARK_CAPTURE(BM_yarn_sample, silk, "silk");
 BENCHMARK_CAPTURE(BM_yarn_eval_and_pdf, gabardine, "gabardine");  // M 6-32-32-3 (D22)

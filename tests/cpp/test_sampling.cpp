@@ -73,6 +73,41 @@ TEST_P(TruncatedNormalTest, SamplesStayInSupportAtExtremeUniforms)
 
 INSTANTIATE_TEST_SUITE_P(Cases, TruncatedNormalTest, ::testing::Range(0, int(std::size(kTnCases))));
 
+/* truncated_normal_lanes (yarn_lobes' R nodes) against make_truncated_normal: the same case for every interval
+ * (each table case, and 10^5 random means over [-2, 2] and widths from 0.5 to 60 degrees on [-pi/2, pi/2], the R
+ * nodes' range, plus intervals wholly above or below the mean): za and zb bit for bit, lower, upper and mass within
+ * 8 float ulps of the larger of the value and 1e-30 (erfc_lanes and fast_erfc differ by their exp: a few ulps each;
+ * the mass of an interval in one tail is a difference of two such values). Swapping the case of an interval
+ * above the mean fails it (its lower would be 1 - mass). */
+TEST(TruncatedNormal, LanesAreTheScalarOnes)
+{
+  auto close = [](float got, float want) {
+    return std::fabs(double(got) - double(want)) <= 8.0 * std::ldexp(1.0, std::ilogb(std::max(std::fabs(double(want)), 1e-30)) - 23);
+  };
+  auto check = [&](float mu, float sigma, float a, float b) {
+    const ny::TruncatedNormal tn = ny::make_truncated_normal(mu, sigma, a, b);
+    float za, zb, lower, upper, mass;
+    ny::truncated_normal_lanes(mu, sigma, a, b, za, zb, lower, upper, mass);
+    ASSERT_EQ(za, tn.za) << mu << " " << sigma;
+    ASSERT_EQ(zb, tn.zb) << mu << " " << sigma;
+    ASSERT_TRUE(close(lower, tn.lower)) << mu << " " << sigma << ": lower " << lower << " against " << tn.lower;
+    ASSERT_TRUE(close(upper, tn.upper)) << mu << " " << sigma << ": upper " << upper << " against " << tn.upper;
+    ASSERT_TRUE(close(mass, tn.mass)) << mu << " " << sigma << ": mass " << mass << " against " << tn.mass;
+  };
+  for (const TnCase &c : kTnCases) {
+    check(float(c.mu), float(c.sigma), float(c.a), float(c.b));
+  }
+  neuralyarn::Rng rng(23);
+  const float deg = float(kPi / 180);
+  for (int k = 0; k < 100000; k++) {
+    const float mu = 4.0f * neuralyarn::uniform_float(rng) - 2.0f;
+    const float sigma = deg * (0.5f + 59.5f * neuralyarn::uniform_float(rng));
+    check(mu, sigma, -float(kPi / 2), float(kPi / 2));
+    check(mu, sigma, mu + sigma * 3.0f * neuralyarn::uniform_float(rng), mu + 4.0f * sigma); /* above the mean */
+    check(mu, sigma, mu - 4.0f * sigma, mu - sigma * 3.0f * neuralyarn::uniform_float(rng)); /* below it */
+  }
+}
+
 const double kKappas[] = {1e-5, 0.1, 1.0, 2.23, 8.35, 100.0, 3283.0, 1e6};
 
 class VonMisesTest : public ::testing::TestWithParam<int> {};

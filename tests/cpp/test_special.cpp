@@ -165,6 +165,96 @@ TEST(Special, FastErfcIsWithinSixUlpsOverTheFloatRange)
   EXPECT_TRUE(std::isnan(ny::fast_erfc(NAN)));
 }
 
+/* erfc_lanes (the kernel's exp, no branches; the R nodes' truncated normals in yarn_lobes) against Boost as
+ * fast_erfc above, over the same floats: within 6 ulps where erfc is a normal float (measured 4.7, as fast_erfc:
+ * fast_exp's error does not add where erfc's polynomial dominates), two smallest denormals below; the same cut-offs.
+ * Using fast_exp without the exact split of a^2 fails it (64 ulps at a = 9). */
+TEST(Special, ErfcLanesIsWithinSixUlpsOverTheFloatRange)
+{
+  double worst = 0.0;
+  auto check = [&](float x) {
+    const double want = boost::math::erfc(double(x));
+    const float got = ny::erfc_lanes(x);
+    if (want < double(FLT_MIN)) {
+      ASSERT_LE(std::fabs(double(got) - want), 2.0 * double(std::numeric_limits<float>::denorm_min()))
+          << "erfc_lanes(" << x << ")";
+      return;
+    }
+    const double err = std::fabs(double(got) - want) / std::ldexp(1.0, std::ilogb(want) - 23);
+    worst = std::max(worst, err);
+    ASSERT_LE(err, 6.0) << "erfc_lanes(" << x << ")";
+  };
+  for (uint32_t u = 0; u <= ny::float_bits(11.0f); u += 97) {
+    check(ny::float_from_bits(u));
+    check(-ny::float_from_bits(u));
+  }
+  RecordProperty("worst_ulps", std::to_string(worst));
+  EXPECT_EQ(ny::erfc_lanes(0.0f), 1.0f);
+  EXPECT_EQ(ny::erfc_lanes(10.1f), 0.0f);
+  EXPECT_EQ(ny::erfc_lanes(-10.1f), 2.0f);
+  EXPECT_EQ(ny::erfc_lanes(INFINITY), 0.0f);
+  EXPECT_EQ(ny::erfc_lanes(-INFINITY), 2.0f);
+}
+
+/* sincos_lanes against double sin and cos over [-16, 16] (every 31st float, ~10^8 / 31 arguments, each binade
+ * alike): within 2 ulps of each result, or 6e-8 (half an ulp of 1) absolute where the result is smaller than
+ * that allows (near the zeros, where the reduction's r carries the absolute error of pi/2's three parts). The
+ * quadrant selection is checked by the signs at the four axes. A wrong quadrant or a two-part pi/2 fails it. */
+TEST(Special, SincosLanesIsWithinTwoUlps)
+{
+  double worst = 0.0;
+  auto check = [&](float a) {
+    float s, c;
+    ny::sincos_lanes(a, s, c);
+    const double want[2] = {std::sin(double(a)), std::cos(double(a))};
+    const float got[2] = {s, c};
+    for (int k = 0; k < 2; k++) {
+      const double err = std::fabs(double(got[k]) - want[k]);
+      const double ulp = std::ldexp(1.0, std::ilogb(std::max(std::fabs(want[k]), 1e-30)) - 23);
+      if (std::fabs(want[k]) > 1e-3) {
+        worst = std::max(worst, err / ulp);
+      }
+      ASSERT_TRUE(err <= 2.0 * ulp || err <= 6e-8) << (k ? "cos(" : "sin(") << a << "): " << got[k] << " against "
+                                                   << want[k];
+    }
+  };
+  for (uint32_t u = 0; u <= ny::float_bits(16.0f); u += 31) {
+    check(ny::float_from_bits(u));
+    check(-ny::float_from_bits(u));
+  }
+  RecordProperty("worst_ulps", std::to_string(worst));
+  for (int k = -8; k <= 8; k++) {
+    const float a = float(k) * float(M_PI / 2);
+    float s, c;
+    ny::sincos_lanes(a, s, c);
+    const int n = ((k % 4) + 4) % 4;
+    EXPECT_NEAR(s, n == 1 ? 1.0f : n == 3 ? -1.0f : 0.0f, 1e-6f) << k;
+    EXPECT_NEAR(c, n == 0 ? 1.0f : n == 2 ? -1.0f : 0.0f, 1e-6f) << k;
+  }
+}
+
+/* wrap_angle_lanes is wrap_angle, bit for bit, over its range [-pi, 3 pi) (every 7th float of each sign up to 3 pi,
+ * the bounds and the points where fmodf's result wraps). */
+TEST(Special, WrapAngleLanesIsWrapAngle)
+{
+  auto check = [](float a) {
+    ASSERT_EQ(ny::float_bits(ny::wrap_angle_lanes(a)), ny::float_bits(ny::wrap_angle(a))) << a;
+  };
+  for (uint32_t u = 0; u <= ny::float_bits(3.0f * float(M_PI)); u += 7) {
+    const float a = ny::float_from_bits(u);
+    if (a < 3.0f * ny::kPi) {
+      check(a);
+    }
+    if (a <= ny::kPi) {
+      check(-a);
+    }
+  }
+  for (float a : {-ny::kPi, 0.0f, ny::kPi, std::nextafter(ny::kPi, 0.0f), std::nextafter(ny::kPi, 4.0f), ny::kTwoPi,
+                  std::nextafter(3.0f * ny::kPi, 0.0f)}) {
+    check(a);
+  }
+}
+
 /* maxf, minf and clampf by comparisons are libm's fmaxf, fminf and fminf(fmaxf(x, lo), hi) (what they replaced, D59):
  * the same bits for random arguments and special first arguments against non-zero bounds, and a NaN first argument
  * gives the bound as before (a comparison written the other way round would pass the NaN on). Only the sign of a

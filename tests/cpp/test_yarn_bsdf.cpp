@@ -792,6 +792,93 @@ TEST(YarnBsdf, EvalAndPdfTogetherAreEvalAndPdfApart)
  * yarn_pdf_R_parts). Both must be the same function to the bit, so that what a bake fits is what Cycles
  * renders: free-path nodes, a yarn's surface frames, a single node, with and without the azimuth table and
  * the TT part, w_o over the whole sphere. */
+/* yarn_lobes sets up the kYarnRNodes R nodes as lanes (yarn_r_nodes_setup_lanes, D64) with its own sin, cos, erfc and
+ * the normaliser's table; each node must be what the scalar functions give. Given the node's own rotation angle and
+ * mean: P_q, M_q, the surface frames' a_q and the mean -theta~_i bit for bit (yarn_to_r_node and theta_of), the free
+ * path's cos a_q and sin a_q within 2 ulps or 6e-8 of cosf and sinf (sincos_lanes' accuracy), each truncated normal's
+ * bounds bit for bit and its masses within 8 ulps of make_truncated_normal's, each lobe's 1 / (beta G) within 8 ulps
+ * of make_longitudinal_lobe's (the table path; a width past the table, TT at 40 degrees here, takes the scalar
+ * normaliser and is equal to the bit). Models: the free path's nodes (synthetic fleece, shipped fleece and cotton,
+ * both with the TT part), a yarn's surface frames (synthetic cotton), and fleece with its TT part 40 degrees wide.
+ * Selecting the wrong tail in truncated_normal_lanes or dropping the twist's fading fails it. */
+TEST(YarnBsdf, RNodeSetupLanesAreTheScalarFunctions)
+{
+  struct Case {
+    model::YarnModel m;
+    float beta_TT; /* 0: the model's */
+  };
+  std::vector<Case> cases = {{synthetic_model("fleece", 6), 0.0f}, {synthetic_yarn_model("cotton", 6), 0.0f},
+                             {model::load_model(model::builtin_model_path("fleece")), 0.0f},
+                             {model::load_model(model::builtin_model_path("cotton")), 0.0f},
+                             {model::load_model(model::builtin_model_path("fleece")), float(40.0 * kPi / 180.0)}};
+  auto near_ulps = [](float got, float want, double ulps) {
+    return std::fabs(double(got) - double(want)) <=
+           ulps * std::ldexp(1.0, std::ilogb(std::max(std::fabs(double(want)), 1e-30)) - 23);
+  };
+  auto same_tn = [&](const ny::TruncatedNormal &got, const ny::TruncatedNormal &want) {
+    return bit_equal(got.mu, want.mu) && bit_equal(got.sigma, want.sigma) && bit_equal(got.za, want.za) &&
+           bit_equal(got.zb, want.zb) && near_ulps(got.lower, want.lower, 8) && near_ulps(got.upper, want.upper, 8) &&
+           near_ulps(got.mass, want.mass, 8);
+  };
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  for (size_t i = 0; i < cases.size(); i++) {
+    const std::vector<float> flat = cases[i].m.kernel_flat();
+    ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    if (cases[i].beta_TT > 0.0f) {
+      p.fiber.beta_TT = cases[i].beta_TT;
+    }
+    int with_tt = 0;
+    for (int k = 0; k < 5000; k++) {
+      const ny::Vec3 wi = from_polar((kPi / 2 + 0.05) * U(rng), 2 * kPi * U(rng) - kPi);
+      const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+      ASSERT_EQ(l.n_R, ny::kYarnRNodes) << "case " << i;
+      const bool tt = ny::average(l.tau) > 0.0f || l.node[0].tn_TT.sigma != l.node[0].tn_R.sigma;
+      with_tt += tt;
+      for (int q = 0; q < l.n_R; q++) {
+        const ny::YarnRNode &n = l.node[q];
+        if (p.r_frames) {
+          const float *r = p.r_frames + q * ny::kYarnRFrameStride;
+          ASSERT_TRUE(bit_equal(n.pre.c, r[0]) && bit_equal(n.pre.s, r[1]) && bit_equal(n.ca, r[2]) &&
+                      bit_equal(n.sa, r[3]) && bit_equal(n.twist.c, r[4]) && bit_equal(n.twist.s, r[5]))
+              << "case " << i << " node " << q;
+        }
+        else {
+          const float s = p.free_path * ny::yarn_r_node_path(q), a = -wi.y * s;
+          ASSERT_TRUE(n.pre.c == 1.0f && n.pre.s == 0.0f) << "case " << i;
+          ASSERT_TRUE(std::fabs(n.ca - std::cos(a)) <= std::max(2.0f * std::fabs(std::nextafter(std::cos(a), 2.0f) - std::cos(a)), 6e-8f) &&
+                      std::fabs(n.sa - std::sin(a)) <= std::max(2.0f * std::fabs(std::nextafter(std::fabs(std::sin(a)), 2.0f) - std::fabs(std::sin(a))), 6e-8f))
+              << "case " << i << " node " << q << " a " << a << ": " << n.ca << " " << n.sa;
+          const ny::TwistRotation t = ny::make_twist_rotation(p.alpha * ny::maxf(1.0f - s * wi.z, 0.0f));
+          ASSERT_TRUE(bit_equal(n.twist.c, t.c) && bit_equal(n.twist.s, t.s)) << "case " << i << " node " << q;
+        }
+        const ny::Vec3 wi_q = ny::yarn_to_r_node(n, wi);
+        const float mu = -ny::theta_of(wi_q);
+        ASSERT_TRUE(bit_equal(n.tn_R.mu, mu) && bit_equal(n.m_R.mu, mu)) << "case " << i << " node " << q;
+        ASSERT_TRUE(same_tn(n.tn_R, ny::make_truncated_normal(mu, p.fiber.beta_R, -ny::kHalfPi, ny::kHalfPi)))
+            << "case " << i << " node " << q << " k " << k;
+        ASSERT_TRUE(near_ulps(n.m_R.inv_beta_G, ny::make_longitudinal_lobe(mu, p.fiber.beta_R).inv_beta_G, 8))
+            << "case " << i << " node " << q << ": " << n.m_R.inv_beta_G;
+        if (tt) {
+          ASSERT_TRUE(same_tn(n.tn_TT, ny::make_truncated_normal(mu, p.fiber.beta_TT, -ny::kHalfPi, ny::kHalfPi)))
+              << "case " << i << " node " << q;
+          const float G_TT = ny::make_longitudinal_lobe(mu, p.fiber.beta_TT, true).inv_beta_G;
+          if (p.fiber.beta_TT > ny::kCos2TableBetaMax) {
+            ASSERT_TRUE(bit_equal(n.m_TT.inv_beta_G, G_TT)) << "case " << i << " node " << q;
+          }
+          else {
+            ASSERT_TRUE(near_ulps(n.m_TT.inv_beta_G, G_TT, 8)) << "case " << i << " node " << q;
+          }
+          const float phi = ny::wrap_angle(ny::phi_of(wi_q) + ny::kPi);
+          ASSERT_TRUE(same_tn(n.tn_TT_phi, ny::make_truncated_normal(phi, p.fiber.gamma_TT, -ny::kHalfPi, ny::kHalfPi)))
+              << "case " << i << " node " << q;
+        }
+      }
+    }
+    EXPECT_GT(with_tt, 1000) << "case " << i; /* the TT part is checked, not skipped */
+  }
+}
+
 TEST(YarnBsdf, RNodeLanesAreTheNodesOneByOne)
 {
   std::vector<model::YarnModel> models = {synthetic_model("fleece", 6), synthetic_yarn_model("cotton", 6)};

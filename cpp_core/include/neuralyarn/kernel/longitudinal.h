@@ -95,10 +95,12 @@ NY_KERNEL_FN Cos2Width make_cos2_width(float beta)
 }
 
 /* G over the whole line (see the file comment); d = pi/2 - |mu|. */
+/* G over the whole line given s = sin d (the lanes take their own sin). */
+NY_KERNEL_FN float cos2_gaussian_untruncated_of_sin(float s, float half, float e) { return half + s * s * e; }
+
 NY_KERNEL_FN float cos2_gaussian_untruncated(float d, NY_PRIVATE const Cos2Width &w)
 {
-  const float s = sinf(d);
-  return w.half + s * s * w.e;
+  return cos2_gaussian_untruncated_of_sin(sinf(d), w.half, w.e);
 }
 
 /* Catmull-Rom spline through p0..p3 at x in [0, 1] between p1 and p2. */
@@ -115,12 +117,15 @@ NY_KERNEL_FN float cos2_gaussian_ratio(float beta, float t)
   const int ib = (int)fb < kCos2TableBetaSteps - 1 ? (int)fb : kCos2TableBetaSteps - 1;
   const int it = (int)ft < kCos2TableTSteps - 1 ? (int)ft : kCos2TableTSteps - 1;
   const float xb = fb - (float)ib, xt = ft - (float)it;
-  float row[4];
-  for (int k = 0; k < 4; k++) {
-    const int base = (ib + k) * kCos2TableStride + it; /* node (ib - 1 + k, it - 1) after the padding */
-    row[k] = catmull_rom(kCos2Table[base], kCos2Table[base + 1], kCos2Table[base + 2], kCos2Table[base + 3], xt);
-  }
-  return catmull_rom(row[0], row[1], row[2], row[3], xb);
+  /* Row k starts at node (ib - 1 + k, it - 1) after the padding. The four rows written out, not a loop: a loop
+   * here keeps the R nodes' lanes (yarn_lobes) from vectorising. */
+  const int b0 = ib * kCos2TableStride + it, b1 = b0 + kCos2TableStride, b2 = b1 + kCos2TableStride,
+            b3 = b2 + kCos2TableStride;
+  const float r0 = catmull_rom(kCos2Table[b0], kCos2Table[b0 + 1], kCos2Table[b0 + 2], kCos2Table[b0 + 3], xt);
+  const float r1 = catmull_rom(kCos2Table[b1], kCos2Table[b1 + 1], kCos2Table[b1 + 2], kCos2Table[b1 + 3], xt);
+  const float r2 = catmull_rom(kCos2Table[b2], kCos2Table[b2 + 1], kCos2Table[b2 + 2], kCos2Table[b2 + 3], xt);
+  const float r3 = catmull_rom(kCos2Table[b3], kCos2Table[b3 + 1], kCos2Table[b3 + 2], kCos2Table[b3 + 3], xt);
+  return catmull_rom(r0, r1, r2, r3, xb);
 }
 
 /* G(mu, beta), see the file comment. Requires beta > 0. */
@@ -141,6 +146,22 @@ NY_KERNEL_FN float cos2_gaussian_normalizer(float mu, NY_PRIVATE const Cos2Width
     return cos2_gaussian_panel(mu, beta, lo, mu) + cos2_gaussian_panel(mu, beta, mu, hi);
   }
   return cos2_gaussian_panel(mu, beta, lo, hi);
+}
+
+/* cos2_gaussian_normalizer() for beta <= kCos2TableBetaMax without branches or library calls, for loops that run
+ * lanes side by side (the R nodes, yarn_lobes): both the closed form and the table's ratio computed, one selected;
+ * sin by sincos_lanes (within 2 ulps of sinf), so within a few ulps of cos2_gaussian_normalizer's value. */
+NY_KERNEL_FN float cos2_gaussian_normalizer_lanes(float mu, float beta, float half, float e)
+{
+  const float dist_to_bound = kHalfPi - fabsf(mu);
+  const float d = maxf(dist_to_bound, 0.0f);
+  float s, c;
+  sincos_lanes(d, s, c);
+  const float G_inf = cos2_gaussian_untruncated_of_sin(s, half, e);
+  /* The table read on every lane (its indices are clamped into it), not under the condition: loads there become
+   * masked gathers, which GCC 12 does not vectorise here. */
+  const float ratio = cos2_gaussian_ratio(beta, d / beta);
+  return dist_to_bound >= 6.0f * beta ? G_inf : G_inf * ratio;
 }
 
 NY_KERNEL_FN float cos2_gaussian_normalizer(float mu, float beta)
@@ -174,6 +195,9 @@ struct LongitudinalLobe {
   float inv_beta_G; /* 1 / (beta G): gbar(theta) = normal_pdf((theta - mu) / beta) * inv_beta_G */
 };
 
+/* 1 / (beta G), 0 where G is not positive. */
+NY_KERNEL_FN float longitudinal_inv_beta_G(float beta, float G) { return (G > 0.0f) ? 1.0f / (beta * G) : 0.0f; }
+
 /* `wide`: G by cos2_gaussian_normalizer_wide (a fiber's TT, beta >= 5 degrees). */
 NY_KERNEL_FN LongitudinalLobe make_longitudinal_lobe(float mu, NY_PRIVATE const Cos2Width &w, bool wide = false)
 {
@@ -181,7 +205,7 @@ NY_KERNEL_FN LongitudinalLobe make_longitudinal_lobe(float mu, NY_PRIVATE const 
   lobe.mu = mu;
   lobe.beta = w.beta;
   const float G = wide ? cos2_gaussian_normalizer_wide(mu, w) : cos2_gaussian_normalizer(mu, w);
-  lobe.inv_beta_G = (G > 0.0f) ? 1.0f / (w.beta * G) : 0.0f;
+  lobe.inv_beta_G = longitudinal_inv_beta_G(w.beta, G);
   return lobe;
 }
 

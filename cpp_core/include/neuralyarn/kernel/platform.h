@@ -170,6 +170,16 @@ NY_KERNEL_FN float wrap_angle(float a)
   return (w >= kPi) ? w - kTwoPi : w;
 }
 
+/* wrap_angle(a) for a in [-pi, 3 pi) without fmodf, for loops that run lanes side by side: the same value (fmodf of
+ * a + pi in [0, 4 pi) by 2 pi is a + pi or a + pi - 2 pi, the latter exact by Sterbenz's lemma). */
+NY_KERNEL_FN float wrap_angle_lanes(float a)
+{
+  const float v = a + kPi;
+  const float t = v >= kTwoPi ? v - kTwoPi : v;
+  const float w = t - kPi;
+  return (w >= kPi) ? w - kTwoPi : w;
+}
+
 /* atan2(y, x) in [-pi, pi] without a library call: the closures take two per direction and lobe frame, and
  * libm's atan2f was the largest single cost of a yarn render's shading (docs/benchmarks.md, D40). The
  * quotient of the smaller by the larger magnitude is reduced to |t| <= tan(pi/8) (t = (a - 1)/(a + 1) above
@@ -201,6 +211,25 @@ NY_KERNEL_FN float fast_atan2(float y, float x)
     return x + y; /* NaN in, NaN out */
   }
   return atan2_lanes(y, x);
+}
+
+/* sin a and cos a for |a| <= 16 without a library call, for loops that run lanes side by side (the R nodes'
+ * rotations and the cos^2 normaliser, yarn_lobes): a = j pi/2 + r with j the nearest integer to a 2/pi and pi/2
+ * in three parts (Cephes' DP1..DP3 doubled: j times the first two is exact for |j| <= 10 here), then Cephes'
+ * sinf and cosf polynomials on |r| <= pi/4 and the quadrant j mod 4 by selection. Within 2 float ulps of double
+ * sin and cos, or 6e-8 absolute near their zeros (tests/cpp/test_special.cpp). */
+NY_KERNEL_FN void sincos_lanes(float a, NY_PRIVATE float &s, NY_PRIVATE float &c)
+{
+  const float fj = (a * 0.63661977236758134f + 12582912.0f) - 12582912.0f; /* nearest integer, as fast_exp */
+  const int j = (int)fj;
+  const float r = ((a - fj * 1.5703125f) - fj * 4.837512969970703125e-4f) - fj * 7.54978995489188216e-8f;
+  const float r2 = r * r;
+  const float sr = r + r * r2 * (-1.6666654611e-1f + r2 * (8.3321608736e-3f + r2 * -1.9515295891e-4f));
+  const float cr = 1.0f - 0.5f * r2 + r2 * r2 * (4.166664568298827e-2f + r2 * (-1.388731625493765e-3f + r2 * 2.443315711809948e-5f));
+  const int n = j & 3;
+  const float s0 = (n & 1) ? cr : sr, c0 = (n & 1) ? sr : cr;
+  s = (n & 2) ? -s0 : s0;
+  c = ((n + 1) & 2) ? -c0 : c0;
 }
 
 /* True for a finite float (not NaN, not +-inf); written without std::isfinite so that it also works in

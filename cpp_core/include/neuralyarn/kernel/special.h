@@ -24,12 +24,10 @@ NY_KERNEL_FN float normal_pdf_lanes(float z) { return kInvSqrtTwoPi * fast_exp(-
  * Estrin's form, holds it to 1.3e-8 relative (scripts/make_erfc_fit.py), so erfc(a) = exp(-a^2) h / (1 + 2a)
  * keeps full relative precision deep into the tail, erfc(0) is 1 exactly, and erfc(-a) = 2 - erfc(a). Past
  * a = 10.1 erfc is below float's smallest denormal. */
-NY_KERNEL_FN float fast_erfc(float x)
+/* erfc(a) for 0 <= a < 10.1, the body of fast_erfc and erfc_lanes: exp(-a^2) by libm's expf (kLanes false) or the
+ * kernel's fast_exp (true). */
+template<bool kLanes> NY_KERNEL_FN float erfc_nonnegative(float a)
 {
-  const float a = fabsf(x);
-  if (!(a < 10.1f)) {
-    return x < 0.0f ? 2.0f : (a == a ? 0.0f : x); /* NaN stays NaN */
-  }
   const float r = 1.0f / (a + 2.0f);
   const float t = (a - 2.0f) * r, one_plus_t = 2.0f * a * r;
   const float t2 = t * t, t4 = t2 * t2;
@@ -42,8 +40,29 @@ NY_KERNEL_FN float fast_erfc(float x)
   const float s = a * a;
   const float a_hi = float_from_bits(float_bits(a) & 0xfffff000u), a_lo = a - a_hi;
   const float d = ((a_hi * a_hi - s) + 2.0f * a_hi * a_lo) + a_lo * a_lo;
-  const float e = h / (1.0f + 2.0f * a) * (expf(-s) * (1.0f - d));
+  const float ex = kLanes ? fast_exp(-s) : expf(-s);
+  return h / (1.0f + 2.0f * a) * (ex * (1.0f - d));
+}
+
+NY_KERNEL_FN float fast_erfc(float x)
+{
+  const float a = fabsf(x);
+  if (!(a < 10.1f)) {
+    return x < 0.0f ? 2.0f : (a == a ? 0.0f : x); /* NaN stays NaN */
+  }
+  const float e = erfc_nonnegative<false>(a);
   return x < 0.0f ? 2.0f - e : e;
+}
+
+/* fast_erfc with the kernel's exp and without branches, for loops that run lanes side by side (the R nodes'
+ * truncated normals, yarn_lobes): within a few float ulps of it (tests/cpp/test_special.cpp). Past |x| = 10.1
+ * it is 0 or 2 as fast_erfc; a NaN gives some number. */
+NY_KERNEL_FN float erfc_lanes(float x)
+{
+  const float a = fabsf(x);
+  const float e = erfc_nonnegative<true>(a < 10.1f ? a : 10.1f);
+  const float e_cut = a < 10.1f ? e : 0.0f;
+  return x < 0.0f ? 2.0f - e_cut : e_cut;
 }
 
 /* Phi(z) = P(Z <= z). Written with erfc so that the lower tail keeps full relative precision down to

@@ -499,6 +499,95 @@ NY_KERNEL_FN float yarn_transmission_probability(NY_PRIVATE const YarnBsdfParams
   return yarn_calibrated_transmission(p, we, dP_T);
 }
 
+/* yarn_lobes' kYarnRNodes R nodes as the lanes of one vector (issue 21, decisions D64): each node's frame, its
+ * theta~_i and phi~_i, the truncated normals of its theta~ Gaussians (and the TT azimuth's, kTT) and their cos^2
+ * normalisers, in one loop without branches or library calls (sincos_lanes, atan2_lanes, erfc_lanes, the table's
+ * normaliser; within a few float ulps of the scalar functions), then stored into l.node. A width past the
+ * normaliser's table takes the scalar normaliser (its quadrature) after the loop. */
+template<bool kTT>
+NY_KERNEL_FN void yarn_r_nodes_setup_lanes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, bool with_eval,
+                                           NY_PRIVATE const Cos2Width &w_R, NY_PRIVATE const Cos2Width &w_TT,
+                                           NY_PRIVATE YarnLobes &l)
+{
+  constexpr int K = kYarnRNodes;
+  /* Each node's rotation w -> M_q R_x(a_q) P_q w (P_q the identity on the free path's nodes). */
+  float pc[K], ps[K], ca[K], sa[K], tc[K], ts[K];
+  if (p.r_frames) { /* fibers of the visible surface: their frames from the model (D51) */
+    for (int q = 0; q < K; q++) {
+      NY_GLOBAL const float *r = p.r_frames + q * kYarnRFrameStride;
+      pc[q] = r[0];
+      ps[q] = r[1];
+      ca[q] = r[2];
+      sa[q] = r[3];
+      tc[q] = r[4];
+      ts[q] = r[5];
+    }
+  }
+  else { /* the free path's nodes (D38): a_q = -w_i.y s_q, the twist fading with the depth s_q w_i.z */
+    const float free_path = p.free_path, alpha = p.alpha;
+    NY_SIMD_LOOP
+    for (int q = 0; q < K; q++) {
+      const float s = free_path * yarn_r_node_path(q);
+      sincos_lanes(-wi.y * s, sa[q], ca[q]);
+      pc[q] = 1.0f;
+      ps[q] = 0.0f;
+      /* make_twist_rotation(alpha max(1 - s w_i.z, 0)) written out (a structure returned here keeps the loop scalar). */
+      const float t = kPi * (alpha * maxf(1.0f - s * wi.z, 0.0f));
+      const float inv = 1.0f / sqrtf(1.0f + t * t);
+      tc[q] = inv;
+      ts[q] = t * inv;
+    }
+  }
+  const float beta_R = p.fiber.beta_R, beta_TT = p.fiber.beta_TT, gamma_TT = p.fiber.gamma_TT;
+  float mu[K], phi_TT[K], inv_R[K], inv_TT[K];
+  float za_R[K], zb_R[K], lo_R[K], up_R[K], mass_R[K];
+  float za_TT[K], zb_TT[K], lo_TT[K], up_TT[K], mass_TT[K];
+  float za_P[K], zb_P[K], lo_P[K], up_P[K], mass_P[K];
+  NY_SIMD_LOOP
+  for (int q = 0; q < K; q++) {
+    /* yarn_to_r_node() and theta_of(), written out as in yarn_R_lanes. */
+    const Vec3 v = yarn_rotate_about_axis(ca[q], sa[q],
+                                          make_vec3(pc[q] * wi.x - ps[q] * wi.y, ps[q] * wi.x + pc[q] * wi.y, wi.z));
+    const Vec3 w_q = make_vec3(tc[q] * v.x - ts[q] * v.y, ts[q] * v.x + tc[q] * v.y, v.z);
+    const float c = minf(sqrtf(w_q.y * w_q.y + w_q.z * w_q.z), 1.0f);
+    const float m = -atan2_lanes(w_q.x, c);
+    mu[q] = m;
+    truncated_normal_lanes(m, beta_R, -kHalfPi, kHalfPi, za_R[q], zb_R[q], lo_R[q], up_R[q], mass_R[q]);
+    inv_R[q] = longitudinal_inv_beta_G(beta_R, cos2_gaussian_normalizer_lanes(m, beta_R, w_R.half, w_R.e));
+    if (kTT) {
+      truncated_normal_lanes(m, beta_TT, -kHalfPi, kHalfPi, za_TT[q], zb_TT[q], lo_TT[q], up_TT[q], mass_TT[q]);
+      inv_TT[q] = longitudinal_inv_beta_G(beta_TT, cos2_gaussian_normalizer_lanes(m, beta_TT, w_TT.half, w_TT.e));
+      phi_TT[q] = wrap_angle_lanes(atan2_lanes(w_q.y, w_q.z) + kPi);
+      truncated_normal_lanes(phi_TT[q], gamma_TT, -kHalfPi, kHalfPi, za_P[q], zb_P[q], lo_P[q], up_P[q], mass_P[q]);
+    }
+  }
+  const bool table_R = with_eval && beta_R <= kCos2TableBetaMax, table_TT = with_eval && beta_TT <= kCos2TableBetaMax;
+  for (int q = 0; q < K; q++) {
+    NY_PRIVATE YarnRNode &n = l.node[q];
+    n.pre = TwistRotation{pc[q], ps[q]};
+    n.ca = ca[q];
+    n.sa = sa[q];
+    n.twist = TwistRotation{tc[q], ts[q]};
+    n.tn_R = TruncatedNormal{mu[q], beta_R, za_R[q], zb_R[q], lo_R[q], up_R[q], mass_R[q]};
+    n.m_R = table_R ? LongitudinalLobe{mu[q], beta_R, inv_R[q]} :
+            with_eval ? make_longitudinal_lobe(mu[q], w_R) : LongitudinalLobe{mu[q], beta_R, 0.0f};
+    if (kTT) {
+      n.tn_TT = TruncatedNormal{mu[q], beta_TT, za_TT[q], zb_TT[q], lo_TT[q], up_TT[q], mass_TT[q]};
+      n.m_TT = table_TT ? LongitudinalLobe{mu[q], beta_TT, inv_TT[q]} :
+               with_eval ? make_longitudinal_lobe(mu[q], w_TT, true) : LongitudinalLobe{mu[q], beta_TT, 0.0f};
+      n.tn_TT_phi = TruncatedNormal{phi_TT[q], gamma_TT, za_P[q], zb_P[q], lo_P[q], up_P[q], mass_P[q]};
+      if (!(mass_P[q] > 0.0f)) {
+        l.tau = make_rgb(0.0f); /* every node's TT part must hold the lobe's energy, or none has a share */
+      }
+    }
+    else {
+      n.tn_TT = n.tn_R;
+      n.m_TT = n.m_R;
+      n.tn_TT_phi = TruncatedNormal{0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+    }
+  }
+}
+
 /* `with_eval` = false skips the cos^2 normaliser of the R lobe, which only eval needs. */
 NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, bool with_eval = true)
 {
@@ -547,29 +636,17 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
       w_TT = make_cos2_width(p.fiber.beta_TT);
     }
   }
-  for (int q = 0; q < l.n_R; q++) {
-    NY_PRIVATE YarnRNode &n = l.node[q];
+  if (l.n_R == kYarnRNodes) {
+    has_tt ? yarn_r_nodes_setup_lanes<true>(p, wi, with_eval, w_R, w_TT, l) :
+             yarn_r_nodes_setup_lanes<false>(p, wi, with_eval, w_R, w_TT, l);
+  }
+  else { /* the surface fiber alone: the base frame */
+    NY_PRIVATE YarnRNode &n = l.node[0];
     n.pre = TwistRotation{1.0f, 0.0f};
-    if (l.n_R == 1) { /* the surface fiber: the base frame */
-      n.ca = 1.0f;
-      n.sa = 0.0f;
-      n.twist = p.twist;
-    }
-    else if (p.r_frames) { /* a fiber of the visible surface: its frame from the model (D51) */
-      NY_GLOBAL const float *r = p.r_frames + q * kYarnRFrameStride;
-      n.pre = TwistRotation{r[0], r[1]};
-      n.ca = r[2];
-      n.sa = r[3];
-      n.twist = TwistRotation{r[4], r[5]};
-    }
-    else {
-      const float s = p.free_path * yarn_r_node_path(q), a = -wi.y * s;
-      n.ca = cosf(a);
-      n.sa = sinf(a);
-      n.twist = make_twist_rotation(p.alpha * maxf(1.0f - s * wi.z, 0.0f));
-    }
-    const Vec3 wi_q = l.n_R == 1 ? l.wi_f : yarn_to_r_node(n, wi);
-    const float theta_q = theta_of(wi_q);
+    n.ca = 1.0f;
+    n.sa = 0.0f;
+    n.twist = p.twist;
+    const float theta_q = theta_of(l.wi_f);
     n.m_R = with_eval ? make_longitudinal_lobe(-theta_q, w_R)
                       : LongitudinalLobe{-theta_q, p.fiber.beta_R, 0.0f};
     n.tn_R = make_truncated_normal(-theta_q, p.fiber.beta_R, -kHalfPi, kHalfPi);
@@ -577,9 +654,9 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
     n.m_TT = n.m_R;
     n.tn_TT_phi = TruncatedNormal{0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
     if (has_tt) {
-      n.tn_TT_phi = make_truncated_normal(wrap_angle(phi_of(wi_q) + kPi), p.fiber.gamma_TT, -kHalfPi, kHalfPi);
+      n.tn_TT_phi = make_truncated_normal(wrap_angle(phi_of(l.wi_f) + kPi), p.fiber.gamma_TT, -kHalfPi, kHalfPi);
       if (!(n.tn_TT_phi.mass > 0.0f)) {
-        l.tau = make_rgb(0.0f); /* every node's TT part must hold the lobe's energy, or none has a share */
+        l.tau = make_rgb(0.0f); /* the TT part must hold the lobe's energy, or it has no share */
       }
       n.tn_TT = make_truncated_normal(-theta_q, p.fiber.beta_TT, -kHalfPi, kHalfPi);
       n.m_TT = with_eval ? make_longitudinal_lobe(-theta_q, w_TT, true)
