@@ -879,6 +879,37 @@ TEST(YarnBsdf, RNodeSetupLanesAreTheScalarFunctions)
   }
 }
 
+/* The R nodes' Gaussians skip the normaliser's table and the R tails' erfc when no node needs them (yarn_lobes checks
+ * every node's mean first): what they then write must be what the full computation gives, to the bit. Means drawn
+ * where both skips apply (every lane more than 9 beta_R from the bounds, so the tails are cut and the closed form
+ * holds) for the shipped cotton (beta_R 1 degree) and fleece (7.2 degrees) models, TT part included. A skipped
+ * mass of 1 - 2^-24 instead of 1 fails it. */
+TEST(YarnBsdf, RNodeGaussiansSkipOnlyWhatNoNodeNeeds)
+{
+  for (const char *preset : {"cotton", "fleece"}) {
+    const std::vector<float> flat = model::load_model(model::builtin_model_path(preset)).kernel_flat();
+    const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    const ny::Cos2Width w_R = ny::make_cos2_width(p.fiber.beta_R), w_TT = ny::make_cos2_width(p.fiber.beta_TT);
+    const float reach = float(kPi / 2) - 9.5f * p.fiber.beta_R;
+    ASSERT_GT(reach, 0.3f) << preset;
+    std::mt19937 rng(43);
+    std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+    for (int k = 0; k < 20000; k++) {
+      ny::YarnRNodeSetupLanes full{}, skip{};
+      for (int q = 0; q < ny::kYarnRNodes; q++) {
+        full.mu[q] = skip.mu[q] = reach * U(rng);
+        full.phi_TT[q] = skip.phi_TT[q] = float(kPi) * U(rng);
+        ASSERT_TRUE(ny::cos2_gaussian_closed_form_holds(float(kPi / 2) - std::fabs(full.mu[q]), p.fiber.beta_R));
+        ASSERT_TRUE(ny::truncated_normal_tails_cut((-float(kPi / 2) - full.mu[q]) / p.fiber.beta_R,
+                                                   (float(kPi / 2) - full.mu[q]) / p.fiber.beta_R));
+      }
+      ny::yarn_r_nodes_gaussians_lanes<true, true, true>(p, w_R, w_TT, full);
+      ny::yarn_r_nodes_gaussians_lanes<true, false, false>(p, w_R, w_TT, skip);
+      ASSERT_EQ(std::memcmp(&full, &skip, sizeof(full)), 0) << preset << " k " << k;
+    }
+  }
+}
+
 TEST(YarnBsdf, RNodeLanesAreTheNodesOneByOne)
 {
   std::vector<model::YarnModel> models = {synthetic_model("fleece", 6), synthetic_yarn_model("cotton", 6)};

@@ -128,12 +128,15 @@ NY_KERNEL_FN float cos2_gaussian_ratio(float beta, float t)
   return catmull_rom(r0, r1, r2, r3, xb);
 }
 
+/* Whether G is the closed form over the whole line: the mean 6 beta or more from both bounds. */
+NY_KERNEL_FN bool cos2_gaussian_closed_form_holds(float dist_to_bound, float beta) { return dist_to_bound >= 6.0f * beta; }
+
 /* G(mu, beta), see the file comment. Requires beta > 0. */
 NY_KERNEL_FN float cos2_gaussian_normalizer(float mu, NY_PRIVATE const Cos2Width &w)
 {
   const float beta = w.beta;
   const float dist_to_bound = kHalfPi - fabsf(mu);
-  if (dist_to_bound >= 6.0f * beta) {
+  if (cos2_gaussian_closed_form_holds(dist_to_bound, beta)) {
     return cos2_gaussian_untruncated(dist_to_bound, w);
   }
   if (beta <= kCos2TableBetaMax) {
@@ -150,7 +153,9 @@ NY_KERNEL_FN float cos2_gaussian_normalizer(float mu, NY_PRIVATE const Cos2Width
 
 /* cos2_gaussian_normalizer() for beta <= kCos2TableBetaMax without branches or library calls, for loops that run
  * lanes side by side (the R nodes, yarn_lobes): both the closed form and the table's ratio computed, one selected;
- * sin by sincos_lanes (within 2 ulps of sinf), so within a few ulps of cos2_gaussian_normalizer's value. */
+ * sin by sincos_lanes (within 2 ulps of sinf), so within a few ulps of cos2_gaussian_normalizer's value. kTable
+ * false leaves the table out, for a caller that knows every lane at least 6 beta from the bounds (the same value). */
+template<bool kTable = true>
 NY_KERNEL_FN float cos2_gaussian_normalizer_lanes(float mu, float beta, float half, float e)
 {
   const float dist_to_bound = kHalfPi - fabsf(mu);
@@ -158,10 +163,13 @@ NY_KERNEL_FN float cos2_gaussian_normalizer_lanes(float mu, float beta, float ha
   float s, c;
   sincos_lanes(d, s, c);
   const float G_inf = cos2_gaussian_untruncated_of_sin(s, half, e);
+  if (!kTable) {
+    return G_inf;
+  }
   /* The table read on every lane (its indices are clamped into it), not under the condition: loads there become
    * masked gathers, which GCC 12 does not vectorise here. */
   const float ratio = cos2_gaussian_ratio(beta, d / beta);
-  return dist_to_bound >= 6.0f * beta ? G_inf : G_inf * ratio;
+  return cos2_gaussian_closed_form_holds(dist_to_bound, beta) ? G_inf : G_inf * ratio;
 }
 
 NY_KERNEL_FN float cos2_gaussian_normalizer(float mu, float beta)
@@ -177,7 +185,7 @@ NY_KERNEL_FN float cos2_gaussian_normalizer(float mu, float beta)
 NY_KERNEL_FN float cos2_gaussian_normalizer_wide(float mu, NY_PRIVATE const Cos2Width &w)
 {
   const float beta = w.beta;
-  if (beta <= kCos2TableBetaMax || kHalfPi - fabsf(mu) >= 6.0f * beta) {
+  if (beta <= kCos2TableBetaMax || cos2_gaussian_closed_form_holds(kHalfPi - fabsf(mu), beta)) {
     return cos2_gaussian_normalizer(mu, w); /* the table, or the closed form holds */
   }
   return cos2_gaussian_panel(mu, beta, maxf(mu - 6.0f * beta, -kHalfPi), minf(mu + 6.0f * beta, kHalfPi));

@@ -220,7 +220,12 @@ NY_KERNEL_FN float fast_atan2(float y, float x)
  * sin and cos, or 6e-8 absolute near their zeros (tests/cpp/test_special.cpp). */
 NY_KERNEL_FN void sincos_lanes(float a, NY_PRIVATE float &s, NY_PRIVATE float &c)
 {
-  const float fj = (a * 0.63661977236758134f + 12582912.0f) - 12582912.0f; /* nearest integer, as fast_exp */
+  /* j = the nearest integer to a 2/pi, as fast_exp rounds (rintf on a device, 1.5 * 2^23 added and removed here). */
+#ifdef NY_KERNEL_DEVICE
+  const float fj = rintf(a * 0.63661977236758134f);
+#else
+  const float fj = (a * 0.63661977236758134f + 12582912.0f) - 12582912.0f;
+#endif
   const int j = (int)fj;
   const float r = ((a - fj * 1.5703125f) - fj * 4.837512969970703125e-4f) - fj * 7.54978995489188216e-8f;
   const float r2 = r * r;

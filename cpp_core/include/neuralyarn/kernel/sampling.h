@@ -49,6 +49,14 @@ struct TruncatedNormal {
   float mass;     /* Phi(zb) - Phi(za): mass inside */
 };
 
+/* A tail beyond kNormalTailCut sigma (mass < 1.2e-19) is below float resolution next to the smallest mass the
+ * inverse CDF ever asks for (u >= 2^-32 times the mass): it is exactly 0 then, and erfc is skipped. */
+constexpr float kNormalTailCut = 9.0f;
+
+/* Whether both tails of an interval with standardised bounds za < 0 < zb are cut (mass exactly 1, lower and upper
+ * exactly 0, in make_truncated_normal and truncated_normal_lanes alike). */
+NY_KERNEL_FN bool truncated_normal_tails_cut(float za, float zb) { return za < -kNormalTailCut && zb > kNormalTailCut; }
+
 /* Requires sigma > 0 and a < b. The mass is computed in whichever form avoids cancellation: both bounds
  * in one tail use that tail's CDF, a straddling interval uses 1 - lower - upper. */
 NY_KERNEL_FN TruncatedNormal make_truncated_normal(float mu, float sigma, float a, float b)
@@ -58,26 +66,24 @@ NY_KERNEL_FN TruncatedNormal make_truncated_normal(float mu, float sigma, float 
   tn.sigma = sigma;
   tn.za = (a - mu) / sigma;
   tn.zb = (b - mu) / sigma;
-  /* A tail beyond 9 sigma (mass < 1.2e-19) is below float resolution next to the smallest mass the
-   * inverse CDF ever asks for (u >= 2^-32 times the mass): it is exactly 0 then, and erfc is skipped. */
   /* An interval on one side of the mean takes its mass as a difference of two tail probabilities, and the
    * CDF level on the mean's side as 1 - its own tail (>= 1/2, where that loses nothing and the sampler
    * reads the other one): two erfc calls instead of three (the TT azimuth's interval lies beyond its mean). */
   if (tn.za >= 0.0f) {
     const float tail_a = normal_ccdf(tn.za);
     tn.lower = 1.0f - tail_a;
-    tn.upper = tn.zb > 9.0f ? 0.0f : normal_ccdf(tn.zb);
+    tn.upper = tn.zb > kNormalTailCut ? 0.0f : normal_ccdf(tn.zb);
     tn.mass = tail_a - tn.upper;
   }
   else if (tn.zb <= 0.0f) {
     const float tail_b = normal_cdf(tn.zb);
     tn.upper = 1.0f - tail_b;
-    tn.lower = tn.za < -9.0f ? 0.0f : normal_cdf(tn.za);
+    tn.lower = tn.za < -kNormalTailCut ? 0.0f : normal_cdf(tn.za);
     tn.mass = tail_b - tn.lower;
   }
   else {
-    tn.lower = tn.za < -9.0f ? 0.0f : normal_cdf(tn.za);
-    tn.upper = tn.zb > 9.0f ? 0.0f : normal_ccdf(tn.zb);
+    tn.lower = tn.za < -kNormalTailCut ? 0.0f : normal_cdf(tn.za);
+    tn.upper = tn.zb > kNormalTailCut ? 0.0f : normal_ccdf(tn.zb);
     tn.mass = 1.0f - tn.lower - tn.upper;
   }
   return tn;
@@ -99,7 +105,7 @@ NY_KERNEL_FN void truncated_normal_lanes(float mu, float sigma, float a, float b
    * normal_cdf and normal_ccdf, multiplied by 1 / sqrt 2 as there). */
   const float e_a = 0.5f * erfc_lanes((above ? za : -za) * kInvSqrt2);
   const float e_b = 0.5f * erfc_lanes((below ? -zb : zb) * kInvSqrt2);
-  const float lower_mid = za < -9.0f ? 0.0f : e_a, upper_mid = zb > 9.0f ? 0.0f : e_b;
+  const float lower_mid = za < -kNormalTailCut ? 0.0f : e_a, upper_mid = zb > kNormalTailCut ? 0.0f : e_b;
   lower = above ? 1.0f - e_a : lower_mid;
   upper = below ? 1.0f - e_b : upper_mid;
   mass = above ? e_a - upper_mid : below ? e_b - lower_mid : 1.0f - lower_mid - upper_mid;

@@ -499,9 +499,51 @@ NY_KERNEL_FN float yarn_transmission_probability(NY_PRIVATE const YarnBsdfParams
   return yarn_calibrated_transmission(p, we, dP_T);
 }
 
+/* The R nodes' means and Gaussians side by side (yarn_r_nodes_setup_lanes), before they are stored into l.node. */
+struct YarnRNodeSetupLanes {
+  float mu[kYarnRNodes], phi_TT[kYarnRNodes], inv_R[kYarnRNodes], inv_TT[kYarnRNodes];
+  float za_R[kYarnRNodes], zb_R[kYarnRNodes], lo_R[kYarnRNodes], up_R[kYarnRNodes], mass_R[kYarnRNodes];
+  float za_TT[kYarnRNodes], zb_TT[kYarnRNodes], lo_TT[kYarnRNodes], up_TT[kYarnRNodes], mass_TT[kYarnRNodes];
+  float za_P[kYarnRNodes], zb_P[kYarnRNodes], lo_P[kYarnRNodes], up_P[kYarnRNodes], mass_P[kYarnRNodes];
+};
+
+/* The truncated normals and normalisers of every node from its mean (g.mu, g.phi_TT), as lanes. kTableR false: no
+ * node's mean is within 6 beta_R of a bound (the R normaliser is the closed form on every lane); kTailsR false: no
+ * node's theta~ interval reaches into a tail of its R Gaussian (mass 1, both tails 0 on every lane). Either gives
+ * the values of the full computation (the same selections made before, for all lanes at once): a narrow R lobe
+ * (cotton's 1 degree) skips the table's gathers and two erfc per node at most shading points. */
+template<bool kTT, bool kTableR, bool kTailsR>
+NY_KERNEL_FN void yarn_r_nodes_gaussians_lanes(NY_PRIVATE const YarnBsdfParams &p, NY_PRIVATE const Cos2Width &w_R,
+                                               NY_PRIVATE const Cos2Width &w_TT, NY_PRIVATE YarnRNodeSetupLanes &g)
+{
+  const float beta_R = p.fiber.beta_R, beta_TT = p.fiber.beta_TT, gamma_TT = p.fiber.gamma_TT;
+  NY_SIMD_LOOP
+  for (int q = 0; q < kYarnRNodes; q++) {
+    const float m = g.mu[q];
+    if (kTailsR) {
+      truncated_normal_lanes(m, beta_R, -kHalfPi, kHalfPi, g.za_R[q], g.zb_R[q], g.lo_R[q], g.up_R[q], g.mass_R[q]);
+    }
+    else {
+      g.za_R[q] = (-kHalfPi - m) / beta_R;
+      g.zb_R[q] = (kHalfPi - m) / beta_R;
+      g.lo_R[q] = 0.0f;
+      g.up_R[q] = 0.0f;
+      g.mass_R[q] = 1.0f;
+    }
+    g.inv_R[q] = longitudinal_inv_beta_G(beta_R, cos2_gaussian_normalizer_lanes<kTableR>(m, beta_R, w_R.half, w_R.e));
+    if (kTT) {
+      truncated_normal_lanes(m, beta_TT, -kHalfPi, kHalfPi, g.za_TT[q], g.zb_TT[q], g.lo_TT[q], g.up_TT[q],
+                             g.mass_TT[q]);
+      g.inv_TT[q] = longitudinal_inv_beta_G(beta_TT, cos2_gaussian_normalizer_lanes(m, beta_TT, w_TT.half, w_TT.e));
+      truncated_normal_lanes(g.phi_TT[q], gamma_TT, -kHalfPi, kHalfPi, g.za_P[q], g.zb_P[q], g.lo_P[q], g.up_P[q],
+                             g.mass_P[q]);
+    }
+  }
+}
+
 /* yarn_lobes' kYarnRNodes R nodes as the lanes of one vector (issue 21, decisions D64): each node's frame, its
- * theta~_i and phi~_i, the truncated normals of its theta~ Gaussians (and the TT azimuth's, kTT) and their cos^2
- * normalisers, in one loop without branches or library calls (sincos_lanes, atan2_lanes, erfc_lanes, the table's
+ * theta~_i and phi~_i, then the truncated normals of its theta~ Gaussians (and the TT azimuth's, kTT) and their cos^2
+ * normalisers, in loops without branches or library calls (sincos_lanes, atan2_lanes, erfc_lanes, the table's
  * normaliser; within a few float ulps of the scalar functions), then stored into l.node. A width past the
  * normaliser's table takes the scalar normaliser (its quadrature) after the loop. */
 template<bool kTT>
@@ -538,45 +580,51 @@ NY_KERNEL_FN void yarn_r_nodes_setup_lanes(NY_PRIVATE const YarnBsdfParams &p, V
       ts[q] = t * inv;
     }
   }
-  const float beta_R = p.fiber.beta_R, beta_TT = p.fiber.beta_TT, gamma_TT = p.fiber.gamma_TT;
-  float mu[K], phi_TT[K], inv_R[K], inv_TT[K];
-  float za_R[K], zb_R[K], lo_R[K], up_R[K], mass_R[K];
-  float za_TT[K], zb_TT[K], lo_TT[K], up_TT[K], mass_TT[K];
-  float za_P[K], zb_P[K], lo_P[K], up_P[K], mass_P[K];
+  YarnRNodeSetupLanes g;
   NY_SIMD_LOOP
   for (int q = 0; q < K; q++) {
-    /* yarn_to_r_node() and theta_of(), written out as in yarn_R_lanes. */
+    /* yarn_to_r_node(), theta_of() and phi_of(), written out as in yarn_R_lanes. */
     const Vec3 v = yarn_rotate_about_axis(ca[q], sa[q],
                                           make_vec3(pc[q] * wi.x - ps[q] * wi.y, ps[q] * wi.x + pc[q] * wi.y, wi.z));
     const Vec3 w_q = make_vec3(tc[q] * v.x - ts[q] * v.y, ts[q] * v.x + tc[q] * v.y, v.z);
     const float c = minf(sqrtf(w_q.y * w_q.y + w_q.z * w_q.z), 1.0f);
-    const float m = -atan2_lanes(w_q.x, c);
-    mu[q] = m;
-    truncated_normal_lanes(m, beta_R, -kHalfPi, kHalfPi, za_R[q], zb_R[q], lo_R[q], up_R[q], mass_R[q]);
-    inv_R[q] = longitudinal_inv_beta_G(beta_R, cos2_gaussian_normalizer_lanes(m, beta_R, w_R.half, w_R.e));
-    if (kTT) {
-      truncated_normal_lanes(m, beta_TT, -kHalfPi, kHalfPi, za_TT[q], zb_TT[q], lo_TT[q], up_TT[q], mass_TT[q]);
-      inv_TT[q] = longitudinal_inv_beta_G(beta_TT, cos2_gaussian_normalizer_lanes(m, beta_TT, w_TT.half, w_TT.e));
-      phi_TT[q] = wrap_angle_lanes(atan2_lanes(w_q.y, w_q.z) + kPi);
-      truncated_normal_lanes(phi_TT[q], gamma_TT, -kHalfPi, kHalfPi, za_P[q], zb_P[q], lo_P[q], up_P[q], mass_P[q]);
-    }
+    g.mu[q] = -atan2_lanes(w_q.x, c);
+    g.phi_TT[q] = kTT ? wrap_angle_lanes(atan2_lanes(w_q.y, w_q.z) + kPi) : 0.0f;
   }
-  const bool table_R = with_eval && beta_R <= kCos2TableBetaMax, table_TT = with_eval && beta_TT <= kCos2TableBetaMax;
+  /* Which of the R Gaussian's costly parts any node needs (the normaliser only where eval is wanted). */
+  const float beta_R = p.fiber.beta_R, beta_TT = p.fiber.beta_TT;
+  bool table_R = false, tails_R = false;
+  for (int q = 0; q < K; q++) {
+    table_R = table_R || !cos2_gaussian_closed_form_holds(kHalfPi - fabsf(g.mu[q]), beta_R);
+    tails_R = tails_R || !truncated_normal_tails_cut((-kHalfPi - g.mu[q]) / beta_R, (kHalfPi - g.mu[q]) / beta_R);
+  }
+  table_R = table_R && with_eval;
+  if (table_R) {
+    tails_R ? yarn_r_nodes_gaussians_lanes<kTT, true, true>(p, w_R, w_TT, g) :
+              yarn_r_nodes_gaussians_lanes<kTT, true, false>(p, w_R, w_TT, g);
+  }
+  else {
+    tails_R ? yarn_r_nodes_gaussians_lanes<kTT, false, true>(p, w_R, w_TT, g) :
+              yarn_r_nodes_gaussians_lanes<kTT, false, false>(p, w_R, w_TT, g);
+  }
+  const bool lanes_G_R = with_eval && beta_R <= kCos2TableBetaMax, lanes_G_TT = with_eval && beta_TT <= kCos2TableBetaMax;
   for (int q = 0; q < K; q++) {
     NY_PRIVATE YarnRNode &n = l.node[q];
+    const float mu = g.mu[q];
     n.pre = TwistRotation{pc[q], ps[q]};
     n.ca = ca[q];
     n.sa = sa[q];
     n.twist = TwistRotation{tc[q], ts[q]};
-    n.tn_R = TruncatedNormal{mu[q], beta_R, za_R[q], zb_R[q], lo_R[q], up_R[q], mass_R[q]};
-    n.m_R = table_R ? LongitudinalLobe{mu[q], beta_R, inv_R[q]} :
-            with_eval ? make_longitudinal_lobe(mu[q], w_R) : LongitudinalLobe{mu[q], beta_R, 0.0f};
+    n.tn_R = TruncatedNormal{mu, beta_R, g.za_R[q], g.zb_R[q], g.lo_R[q], g.up_R[q], g.mass_R[q]};
+    n.m_R = lanes_G_R ? LongitudinalLobe{mu, beta_R, g.inv_R[q]} :
+            with_eval ? make_longitudinal_lobe(mu, w_R) : LongitudinalLobe{mu, beta_R, 0.0f};
     if (kTT) {
-      n.tn_TT = TruncatedNormal{mu[q], beta_TT, za_TT[q], zb_TT[q], lo_TT[q], up_TT[q], mass_TT[q]};
-      n.m_TT = table_TT ? LongitudinalLobe{mu[q], beta_TT, inv_TT[q]} :
-               with_eval ? make_longitudinal_lobe(mu[q], w_TT, true) : LongitudinalLobe{mu[q], beta_TT, 0.0f};
-      n.tn_TT_phi = TruncatedNormal{phi_TT[q], gamma_TT, za_P[q], zb_P[q], lo_P[q], up_P[q], mass_P[q]};
-      if (!(mass_P[q] > 0.0f)) {
+      n.tn_TT = TruncatedNormal{mu, beta_TT, g.za_TT[q], g.zb_TT[q], g.lo_TT[q], g.up_TT[q], g.mass_TT[q]};
+      n.m_TT = lanes_G_TT ? LongitudinalLobe{mu, beta_TT, g.inv_TT[q]} :
+               with_eval ? make_longitudinal_lobe(mu, w_TT, true) : LongitudinalLobe{mu, beta_TT, 0.0f};
+      n.tn_TT_phi = TruncatedNormal{g.phi_TT[q], p.fiber.gamma_TT, g.za_P[q], g.zb_P[q], g.lo_P[q], g.up_P[q],
+                                    g.mass_P[q]};
+      if (!(g.mass_P[q] > 0.0f)) {
         l.tau = make_rgb(0.0f); /* every node's TT part must hold the lobe's energy, or none has a share */
       }
     }
