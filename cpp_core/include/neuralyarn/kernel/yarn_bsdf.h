@@ -439,6 +439,16 @@ NY_KERNEL_FN Vec3 r_node_to_yarn(NY_PRIVATE const YarnRNode &n, Vec3 w_f)
   return yarn_r_node_has_pre(n) ? surface_fiber_to_yarn(n.pre, v) : v;
 }
 
+/* yarn_to_r_node() for the R nodes' lanes (yarn_R_lanes, yarn_r_nodes_setup_lanes): the node's rotation as its three
+ * (cos, sin) pairs, P_q always applied (the identity (1, 0) for the free path's nodes: the same value), and w's
+ * components as floats: through a TwistRotation or a Vec3 argument GCC 12 keeps such a loop scalar. */
+NY_KERNEL_FN Vec3 yarn_to_r_node_lanes(float pc, float ps, float ca, float sa, float tc, float ts, float x, float y,
+                                       float z)
+{
+  const Vec3 v = yarn_rotate_about_axis(ca, sa, make_vec3(pc * x - ps * y, ps * x + pc * y, z));
+  return make_vec3(tc * v.x - ts * v.y, ts * v.x + tc * v.y, v.z);
+}
+
 NY_KERNEL_FN float yarn_transmission(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi)
 {
   const float in[3] = {wi.x, wi.y, wi.z};
@@ -583,10 +593,8 @@ NY_KERNEL_FN void yarn_r_nodes_setup_lanes(NY_PRIVATE const YarnBsdfParams &p, V
   YarnRNodeSetupLanes g;
   NY_SIMD_LOOP
   for (int q = 0; q < K; q++) {
-    /* yarn_to_r_node(), theta_of() and phi_of(), written out as in yarn_R_lanes. */
-    const Vec3 v = yarn_rotate_about_axis(ca[q], sa[q],
-                                          make_vec3(pc[q] * wi.x - ps[q] * wi.y, ps[q] * wi.x + pc[q] * wi.y, wi.z));
-    const Vec3 w_q = make_vec3(tc[q] * v.x - ts[q] * v.y, ts[q] * v.x + tc[q] * v.y, v.z);
+    /* theta_of() and phi_of() written out (cos_theta() through a Vec3 argument keeps the loop scalar). */
+    const Vec3 w_q = yarn_to_r_node_lanes(pc[q], ps[q], ca[q], sa[q], tc[q], ts[q], wi.x, wi.y, wi.z);
     const float c = minf(sqrtf(w_q.y * w_q.y + w_q.z * w_q.z), 1.0f);
     g.mu[q] = -atan2_lanes(w_q.x, c);
     g.phi_TT[q] = kTT ? wrap_angle_lanes(atan2_lanes(w_q.y, w_q.z) + kPi) : 0.0f;
@@ -952,11 +960,8 @@ NY_KERNEL_FN void yarn_R_lanes(NY_PRIVATE const YarnLobes &l, Vec3 wo, NY_PRIVAT
   const float q_TT = l.q_TT;
   NY_SIMD_LOOP
   for (int q = 0; q < kYarnRNodes; q++) {
-    /* yarn_to_r_node(), with P_q always applied (the identity (1, 0) for the free path's nodes); P_q, M_q and
-     * then cos_theta() written out: through a TwistRotation or a Vec3 argument here GCC 12 keeps the loop scalar. */
-    const Vec3 v = yarn_rotate_about_axis(ca[q], sa[q],
-                                          make_vec3(pc[q] * wo.x - ps[q] * wo.y, ps[q] * wo.x + pc[q] * wo.y, wo.z));
-    const Vec3 w_q = make_vec3(tc[q] * v.x - ts[q] * v.y, ts[q] * v.x + tc[q] * v.y, v.z);
+    /* cos_theta() written out (through a Vec3 argument GCC 12 keeps the loop scalar). */
+    const Vec3 w_q = yarn_to_r_node_lanes(pc[q], ps[q], ca[q], sa[q], tc[q], ts[q], wo.x, wo.y, wo.z);
     const float c = minf(sqrtf(w_q.y * w_q.y + w_q.z * w_q.z), 1.0f);
     const float theta = atan2_lanes(w_q.x, c), phi = atan2_lanes(w_q.y, w_q.z);
     const float z_R = (theta - R.mu[q]) / R.sigma[q], g_R = normal_pdf_lanes(z_R);
