@@ -94,14 +94,21 @@ void BM_yarn_lobes(benchmark::State &state, const char *preset)
   }
 }
 
-void BM_yarn_eval_and_pdf_given_lobes(benchmark::State &state, const char *preset)
+/* The lobes of every input's w_i, as a renderer keeps them per shading point. */
+std::vector<ny::YarnLobes> lobes_of(const ny::YarnBsdfParams &p, const Inputs &in)
 {
-  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat(preset).data());
-  const Inputs &in = inputs();
   std::vector<ny::YarnLobes> lobes;
   for (const ny::Vec3 &wi : in.wi) {
     lobes.push_back(ny::yarn_lobes(p, wi));
   }
+  return lobes;
+}
+
+void BM_yarn_eval_and_pdf_given_lobes(benchmark::State &state, const char *preset)
+{
+  const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat(preset).data());
+  const Inputs &in = inputs();
+  const std::vector<ny::YarnLobes> lobes = lobes_of(p, in);
   int i = 0;
   for (auto _ : state) {
     /* As the Cycles closure's eval: both at once. */
@@ -117,10 +124,7 @@ void BM_yarn_sample_given_lobes(benchmark::State &state, const char *preset)
 {
   const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat(preset).data());
   const Inputs &in = inputs();
-  std::vector<ny::YarnLobes> lobes;
-  for (const ny::Vec3 &wi : in.wi) {
-    lobes.push_back(ny::yarn_lobes(p, wi));
-  }
+  const std::vector<ny::YarnLobes> lobes = lobes_of(p, in);
   int i = 0;
   ny::YarnSample s;
   for (auto _ : state) {

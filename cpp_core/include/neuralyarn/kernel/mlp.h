@@ -103,7 +103,7 @@ constexpr int kMlpBlock = 8;
 NY_KERNEL_FN constexpr int mlp_blocks(int n) { return (n + kMlpBlock - 1) / kMlpBlock; }
 
 /* mlp_layer<NI, NO> for a hidden layer, its outputs in whole blocks of kMlpBlock: every output is summed and
- * activated exactly as there (bias, then the inputs in order, then PReLU: the same result bit for bit), but
+ * activated exactly as there (bias, then the inputs in order, then mlp_prelu: the same result bit for bit), but
  * one loop of kMlpBlock lanes does a block of each input's column per statement. A width like 21 otherwise
  * leaves GCC at -O2 (Cycles' kernel) with a vector loop and its remainder per input, the accumulators going
  * through memory: the M network took 2.2x as long (docs/benchmarks.md, decisions D63). The padding lanes
@@ -143,11 +143,9 @@ NY_KERNEL_FN NY_GLOBAL const float *mlp_hidden_layer_blocks(NY_GLOBAL const floa
       }
     }
   }
-  /* PReLU as a selection of two computed values: mlp_prelu's branch on the sign does not vectorise. */
   NY_SIMD_LOOP
   for (int o = 0; o < K * kMlpBlock; o++) {
-    const float az = a[o] * z[o];
-    out[o] = z[o] < 0.0f ? az : z[o];
+    out[o] = mlp_prelu(true, a[o], z[o]);
   }
   return a + NO;
 }

@@ -24,7 +24,10 @@ NY_KERNEL_FN float normal_pdf_lanes(float z) { return kInvSqrtTwoPi * fast_exp(-
  * Estrin's form, holds it to 1.3e-8 relative (scripts/make_erfc_fit.py), so erfc(a) = exp(-a^2) h / (1 + 2a)
  * keeps full relative precision deep into the tail, erfc(0) is 1 exactly, and erfc(-a) = 2 - erfc(a). Past
  * a = 10.1 erfc is below float's smallest denormal. */
-/* erfc(a) for 0 <= a < 10.1, the body of fast_erfc and erfc_lanes: exp(-a^2) by libm's expf (kLanes false) or the
+/* Past this |x| erfc(x) is below float's smallest denormal: fast_erfc and erfc_lanes return 0 (or 2) there. */
+constexpr float kErfcCut = 10.1f;
+
+/* erfc(a) for 0 <= a < kErfcCut, the body of fast_erfc and erfc_lanes: exp(-a^2) by libm's expf (kLanes false) or the
  * kernel's fast_exp (true). */
 template<bool kLanes> NY_KERNEL_FN float erfc_nonnegative(float a)
 {
@@ -47,7 +50,7 @@ template<bool kLanes> NY_KERNEL_FN float erfc_nonnegative(float a)
 NY_KERNEL_FN float fast_erfc(float x)
 {
   const float a = fabsf(x);
-  if (!(a < 10.1f)) {
+  if (!(a < kErfcCut)) {
     return x < 0.0f ? 2.0f : (a == a ? 0.0f : x); /* NaN stays NaN */
   }
   const float e = erfc_nonnegative<false>(a);
@@ -55,13 +58,13 @@ NY_KERNEL_FN float fast_erfc(float x)
 }
 
 /* fast_erfc with the kernel's exp and without branches, for loops that run lanes side by side (the R nodes'
- * truncated normals, yarn_lobes): within a few float ulps of it (tests/cpp/test_special.cpp). Past |x| = 10.1
- * it is 0 or 2 as fast_erfc; a NaN gives some number. */
+ * truncated normals, yarn_lobes): within a few float ulps of it (tests/cpp/test_special.cpp). Past kErfcCut it
+ * is 0 or 2 as fast_erfc; a NaN gives some number. */
 NY_KERNEL_FN float erfc_lanes(float x)
 {
   const float a = fabsf(x);
-  const float e = erfc_nonnegative<true>(a < 10.1f ? a : 10.1f);
-  const float e_cut = a < 10.1f ? e : 0.0f;
+  const float e = erfc_nonnegative<true>(a < kErfcCut ? a : kErfcCut);
+  const float e_cut = a < kErfcCut ? e : 0.0f;
   return x < 0.0f ? 2.0f - e_cut : e_cut;
 }
 

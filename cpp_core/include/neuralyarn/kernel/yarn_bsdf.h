@@ -599,14 +599,16 @@ NY_KERNEL_FN void yarn_r_nodes_setup_lanes(NY_PRIVATE const YarnBsdfParams &p, V
     g.mu[q] = -atan2_lanes(w_q.x, c);
     g.phi_TT[q] = kTT ? wrap_angle_lanes(atan2_lanes(w_q.y, w_q.z) + kPi) : 0.0f;
   }
-  /* Which of the R Gaussian's costly parts any node needs (the normaliser only where eval is wanted). */
+  /* Which of the R Gaussian's costly parts any node needs: the table only where the lanes' normaliser is kept (eval
+   * wanted, beta_R within the table). */
   const float beta_R = p.fiber.beta_R, beta_TT = p.fiber.beta_TT;
+  const bool lanes_G_R = with_eval && beta_R <= kCos2TableBetaMax, lanes_G_TT = with_eval && beta_TT <= kCos2TableBetaMax;
   bool table_R = false, tails_R = false;
   for (int q = 0; q < K; q++) {
     table_R = table_R || !cos2_gaussian_closed_form_holds(kHalfPi - fabsf(g.mu[q]), beta_R);
     tails_R = tails_R || !truncated_normal_tails_cut((-kHalfPi - g.mu[q]) / beta_R, (kHalfPi - g.mu[q]) / beta_R);
   }
-  table_R = table_R && with_eval;
+  table_R = table_R && lanes_G_R;
   if (table_R) {
     tails_R ? yarn_r_nodes_gaussians_lanes<kTT, true, true>(p, w_R, w_TT, g) :
               yarn_r_nodes_gaussians_lanes<kTT, true, false>(p, w_R, w_TT, g);
@@ -615,7 +617,6 @@ NY_KERNEL_FN void yarn_r_nodes_setup_lanes(NY_PRIVATE const YarnBsdfParams &p, V
     tails_R ? yarn_r_nodes_gaussians_lanes<kTT, false, true>(p, w_R, w_TT, g) :
               yarn_r_nodes_gaussians_lanes<kTT, false, false>(p, w_R, w_TT, g);
   }
-  const bool lanes_G_R = with_eval && beta_R <= kCos2TableBetaMax, lanes_G_TT = with_eval && beta_TT <= kCos2TableBetaMax;
   for (int q = 0; q < K; q++) {
     NY_PRIVATE YarnRNode &n = l.node[q];
     const float mu = g.mu[q];
