@@ -297,6 +297,11 @@ class Commands : public ModelCommands {
                      "A yarn-level model: set its R nodes to the fibers of this central share of its visible ply "
                      "surface (0: the surface fiber alone) before the R shape is re-fitted (default: keep the model's)")
         ->check(finite_range(0.0, 1.0));
+    fit_->add_flag("--retrain-r", retrain_r_,
+                   "Train the R-energy network again on the maps (seeded as the bake seeded it), before the rest is "
+                   "re-fitted: with --r-widths 3-7-7-3 (the default) it carries the R energy's colour "
+                   "(docs/decisions.md D65)");
+    add_network_options(fit_, "r", &topt_.R);
 
     bake_ = app.add_subcommand("bake", "Gather maps, train, fit and check: a model from fiber parameters");
     add_preset_options(bake_, &preset_, &params_);
@@ -411,16 +416,24 @@ class Commands : public ModelCommands {
   void validate_train_options()
   {
     /* Before any gathering: what the model file and the kernel take (model/model.h). */
-    for (const NetworkOptions *n : {&topt_.T, &topt_.R}) {
-      const std::vector<int> w = train::parse_widths(n->widths);
-      if (w.front() != 3 || w.back() != 1) {
-        throw ParameterError("widths", "'" + n->widths + "': the T and R networks map 3 inputs to 1 output");
-      }
+    const std::vector<int> wT = train::parse_widths(topt_.T.widths);
+    if (wT.front() != 3 || wT.back() != 1) {
+      throw ParameterError("widths", "'" + topt_.T.widths + "': the T network maps 3 inputs to 1 output");
     }
+    validate_r_widths();
     const std::vector<int> w = train::parse_widths(topt_.M.widths);
     if (w.front() != 6 || !model::is_m_output_width(w.back())) {
       throw ParameterError("widths", "'" + topt_.M.widths + "': the M network maps 6 inputs to 3 outputs, or to 6 "
                                      "when it is two-sided (docs/decisions.md D45)");
+    }
+  }
+
+  void validate_r_widths()
+  {
+    const std::vector<int> w = train::parse_widths(topt_.R.widths);
+    if (w.front() != 3 || (w.back() != 1 && w.back() != 3)) {
+      throw ParameterError("widths", "'" + topt_.R.widths + "': the R network maps 3 inputs to 3 outputs (RGB) or to 1 "
+                                     "(its colour the fiber's C_R; docs/decisions.md D65)");
     }
   }
 
@@ -450,6 +463,13 @@ class Commands : public ModelCommands {
     require_same_preset(m, maps);
     const std::string out = out_.empty() ? model_ : out_;
     check_writable(out);
+    if (retrain_r_) {
+      /* Seeded as a bake seeds it (model/bake.cpp train_model: the training seed + 1). */
+      validate_r_widths();
+      const uint64_t seed = m.provenance.value("training_seed", uint64_t(1)) + 1;
+      m.R = model::train_one("R", maps, topt_.R, ny::kMlpHeadExp, seed, threads_, {}, nullptr);
+      print_network("R", m.R);
+    }
     model::fit_model_proxy(&m, maps, topt_.fit);
     if (topt_.r_free_path >= 0.0) {
       m.r_free_path = topt_.r_free_path;
@@ -464,6 +484,9 @@ class Commands : public ModelCommands {
     m.provenance["refit"] = {{"maps", model::maps_provenance(maps)},
                              {"created", utc_now()},
                              {"code_version", std::string(kVersion) + "+" + kGitRevision}};
+    if (retrain_r_) {
+      m.provenance["refit"]["retrained"] = "R " + topt_.R.widths;
+    }
     m.fidelity = nlohmann::json::object();
     if (!check_maps_.empty()) {
       const rdm::RdmMaps a = rdm::load_maps(check_maps_[0]);
@@ -785,7 +808,7 @@ class Commands : public ModelCommands {
   std::string maps_, maps_b_, out_, model_, preset_ = "fleece", params_, paths_ = "4e7", check_paths_ = "0", bins_ = "22x90x45x90", maps_out_,
                                    image_, json_out_;
   int threads_ = 0;
-  bool no_fit_ = false, quiet_ = false;
+  bool no_fit_ = false, quiet_ = false, retrain_r_ = false;
   double theta_i_ = 45.0, phi_i_ = 0.0, max_err_ = -1.0;
   std::vector<double> max_lobe_;
 };

@@ -18,9 +18,9 @@ namespace neuralyarn::testing {
 
 /* A model with seeded random networks whose outputs sit in a plausible range (P_T ~ 0.1-0.5, rho_R ~ 1,
  * M ~ 0.05); `t_bias` moves the T network's output (-40: an opaque yarn, P_T ~ 0, with the calibration's
- * dP_T made 0 too); `m_outputs` 6 makes M two-sided (kernel/yarn_bsdf.h). */
+ * dP_T made 0 too); `m_outputs` 6 makes M two-sided (kernel/yarn_bsdf.h), `r_outputs` 3 the R network RGB (D65). */
 inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, double m_bias = -3.0, double t_bias = -1.0,
-                                        int m_outputs = 3)
+                                        int m_outputs = 3, int r_outputs = 1)
 {
   model::YarnModel m;
   m.preset = find_preset(preset);
@@ -38,7 +38,7 @@ inline model::YarnModel synthetic_model(const char *preset, uint64_t seed, doubl
     return r;
   };
   m.T = make({3, 7, 7, 1}, ny::kMlpHeadSigmoid, seed, t_bias);
-  m.R = make({3, 7, 7, 1}, ny::kMlpHeadExp, seed + 1, 0.0);
+  m.R = make({3, 7, 7, r_outputs}, ny::kMlpHeadExp, seed + 1, 0.0);
   m.M = make({6, 21, 21, m_outputs}, ny::kMlpHeadExp, seed + 2, m_bias);
   m.proxy = {0.3, 0.35, 0.9, 0.7};
   m.albedo_M = {0.2, 0.3, 0.4};

@@ -698,6 +698,66 @@ TEST(YarnBsdf, MChannelKIsTheNetworksOutputKTimesItsScale)
   EXPECT_GE(distinct, 2); /* the test can see a swap */
 }
 
+/* An RGB R-energy network (3 -> 3, D65): the R lobe's weight in channel k is the network's output k at the energy
+ * direction times the channel mean of the Fresnel factor, times the calibration's c_R; a one-output network keeps
+ * F's colour (the fiber's C_R). The flat array's check and the model file take 3 -> 1 and 3 -> 3 and refuse 3 -> 2. */
+TEST(YarnBsdf, RgbReflectionNetworkCarriesTheColour)
+{
+  const double dirs[][3] = {{0.3, 0.2, 0.93}, {0.1, -0.6, 0.79}, {-0.7, 0.1, 0.7}, {0.9, 0.3, 0.1}};
+  for (const int outputs : {1, 3}) {
+    /* Silk: C_R (0.745, 0.008, 0.07), so F's green is ~1/90 of its red until grazing. */
+    const model::YarnModel m = synthetic_model("silk", 13, -3.0, -1.0, 3, outputs);
+    const std::vector<float> flat = m.kernel_flat();
+    ASSERT_EQ(ny::yarn_flat_check(flat.data(), int(flat.size())), nullptr);
+    const ny::YarnBsdfParams p = ny::yarn_params_from_flat(flat.data());
+    EXPECT_EQ(p.r_rgb, outputs == 3);
+    int off_fresnel = 0;
+    for (const auto &d : dirs) {
+      const ny::Vec3 wi = ny::normalize(ny::make_vec3(float(d[0]), float(d[1]), float(d[2])));
+      const ny::YarnLobes l = ny::yarn_lobes(p, wi);
+      float dP_T;
+      ny::Rgb c_R, c_M;
+      ny::yarn_calibration(p, l.we, &dP_T, &c_R, &c_M);
+      const ny::Rgb F = ny::schlick_fresnel(p.fiber.C_R, ny::cos_theta(ny::yarn_to_surface_fiber(p.twist, l.we)));
+      const std::vector<double> net = network_in_double(m.R, {l.we.x, l.we.y, l.we.z});
+      const double f[3] = {F.r, F.g, F.b}, c[3] = {c_R.r, c_R.g, c_R.b};
+      const double mean_F = (f[0] + f[1] + f[2]) / 3.0;
+      const float got[3] = {l.weight_R.r, l.weight_R.g, l.weight_R.b};
+      for (int k = 0; k < 3; k++) {
+        const double want = (outputs == 3 ? net[size_t(k)] * mean_F : net[0] * f[k]) * c[k];
+        EXPECT_NEAR(got[k], want, 1e-4 * want + 1e-9) << outputs << " outputs, channel " << k;
+      }
+      /* The weight's green against red is F's (within the calibration's 0.8-1.2) for one output, the network's for
+       * three: the test sees which colour the kernel took. */
+      const double ratio = (got[1] / c[1]) / (got[0] / c[0]) / (f[1] / f[0]);
+      off_fresnel += std::abs(ratio - 1.0) > 0.5;
+    }
+    EXPECT_EQ(off_fresnel, outputs == 3 ? 4 : 0) << outputs << " outputs";
+  }
+  const model::YarnModel two = synthetic_model("silk", 13, -3.0, -1.0, 3, 2);
+  const std::vector<float> flat2 = two.kernel_flat();
+  const char *why = ny::yarn_flat_check(flat2.data(), int(flat2.size()));
+  ASSERT_NE(why, nullptr);
+  EXPECT_NE(std::string(why).find("R network"), std::string::npos) << why;
+  const fs::path dir = fs::temp_directory_path() / ("ny_rgb_r_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string rgb = (dir / "rgb.json").string(), bad = (dir / "two.json").string();
+  const model::YarnModel m3 = synthetic_model("silk", 13, -3.0, -1.0, 3, 3);
+  model::save_model(m3, rgb);
+  EXPECT_EQ(model::load_model(rgb).kernel_flat(), m3.kernel_flat());
+  nlohmann::json j = model::model_to_json(m3);
+  j["networks"]["R"] = model::model_to_json(two)["networks"]["R"];
+  std::ofstream(bad) << j.dump();
+  try {
+    model::load_model(bad);
+    ADD_FAILURE() << "a 3 -> 2 R network was accepted";
+  }
+  catch (const model::ModelError &e) {
+    EXPECT_NE(std::string(e.what()).find("network R"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+}
+
 /* A two-sided M network (6 -> 6, D45): exits above the surface read outputs 0-2, exits below it 3-5, each
  * times the lobe's scale; and the flat array's check takes it while a 6 -> 4 network is refused. */
 TEST(YarnBsdf, TwoSidedMReadsTheOutputsOfItsExitsSide)

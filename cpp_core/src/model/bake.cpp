@@ -35,7 +35,7 @@ train::Dataset dataset_for(const char *name, const rdm::RdmMaps &maps, int n, ui
     return train::sample_transmission(maps, n, seed, validation);
   }
   if (s == "R") {
-    return train::sample_reflection_scale(maps, n, seed, validation);
+    return train::sample_reflection_scale(maps, n, seed, validation, outputs);
   }
   /* An M network of six outputs is two-sided (kernel/yarn_bsdf.h, D45). */
   return train::sample_multiple_scattering(maps, n, seed, validation, outputs == 6);

@@ -113,30 +113,44 @@ Dataset sample_transmission(const rdm::RdmMaps &maps, int n, uint64_t seed, bool
   return sample_incident_table(maps, maps.p_t, 1, n, seed, validation, true);
 }
 
-std::vector<float> reflection_scale_table(const rdm::RdmMaps &maps)
+std::vector<float> reflection_scale_table(const rdm::RdmMaps &maps, int channels)
 {
+  if (channels != 1 && channels != 3) {
+    throw ParameterError("r_widths", "the R network has one output (its colour the fiber's C_R) or three (RGB)");
+  }
   const rdm::MapResolution &b = maps.bins;
   const std::vector<double> E = maps.energy(maps.r);
   const ny::TwistRotation twist = ny::make_twist_rotation(float(maps.surface_alpha()));
   const ny::FiberBsdfParams fiber = maps.preset.fiber_params();
-  std::vector<float> rho(b.incident(), 0.0f);
+  std::vector<float> rho(b.incident() * size_t(channels), 0.0f);
   for (int ti = 0; ti < b.theta_i; ti++) {
     for (int pi = 0; pi < b.phi_i; pi++) {
       const Eigen::Vector3f w = entry_direction(rdm::bin_center(ti, 0.0, 0.5 * kPi, b.theta_i),
                                                 rdm::bin_center(pi, -kPi, kPi, b.phi_i));
       const ny::Vec3 wf = ny::yarn_to_surface_fiber(twist, ny::make_vec3(w.x(), w.y(), w.z()));
       const ny::Rgb F = ny::schlick_fresnel(fiber.C_R, ny::cos_theta(wf));
-      const double *e = &E[maps.incident_index(ti, pi) * 3];
+      const size_t i = maps.incident_index(ti, pi);
+      const double *e = &E[i * 3];
       const double lobe = 0.5 * double(ny::average(F));
-      rho[maps.incident_index(ti, pi)] = lobe > 0.0 ? float((e[0] + e[1] + e[2]) / 3.0 / lobe) : 0.0f;
+      if (!(lobe > 0.0)) {
+        continue;
+      }
+      if (channels == 1) {
+        rho[i] = float((e[0] + e[1] + e[2]) / 3.0 / lobe);
+      }
+      else {
+        for (int c = 0; c < 3; c++) {
+          rho[i * 3 + size_t(c)] = float(e[c] / lobe);
+        }
+      }
     }
   }
   return rho;
 }
 
-Dataset sample_reflection_scale(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation)
+Dataset sample_reflection_scale(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation, int channels)
 {
-  return sample_incident_table(maps, reflection_scale_table(maps), 1, n, seed, validation, true);
+  return sample_incident_table(maps, reflection_scale_table(maps, channels), channels, n, seed, validation, true);
 }
 
 Dataset sample_multiple_scattering(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation, bool two_sided)

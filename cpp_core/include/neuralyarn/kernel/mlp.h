@@ -200,9 +200,10 @@ NY_KERNEL_FN void mlp_forward(NY_GLOBAL const float *params, NY_PRIVATE const fl
 }
 
 /* The shapes the trainer makes, by input and output width: I-H-H-O with the hidden widths H it uses
- * (3-7-7-1 for T and rho_R; 6-21-21-3, and 6-32-32-3 since decisions D22, for M; 6-H-H-6 for a two-sided M,
- * D45), chosen by overloading on MlpIO<I, O> (not `if constexpr` nor a specialised static member, which some
- * kernel languages or Cycles' NY_KERNEL_FN do not take). Returns false for any other shape. */
+ * (3-7-7-1 for T and rho_R, 3-7-7-3 for an RGB rho_R, decisions D65; 6-21-21-3, and 6-32-32-3 since D22, for M;
+ * 6-H-H-6 for a two-sided M, D45), chosen by overloading on MlpIO<I, O> (not `if constexpr` nor a specialised
+ * static member, which some kernel languages or Cycles' NY_KERNEL_FN do not take). Returns false for any other
+ * shape. */
 template<int I, int O> struct MlpIO {
 };
 
@@ -213,13 +214,15 @@ NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<I, O>, NY_GLOBAL const float *
   return false;
 }
 
-NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<3, 1>, NY_GLOBAL const float *p, int H, int head,
+/* T and rho_R: 3 -> 1, or an RGB rho_R 3 -> 3 (decisions D65). */
+template<int O>
+NY_KERNEL_FN bool mlp_forward_trainer_shape(MlpIO<3, O>, NY_GLOBAL const float *p, int H, int head,
                                             NY_PRIVATE const float *input, NY_PRIVATE float *output)
 {
   if (H != 7) {
     return false;
   }
-  mlp_forward_sized<3, 7, 1>(p, head, input, output);
+  mlp_forward_sized<3, 7, O>(p, head, input, output);
   return true;
 }
 

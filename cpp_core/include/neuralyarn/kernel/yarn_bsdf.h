@@ -14,13 +14,17 @@
 // fiber and leaves upward: the maps' "R" is any single event, docs/decisions.md D21), both restricted to
 // the upper half of the azimuths and each normalised to half the energy. The paper weights R by 1 - P_T(w_i); measured against the
 // gathered R map that factor is off by 0.6x at normal incidence to 6x at grazing incidence, so rho_R(w_i)
-// is a third tiny network (3-7-7-1, exp head) trained on the map's R energy: the lobe's energy is exactly
-// rho_R F(theta~_i) / 2 (docs/decisions.md D13). The M network learns S_M |cos| / (1 - P_T): the M energy
-// falls from 0.3 to 0.04 within 15 degrees of grazing because the light passes through, which the T
-// network already captures; divided by it, M is smooth there (D15).
+// is a third tiny network (exp head) trained on the map's R energy: the lobe's energy is exactly
+// rho_R F(theta~_i) / 2 (docs/decisions.md D13). With one output (3-7-7-1) the energy's colour is the Fresnel
+// factor's, F of the fiber's C_R; with three (3-7-7-3, decisions D65) the network carries the colour, rho_R (RGB)
+// times the channel mean of F: the map's single events include the light that passes through a surface fiber
+// (tinted by C_TT, not C_R), which for silk's C_R (0.745, 0.008, 0.07) makes the maps' green 16x F's toward
+// grazing light, a colour a scalar network could only leave to the calibration. The M network learns
+// S_M |cos| / (1 - P_T): the M energy falls from 0.3 to 0.04 within 15 degrees of grazing because the light
+// passes through, which the T network already captures; divided by it, M is smooth there (D15).
 //
 // An energy calibration table over the maps' incident bins, bilinear in (theta_i, phi_i), corrects the
-// three energies per incident direction: dP_T is added to P_T, c_R (RGB) multiplies rho_R F, c_M (RGB) the M
+// three energies per incident direction: dP_T is added to P_T, c_R (RGB) multiplies the R weight, c_M (RGB) the M
 // network. It is computed once at bake time (model/calibration.h) from the maps' energies against the
 // networks' at each incident bin centre. The networks give the shape of the lobes and are smooth; their
 // energies are off the maps by more than a renderer may show as a too bright or too dark cloth; the
@@ -133,7 +137,8 @@ NY_KERNEL_FN int yarn_r_shape_stride(int az_bins) { return az_bins + 3; }
 
 struct YarnBsdfParams {
   NY_GLOBAL const float *net_T; /* 3 -> 1, sigmoid head: P_T(w_i)          */
-  NY_GLOBAL const float *net_R; /* 3 -> 1, exp head: rho_R(w_i)            */
+  NY_GLOBAL const float *net_R; /* 3 -> 1 or 3 -> 3 (RGB), exp head: rho_R(w_i) */
+  bool r_rgb;                   /* net_R has three outputs: the R energy's colour is the network's (D65) */
   NY_GLOBAL const float *net_M; /* 6 -> 3 or two-sided 6 -> 6, exp head: S_M |cos theta_o| */
   bool m_two_sided;
   TwistRotation twist;
@@ -229,8 +234,10 @@ NY_KERNEL_FN const char *yarn_flat_check(NY_GLOBAL const float *f, int n)
   if (!yarn_flat_network_ok(f, (int)oT, (int)oR, 3, 1, kMlpHeadSigmoid)) {
     return "has a malformed T network (3 -> 1, sigmoid head)";
   }
-  if (!yarn_flat_network_ok(f, (int)oR, (int)oM, 3, 1, kMlpHeadExp)) {
-    return "has a malformed R network (3 -> 1, exp head)";
+  if (!yarn_flat_network_ok(f, (int)oR, (int)oM, 3, 1, kMlpHeadExp) &&
+      !yarn_flat_network_ok(f, (int)oR, (int)oM, 3, 3, kMlpHeadExp))
+  {
+    return "has a malformed R network (3 -> 1 or 3 -> 3, exp head)";
   }
   if (!yarn_flat_network_ok(f, (int)oM, (int)oC, 6, 3, kMlpHeadExp) &&
       !yarn_flat_network_ok(f, (int)oM, (int)oC, 6, 6, kMlpHeadExp))
@@ -318,6 +325,7 @@ NY_KERNEL_FN YarnBsdfParams yarn_params_from_flat(NY_GLOBAL const float *f)
   YarnBsdfParams p;
   p.net_T = f + (int)f[kYarnFlatOffset_T];
   p.net_R = f + (int)f[kYarnFlatOffset_R];
+  p.r_rgb = p.net_R[(int)p.net_R[0] + 1] == 3.0f; /* its output width (validated: 1 or 3) */
   p.net_M = f + (int)f[kYarnFlatOffset_M];
   p.m_two_sided = p.net_M[(int)p.net_M[0] + 1] == 6.0f; /* its output width (validated: 3 or 6) */
   p.twist = make_twist_rotation(f[kYarnFlatAlpha]);
@@ -457,12 +465,20 @@ NY_KERNEL_FN float yarn_transmission(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi
   return clampf(out[0], 0.0f, 1.0f);
 }
 
-NY_KERNEL_FN float yarn_reflection_scale(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi)
+/* The R lobe's weight (twice its energy) given the calibration's c_R: c_R rho_R F(theta~_i) with F the fiber's
+ * Fresnel factor (RGB, the energy's colour) where rho_R is one number, c_R rho_R average(F) where rho_R is RGB
+ * (D65). */
+NY_KERNEL_FN Rgb yarn_reflection_weight(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, Rgb F, Rgb c_R)
 {
   const float in[3] = {wi.x, wi.y, wi.z};
+  if (p.r_rgb) {
+    float out[3];
+    mlp_forward_io<3, 3>(p.net_R, in, out);
+    return c_R * make_rgb(out[0], out[1], out[2]) * average(F);
+  }
   float out[1];
   mlp_forward_io<3, 1>(p.net_R, in, out);
-  return out[0];
+  return F * c_R * out[0];
 }
 
 /* Smallest escape factor 1 - P_T the M network is multiplied by (and its targets were divided by). */
@@ -661,7 +677,7 @@ NY_KERNEL_FN YarnLobes yarn_lobes(NY_PRIVATE const YarnBsdfParams &p, Vec3 wi, b
   l.P_T = l.valid ? yarn_calibrated_transmission(p, l.we, dP_T) : 0.0f;
   const float theta_i = theta_of(l.wi_f);
   const Rgb F = schlick_fresnel(p.fiber.C_R, cos_theta(yarn_to_surface_fiber(p.twist, l.we)));
-  l.weight_R = l.valid ? F * c_R * yarn_reflection_scale(p, l.we) : make_rgb(0.0f);
+  l.weight_R = l.valid ? yarn_reflection_weight(p, l.we, F, c_R) : make_rgb(0.0f);
   l.scale_M = c_M * yarn_escape(l.P_T);
   l.p_T = l.P_T;
   l.p_R = (1.0f - l.P_T) * p.kappa_R;

@@ -30,7 +30,8 @@ struct NetworkOptions {
 /* Defaults measured in docs/benchmarks.md ("Training"). */
 struct TrainModelOptions {
   NetworkOptions T{"3-7-7-1", 200000, 10000, 2048, 2e-2f, 0.05f, train::Loss::kMse, 1e-3f};
-  NetworkOptions R{"3-7-7-1", 200000, 10000, 2048, 2e-2f, 0.05f, train::Loss::kLogMse, 1e-2f};
+  /* R: RGB, the energy's colour its own rather than the fiber's C_R (docs/decisions.md D65). */
+  NetworkOptions R{"3-7-7-3", 200000, 10000, 2048, 2e-2f, 0.05f, train::Loss::kLogMse, 1e-2f};
   /* M: the relative loss (docs/decisions.md D19): with MSE the network ignored everything a decade below
    * the reflection peak, which is where the transmitted light is (0.03-0.5x of the maps through the ply).
    * 6-H-H-6 makes it two-sided, one RGB output per hemisphere of exits (kernel/yarn_bsdf.h, D45). */

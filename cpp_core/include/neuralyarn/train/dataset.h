@@ -36,10 +36,12 @@ Dataset sample_incident_table(const rdm::RdmMaps &maps, const std::vector<float>
 /* P(T | w_i) (the map's p_t), bilinearly interpolated. */
 Dataset sample_transmission(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation);
 
-/* The R-energy factor rho_R per incident bin: the R map's energy (channel mean) divided by the analytic
- * lobe's energy F(theta~_i) / 2 at the bin centre (kernel/yarn_bsdf.h). */
-std::vector<float> reflection_scale_table(const rdm::RdmMaps &maps);
-Dataset sample_reflection_scale(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation);
+/* The R-energy factor rho_R per incident bin and channel, the R map's energy over the analytic lobe's at the bin
+ * centre (kernel/yarn_bsdf.h, yarn_reflection_weight): one channel, their channel means over F(theta~_i) / 2 (the
+ * colour left to F, a one-output network); three (RGB, decisions D65), each channel's energy over the channel mean
+ * of F / 2. Other channel counts throw ParameterError. */
+std::vector<float> reflection_scale_table(const rdm::RdmMaps &maps, int channels = 1);
+Dataset sample_reflection_scale(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation, int channels = 1);
 
 /* S_M |cos theta_o| samples: w_i uniform on the upper hemisphere (training or validation bins), w_o
  * uniform on the sphere, target the M map's RGB value of their bin. Two-sided (D45): six target rows, the
