@@ -125,8 +125,9 @@ def kernel_flat_problem(f: list, layout: int = 6) -> str | None:
         return "has network offsets out of order"
     if not _network_ok(f, int(oT), int(oR), 3, 1, _HEAD_SIGMOID, header):
         return "has a malformed T network (3 -> 1, sigmoid head)"
-    if not _network_ok(f, int(oR), int(oM), 3, 1, _HEAD_EXP, header):
-        return "has a malformed R network (3 -> 1, exp head)"
+    if not (_network_ok(f, int(oR), int(oM), 3, 1, _HEAD_EXP, header) or
+            _network_ok(f, int(oR), int(oM), 3, 3, _HEAD_EXP, header)):  # 3 -> 3: RGB (D65)
+        return "has a malformed R network (3 -> 1 or 3 -> 3, exp head)"
     if not (_network_ok(f, int(oM), int(oC), 6, 3, _HEAD_EXP, header) or
             _network_ok(f, int(oM), int(oC), 6, 6, _HEAD_EXP, header)):  # 6 -> 6: two-sided (D45)
         return "has a malformed M network (6 -> 3 or 6 -> 6, exp head)"

@@ -1,8 +1,9 @@
 # `neuralyarn fallback MODEL` replaces the file's fallback object (and code_version, the writer's) and nothing
-# else: a shipped ply model holds a layout 5 kernel array, which the loader reads as layout 6; the verb must write
+# else: a ply model written before layout 6 holds a layout 5 kernel array (tests/data/model_layout5_silk.json, the
+# silk model shipped until D65), which the loader reads as layout 6; the verb must write
 # the array as the file holds it, and the tables must name that array (or the add-on's and the core's loaders
 # refuse them). Coarse tables first (--out), then the default ones written over that file in place.
-# Arguments: -DCLI=<neuralyarn> -DMODEL=<shipped model with a layout 5 array> -DOUT=<directory>
+# Arguments: -DCLI=<neuralyarn> -DMODEL=<model with a layout 5 array> -DOUT=<directory>
 file(REMOVE_RECURSE ${OUT})
 file(MAKE_DIRECTORY ${OUT})
 file(READ ${MODEL} shipped)
