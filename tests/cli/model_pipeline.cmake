@@ -94,6 +94,25 @@ if(rc EQUAL 0 OR NOT err MATCHES "yarn-level model" OR EXISTS ${OUT}/refit_frame
   message(FATAL_ERROR "R node frames were accepted for a ply (${rc}): ${err}")
 endif()
 
+# fit --retrain-r trains the R network again (D65): the bake's RGB network (3-7-7-3, the default) becomes the one of
+# the widths asked for, named in the provenance; widths that are neither 3 -> 1 nor 3 -> 3 are refused, and
+# nothing is written.
+file(READ ${OUT}/silk.json baked_model)
+string(JSON baked GET "${baked_model}" networks R widths 3)
+run_ok(${CLI} fit ${OUT}/silk.json --maps ${OUT}/silk.nyrdm --samples 3000 --retrain-r --r-widths 3-7-7-1
+       --r-steps 300 --r-samples 20000 --out ${OUT}/refit_r.json)
+file(READ ${OUT}/refit_r.json model)
+string(JSON outputs GET "${model}" networks R widths 3)
+string(JSON retrained GET "${model}" provenance refit retrained)
+if(NOT baked EQUAL 3 OR NOT outputs EQUAL 1 OR NOT retrained STREQUAL "R 3-7-7-1" OR NOT LAST_OUT MATCHES "network R 3-7-7-1")
+  message(FATAL_ERROR "fit --retrain-r: baked R outputs ${baked}, re-fitted ${outputs} (${retrained}):\n${LAST_OUT}")
+endif()
+execute_process(COMMAND ${CLI} fit ${OUT}/silk.json --maps ${OUT}/silk.nyrdm --retrain-r --r-widths 3-7-7-2
+                        --out ${OUT}/refit_r2.json RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(rc EQUAL 0 OR NOT err MATCHES "maps 3 inputs to 3 outputs \\(RGB\\) or to 1" OR EXISTS ${OUT}/refit_r2.json)
+  message(FATAL_ERROR "an R network of two outputs was accepted (${rc}): ${err}")
+endif()
+
 # A model for silk checked against fleece maps is refused with a message, and nothing is written.
 run_ok(${CLI} gather --preset fleece --paths 2e4 --bins 6x24x12x24 --quiet --out ${OUT}/fleece.nyrdm)
 execute_process(COMMAND ${CLI} check ${OUT}/silk.json --maps ${OUT}/fleece.nyrdm RESULT_VARIABLE rc ERROR_VARIABLE err)
