@@ -431,7 +431,7 @@ class Commands : public ModelCommands {
   void validate_r_widths()
   {
     const std::vector<int> w = train::parse_widths(topt_.R.widths);
-    if (w.front() != 3 || (w.back() != 1 && w.back() != 3)) {
+    if (w.front() != 3 || !model::is_r_output_width(w.back())) {
       throw ParameterError("widths", "'" + topt_.R.widths + "': the R network maps 3 inputs to 3 outputs (RGB) or to 1 "
                                      "(its colour the fiber's C_R; docs/decisions.md D65)");
     }

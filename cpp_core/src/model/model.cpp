@@ -366,7 +366,7 @@ YarnModel model_from_json(const json &j, const std::string &source)
   try {
     check_network(m.T, "T", 3, 1, ny::kMlpHeadSigmoid);
     const std::vector<int> &wR = m.R.shape.widths;
-    check_network(m.R, "R", 3, !wR.empty() && wR.back() == 3 ? 3 : 1, ny::kMlpHeadExp); /* RGB or not (D65) */
+    check_network(m.R, "R", 3, !wR.empty() && is_r_output_width(wR.back()) ? wR.back() : 1, ny::kMlpHeadExp);
     const std::vector<int> &wM = m.M.shape.widths;
     check_network(m.M, "M", 6, !wM.empty() && is_m_output_width(wM.back()) ? wM.back() : 3, ny::kMlpHeadExp);
   }

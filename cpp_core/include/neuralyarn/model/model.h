@@ -102,6 +102,8 @@ void check_network(const NetworkRecord &net, const char *name, int inputs, int o
 
 /* The M network's output widths the kernel takes (yarn_flat_check): 3, or 6 when it is two-sided (D45). */
 inline bool is_m_output_width(int outputs) { return outputs == 3 || outputs == 6; }
+/* The R-energy network's output widths: one (its colour the fiber's C_R) or three (RGB, docs/decisions.md D65). */
+inline bool is_r_output_width(int outputs) { return outputs == 1 || outputs == 3; }
 
 nlohmann::json model_to_json(const YarnModel &model);
 /* Validates everything (format, version, preset, network shapes, sizes, finiteness, proxy ranges);
