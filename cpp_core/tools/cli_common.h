@@ -69,6 +69,7 @@ struct LevelOptions {
   std::string level = "ply";
   int plies = 3;
   double ply_twist = 0.5;
+  std::string yarn_intersector = "grid";
 };
 
 inline void add_level_options(CLI::App *cmd, LevelOptions *o)
@@ -80,6 +81,11 @@ inline void add_level_options(CLI::App *cmd, LevelOptions *o)
   cmd->add_option("--ply-twist", o->ply_twist, "--level yarn: ply twist alpha_yarn (2 R_yarn turns per length)")
       ->check(finite_range(0.0, 8.0))
       ->capture_default_str();
+  cmd->add_option("--yarn-intersector", o->yarn_intersector,
+                  "--level yarn: the yarn's fibers as slabs of chord tubes (grid) or Embree's round curves (embree, "
+                  "the reference: 5-10x slower)")
+      ->check(CLI::IsMember({"grid", "embree"}))
+      ->capture_default_str();
 }
 
 inline rdm::RdmMaps gather_level(const FiberPreset &preset, const LevelOptions &level, const rdm::GatherOptions &options)
@@ -90,7 +96,8 @@ inline rdm::RdmMaps gather_level(const FiberPreset &preset, const LevelOptions &
   geometry::YarnStructure s;
   s.plies = level.plies;
   s.ply_twist = level.ply_twist;
-  return rdm::gather_yarn(preset, s, options);
+  return rdm::gather_yarn(preset, s, options,
+                          level.yarn_intersector == "embree" ? rdm::YarnIntersector::kEmbree : rdm::YarnIntersector::kGrid);
 }
 
 /* "10000000", "1e7", "10M", "2.5k": a positive integer path count. */

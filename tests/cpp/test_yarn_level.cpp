@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <filesystem>
+#include <limits>
+#include <random>
 
 #include "neuralyarn/geometry/yarn.h"
 #include "neuralyarn/kernel/yarn_bsdf.h"
@@ -13,6 +15,7 @@
 #include "neuralyarn/presets.h"
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/rdm/map_file.h"
+#include "neuralyarn/rdm/yarn_grid_tracer.h"
 #include "neuralyarn/rdm/yarn_tracer.h"
 
 using namespace neuralyarn;
@@ -38,32 +41,194 @@ geometry::Yarn one_ply_yarn(const FiberPreset &p, uint64_t seed)
 
 }  // namespace
 
-/* A one-ply "yarn" walked through Embree's explicit, finite fibers is the ply that PlyTracer walks through
- * exactly (same cross-section, same helices): the energies of T, R and M agree within their noise. Guards the
- * yarn tracer's crossing of a fiber (Embree reports the tube's exit, which the tracer culls), normals, mirror
- * image and entry region; a tracer that stopped at the exit (a path into the fiber scattering again inside
- * it) fails. */
-TEST(YarnTracer, OnePlyYarnWalksLikeThePly)
+/* A one-ply "yarn" walked through its explicit, finite fibers — Embree's round curves or the slabs of chord
+ * tubes — is the ply that PlyTracer walks through exactly (same cross-section, same helices): the energies of T,
+ * R and M agree within their noise. Guards the yarn tracers' crossing of a fiber (Embree reports the tube's
+ * exit, which the tracer culls), normals, mirror image and entry region; a tracer that stopped at the exit (a
+ * path into the fiber scattering again inside it) fails, and so does a slab tracer whose chords miss the
+ * fibers' points on its faces (gaps between slabs). */
+void expect_one_ply_yarn_walks_like_the_ply(bool grid)
 {
   const FiberPreset p = find_preset("polyester");
   const rdm::GatherOptions o = small_gather(400000);
   const rdm::RdmMaps ply = rdm::gather(p, o);
   const geometry::Yarn yarn = one_ply_yarn(p, o.packing_seed);
   const double entry = 8.0, half = 0.5 * entry + rdm::kYarnEndMargin;
-  const rdm::YarnTracer plain(yarn, entry, half, false), mirror(yarn, entry, half, true);
   geometry::YarnStructure s; /* recorded as a ply: the geometry is one */
   s.surface_alpha = p.alpha;
-  const rdm::RdmMaps emb = rdm::gather_through(p, s, o, plain, mirror);
-  EXPECT_EQ(emb.stats.paths_past_ends, 0u);
+  rdm::RdmMaps yarn_maps;
+  if (grid) {
+    const auto slabs = std::make_shared<const rdm::YarnSlabs>(yarn, half);
+    const rdm::YarnGridTracer plain(slabs, entry, false), mirror(slabs, entry, true);
+    yarn_maps = rdm::gather_through(p, s, o, plain, mirror);
+  }
+  else {
+    const rdm::YarnTracer plain(yarn, entry, half, false), mirror(yarn, entry, half, true);
+    yarn_maps = rdm::gather_through(p, s, o, plain, mirror);
+  }
+  EXPECT_EQ(yarn_maps.stats.paths_past_ends, 0u);
   const double n = double(o.paths);
   for (int c = 0; c < 3; c++) {
     /* Per-path exit weights are below ~1.5 (roulette keeps them near 1), so Var <= 1.5 E: 4 sigma of a
      * difference of two independent means, plus 1 % for chords against Embree's polylines. */
     auto tol = [&](double a, double b) { return 4.0 * std::sqrt(1.5 * (a + b) / n) + 0.01 * std::max(a, b); };
-    EXPECT_NEAR(emb.stats.energy_T[c], ply.stats.energy_T[c], tol(emb.stats.energy_T[c], ply.stats.energy_T[c])) << c;
-    EXPECT_NEAR(emb.stats.energy_R[c], ply.stats.energy_R[c], tol(emb.stats.energy_R[c], ply.stats.energy_R[c])) << c;
-    EXPECT_NEAR(emb.stats.energy_M[c], ply.stats.energy_M[c], tol(emb.stats.energy_M[c], ply.stats.energy_M[c])) << c;
+    const rdm::GatherStats &y = yarn_maps.stats, &q = ply.stats;
+    EXPECT_NEAR(y.energy_T[c], q.energy_T[c], tol(y.energy_T[c], q.energy_T[c])) << c;
+    EXPECT_NEAR(y.energy_R[c], q.energy_R[c], tol(y.energy_R[c], q.energy_R[c])) << c;
+    EXPECT_NEAR(y.energy_M[c], q.energy_M[c], tol(y.energy_M[c], q.energy_M[c])) << c;
   }
+}
+
+TEST(YarnTracer, OnePlyYarnWalksLikeThePly) { expect_one_ply_yarn_walks_like_the_ply(false); }
+TEST(YarnGridTracer, OnePlyYarnWalksLikeThePly) { expect_one_ply_yarn_walks_like_the_ply(true); }
+
+/* The slab tracer answers what a test of every chord of every slab the ray crosses answers (tube entries within
+ * each slab's x range, the excluded fiber skipped within its distance), on rays that enter the 3-ply yarn and
+ * leave fibers in random directions, plain and mirrored. The tracer's distance is summed slab by slab from the
+ * faces, so it may differ from the brute force's in the last digits; the fiber must be the same but where two
+ * entries lie within 1e-4 fiber radii. */
+TEST(YarnGridTracer, AnswersAsATestOfEveryChord)
+{
+  geometry::YarnStructure plying;
+  plying.plies = 3;
+  plying.ply_twist = 0.5;
+  const geometry::Yarn yarn(geometry::yarn_params(find_preset("polyester"), plying), 1);
+  const double half = 6.0;
+  const auto slabs = std::make_shared<const rdm::YarnSlabs>(yarn, half);
+  const rdm::YarnGridTracer plain(slabs, 4.0, false), mirror(slabs, 4.0, true);
+  const float r = slabs->fiber_radius(), exclude_distance = 2.0f * r;
+  const int fibers = 3 * int(yarn.cross_section(0).centers.size());
+  auto flip = [](ny::Vec3 v) { return ny::make_vec3(-v.x, v.y, -v.z); };
+  /* The nearest entry over every chord of the slabs the ray (in the unmirrored yarn) crosses before the bound. */
+  auto brute = [&](ny::Vec3 o, ny::Vec3 d, int exclude, int *fiber, float *second) {
+    const float t_cyl = rdm::cylinder_exit(o, d, slabs->bound_radius());
+    const float xa = std::min(o.x, o.x + t_cyl * d.x), xb = std::max(o.x, o.x + t_cyl * d.x);
+    float best = std::numeric_limits<float>::infinity();
+    *second = best;
+    *fiber = -1;
+    for (int j = 0; j < slabs->num_slabs(); j++) {
+      const float x0 = slabs->slab_face(j), x1 = slabs->slab_face(j + 1);
+      if (x1 < xa || x0 > xb) {
+        continue;
+      }
+      for (int f = 0; f < fibers; f++) {
+        const float t = slabs->intersect_chord(j, f, o, d);
+        const float x = o.x + t * d.x;
+        if (!(t <= t_cyl) || x < x0 || x > x1 || (f == exclude && t < exclude_distance)) {
+          continue;
+        }
+        if (t < best) {
+          *second = best;
+          best = t;
+          *fiber = f;
+        }
+        else if (t < *second && f != *fiber) {
+          *second = t;
+        }
+      }
+    }
+    return best;
+  };
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  auto random_dir = [&] {
+    const float z = 2.0f * u(rng) - 1.0f, a = 6.2831853f * u(rng), s = std::sqrt(std::max(1.0f - z * z, 0.0f));
+    return ny::make_vec3(z, s * std::cos(a), s * std::sin(a));
+  };
+  int queries = 0, hits = 0, same = 0, near_ties = 0;
+  for (int path = 0; path < 600; path++) {
+    const bool mirrored = path % 2 == 1;
+    const rdm::YarnGridTracer &tracer = mirrored ? mirror : plain;
+    const float a = 6.2831853f * u(rng);
+    rdm::SlabRay ray;
+    ray.o = ny::make_vec3(4.0f * u(rng) - 2.0f, slabs->bound_radius() * std::cos(a), slabs->bound_radius() * std::sin(a));
+    ray.d = random_dir();
+    if (ray.d.y * ray.o.y + ray.d.z * ray.o.z > 0.0f) {
+      ray.d = -ray.d; /* inward */
+    }
+    int exclude = -1;
+    for (int event = 0; event < 8; event++) {
+      const ny::Vec3 o = ray.o, d = ray.d;
+      int expected = -1;
+      float second = 0.0f;
+      const float t_brute = mirrored ? brute(flip(o), flip(d), exclude, &expected, &second)
+                                     : brute(o, d, exclude, &expected, &second);
+      rdm::TubeHit hit;
+      const bool found = tracer.trace(&ray, exclude, exclude_distance, &hit);
+      queries++;
+      if (found) {
+        hits++;
+      }
+      if ((found ? hit.fiber : -1) == expected) {
+        same++;
+        if (found) {
+          /* The distance summed over slabs, from origins a few ulps apart: a grazing entry moves along the ray
+           * by that over the sine of its angle. The point itself lies on the fiber's tube. */
+          EXPECT_NEAR(hit.t, t_brute, 1e-3f * std::max(t_brute, r));
+          const ny::Vec3 p = o + d * hit.t;
+          EXPECT_NEAR(ny::length(hit.point - p), 0.0f, 1e-3f * r);
+          const ny::Vec3 q = mirrored ? flip(hit.point) : hit.point;
+          int j = 0;
+          while (j + 1 < slabs->num_slabs() && q.x > slabs->slab_face(j + 1)) {
+            j++;
+          }
+          EXPECT_NEAR(slabs->distance_from_chord(j, hit.fiber, q), r, 1e-3f * r);
+          EXPECT_GT(hit.axis.x, 0.0f);
+          EXPECT_LT(ny::dot(hit.normal, d), 0.0f); /* an entry faces the ray */
+        }
+      }
+      else if (std::abs(second - t_brute) < 1e-4f * r) {
+        near_ties++;
+      }
+      else {
+        ADD_FAILURE() << "query " << queries << (mirrored ? " (mirrored)" : "") << ": tracer fiber "
+                      << (found ? hit.fiber : -1) << " at " << (found ? hit.t : -1.0f) << ", chords " << expected
+                      << " at " << t_brute;
+      }
+      if (!found) {
+        break;
+      }
+      exclude = hit.fiber;
+      ny::Vec3 wo = random_dir();
+      tracer.leave_fiber(hit, wo, &ray);
+    }
+  }
+  EXPECT_GT(hits, queries / 2);
+  EXPECT_LE(near_ties, queries / 1000 + 1);
+  EXPECT_EQ(same + near_ties, queries);
+}
+
+/* Slabs of chord tubes and Embree's round curves are two approximations of the same 3-ply yarn (each within
+ * ~1 % of a fiber radius of the helices): walked through either, its energies agree within their noise. */
+TEST(YarnGridTracer, WalksLikeEmbreesYarn)
+{
+  geometry::YarnStructure s;
+  s.plies = 3;
+  s.ply_twist = 0.5;
+  const FiberPreset p = find_preset("fleece");
+  const rdm::GatherOptions o = small_gather(300000);
+  const rdm::RdmMaps grid = rdm::gather_yarn(p, s, o, rdm::YarnIntersector::kGrid);
+  const rdm::RdmMaps embree = rdm::gather_yarn(p, s, o, rdm::YarnIntersector::kEmbree);
+  /* Rays along the grooves between plies can run past the ends (16 yarn radii beyond the entry region): a few
+   * in 10^5 paths, through either intersector (2 and 2 at this seed). */
+  EXPECT_LE(grid.stats.paths_past_ends, o.paths / 10000);
+  EXPECT_EQ(grid.structure.surface_alpha, embree.structure.surface_alpha);
+  const double n = double(o.paths);
+  auto tol = [&](double a, double b) { return 4.0 * std::sqrt(1.5 * (a + b) / n) + 0.01 * std::max(a, b); };
+  for (int c = 0; c < 3; c++) {
+    const rdm::GatherStats &g = grid.stats, &e = embree.stats;
+    EXPECT_NEAR(g.energy_T[c], e.energy_T[c], tol(g.energy_T[c], e.energy_T[c])) << c;
+    EXPECT_NEAR(g.energy_R[c], e.energy_R[c], tol(g.energy_R[c], e.energy_R[c])) << c;
+    EXPECT_NEAR(g.energy_M[c], e.energy_M[c], tol(g.energy_M[c], e.energy_M[c])) << c;
+  }
+}
+
+TEST(YarnGridTracer, RefusesABadHalfLength)
+{
+  const geometry::Yarn yarn = one_ply_yarn(find_preset("silk"), 1);
+  EXPECT_THROW(rdm::YarnSlabs(yarn, std::nan("")), ParameterError);
+  EXPECT_THROW(rdm::YarnSlabs(yarn, 0.0), ParameterError);
+  EXPECT_THROW(rdm::YarnSlabs(yarn, std::numeric_limits<double>::infinity()), ParameterError);
 }
 
 /* The surface twist of a one-ply yarn is the ply's alpha, scaled by where the outer fibers sit (rho within

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "neuralyarn/rdm/yarn_tracer.h"
+#include "neuralyarn/rdm/yarn_grid_tracer.h"
 
 #include <algorithm>
 #include <cmath>
@@ -60,7 +61,8 @@ void YarnTracer::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
   ray->d = d;
 }
 
-RdmMaps gather_yarn(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &options)
+RdmMaps gather_yarn(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &options,
+                    YarnIntersector intersector)
 {
   if (structure.plies == 1) {
     throw ParameterError("plies", "a one-ply yarn is its ply: plies and yarns coincide (gather or bake the ply level)");
@@ -72,9 +74,14 @@ RdmMaps gather_yarn(const FiberPreset &preset, const geometry::YarnStructure &st
   const double R = yarn.yarn_radius();
   const double entry = std::clamp(yarn.sampling_length(), 2.0 * R, 24.0 * R);
   const double half = 0.5 * entry + kYarnEndMargin * R;
-  const YarnTracer plain(yarn, entry, half, false), mirror(yarn, entry, half, true);
   geometry::YarnStructure s = structure;
   s.surface_alpha = geometry::surface_twist(yarn);
+  if (intersector == YarnIntersector::kEmbree) {
+    const YarnTracer plain(yarn, entry, half, false), mirror(yarn, entry, half, true);
+    return gather_through(preset, s, options, plain, mirror);
+  }
+  const auto slabs = std::make_shared<const YarnSlabs>(yarn, half);
+  const YarnGridTracer plain(slabs, entry, false), mirror(slabs, entry, true);
   return gather_through(preset, s, options, plain, mirror);
 }
 

@@ -2,8 +2,9 @@
 //
 // What a random walk needs of the fibers it walks through (rdm/gather.h): ray queries that stop at tube
 // entries (a path crosses the fiber it scattered into), and the cylinder paths enter and leave through.
-// PlyTracer (one infinite ply, exact, D7) is the gather's own; YarnTracer (rdm/yarn_tracer.h, a finite
-// explicit K-ply yarn in Embree) implements this interface for the yarn level (docs/decisions.md D27).
+// PlyTracer (one infinite ply, exact, D7) is the gather's own; for the yarn level (docs/decisions.md D27) a
+// finite explicit K-ply yarn implements this interface, as slabs of chord tubes (rdm/yarn_grid_tracer.h, D66)
+// or in Embree (rdm/yarn_tracer.h, the reference).
 #pragma once
 
 #include <cstdint>
@@ -25,7 +26,8 @@ class FiberMedium {
   virtual double entry_length() const = 0;
   /* |x| beyond which the medium has no fibers (infinity for an infinite one). */
   virtual double half_length() const = 0;
-  /* As PlyTracer::trace and PlyTracer::leave_fiber (SlabRay::slab stays 0 for a finite medium). */
+  /* As PlyTracer::trace and PlyTracer::leave_fiber. For a finite medium the ray stays in the medium's
+   * coordinates; SlabRay::slab, if it changes, only counts slab crossings for the gather's statistics. */
   virtual bool trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const = 0;
   virtual void leave_fiber(const TubeHit &hit, ny::Vec3 d, SlabRay *ray) const = 0;
 };

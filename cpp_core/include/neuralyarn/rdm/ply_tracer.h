@@ -14,10 +14,7 @@
 // L = sqrt(8 sagitta r / kappa_max), kappa_max = w^2 R / (1 + w^2 R^2) the largest helix curvature. For
 // alpha = 0 the chords are the exact fibers and L is arbitrary.
 //
-// Candidate fibers come from a uniform 2D grid over the slab's (y, z) cross-section, each fiber entered
-// in every cell its projected tube (a capsule around the projected chord, of radius r / cos(tilt))
-// overlaps. A query walks the cells under the ray's (y, z) projection in order (2D DDA) and stops once the
-// nearest hit lies before the current cell's exit.
+// Candidate fibers come from a uniform 2D grid over the slab's (y, z) cross-section (rdm/tube_grid.h).
 //
 // Rays enter and leave through the bounding cylinder of radius bound_radius() (R plus a hair: no tube
 // reaches it). Hits are tube *entries*: a ray whose origin lies inside a tube (neighbouring helical tubes of a packed
@@ -35,12 +32,9 @@
 
 #include "neuralyarn/geometry/ply.h"
 #include "neuralyarn/kernel/platform.h"
+#include "neuralyarn/rdm/tube_grid.h"
 
 namespace neuralyarn::rdm {
-
-/* Tubes a query tests at once (one SSE vector; eight lanes of AVX measured no faster, docs/benchmarks.md).
- * Each lane computes what one scalar tube test would, in the same float operations. */
-inline constexpr int kTubeLanes = 4;
 
 struct TracerOptions {
   double sagitta = 0.01;   /* largest chord deviation from the helix, in fiber radii      */
@@ -92,8 +86,8 @@ class PlyTracer {
   double twist_rate() const { return w_; }
   int num_fibers() const { return int(fibers_.size()); }
   /* Number of (fiber, cell) entries of the grid: its memory and the mean candidate count. */
-  size_t grid_entries() const { return entries_; }
-  int grid_resolution() const { return n_; }
+  size_t grid_entries() const { return grid_.entries(); }
+  int grid_resolution() const { return grid_.resolution(); }
 
   /* Traces `ray` (updated in place: on return it is at the hit or exit point, in the slab it ended in)
    * until it enters a tube or leaves the bounding cylinder of radius R. `exclude` is a fiber ignored for
@@ -108,7 +102,7 @@ class PlyTracer {
 
   /* Entry distance of the ray (canonical coordinates) into tube `fiber` of the slab, ignoring the slab's
    * x range; +inf if it misses or starts inside. (Brute-force reference for tests.) */
-  float intersect_fiber(int fiber, ny::Vec3 o, ny::Vec3 d) const { return intersect_tube(fibers_[size_t(fiber)], o, d); }
+  float intersect_fiber(int fiber, ny::Vec3 o, ny::Vec3 d) const { return tube_entry(fibers_[size_t(fiber)], o, d, r_ * r_); }
 
   /* Moves a ray whose origin has left [0, L] back into the slab (several slabs at once if needed). */
   void canonicalize(SlabRay *ray) const;
@@ -118,19 +112,7 @@ class PlyTracer {
   ny::Vec3 to_world_dir(ny::Vec3 d, int64_t slab) const;
 
  private:
-  struct Tube {
-    ny::Vec3 a;    /* chord start p_i(0) */
-    ny::Vec3 axis; /* unit chord direction */
-  };
-  /* Entry distance of the ray into tube f, or +inf; origin inside the tube gives +inf (the grid's blocks
-   * compute the same per lane: tube_entry in ply_tracer.cpp). */
-  float intersect_tube(const Tube &f, ny::Vec3 o, ny::Vec3 d) const;
   void rotate_yz(ny::Vec3 *v, float c, float s) const;
-  /* The nearest tube entry in the slab at t in [0, t_end] along the canonical ray (o, d), by a 2D DDA over
-   * the cells under its (y, z) projection; fiber `exclude` is skipped where the trace, `travelled` before
-   * this slab, is closer than `exclude_distance`. Returns t_end (or +inf) and *fiber = -1 if none. */
-  float nearest_in_slab(ny::Vec3 o, ny::Vec3 d, float t_end, int exclude, float travelled, float exclude_distance,
-                        int *fiber) const;
   /* The ray from its point at t_slab on a slab face into the neighbouring slab, re-entering the canonical
    * slab through the opposite face. */
   void cross_slab(SlabRay *ray, float t_slab) const;
@@ -138,20 +120,8 @@ class PlyTracer {
   float R_ = 1.0f, bound_ = 1.0f, r_ = 0.0f, L_ = 1.0f;
   double w_ = 0.0;
   float rot_c_ = 1.0f, rot_s_ = 0.0f; /* Rot(w L) */
-  std::vector<Tube> fibers_;
-  /* Grid over [-R, R]^2 in (y, z): cell (iy, iz) holds blocks_[start_[c] .. start_[c + 1]). */
-  int n_ = 1;
-  float cell_ = 1.0f, inv_cell_ = 1.0f;
-  std::vector<uint32_t> start_;
-  size_t entries_ = 0;
-  /* A cell's tubes, stored inline in structure-of-arrays blocks of kTubeLanes, so that one block's tube tests
-   * run as vector instructions without a branch per tube. Lanes past a cell's last tube have fiber -1. */
-  struct alignas(4 * kTubeLanes) TubeBlock {
-    float ax[kTubeLanes], ay[kTubeLanes], az[kTubeLanes]; /* chord start */
-    float ux[kTubeLanes], uy[kTubeLanes], uz[kTubeLanes]; /* unit chord direction */
-    int32_t fiber[kTubeLanes];
-  };
-  std::vector<TubeBlock> blocks_;
+  std::vector<Chord> fibers_;         /* fiber i's chord over the slab */
+  TubeGrid grid_;
 };
 
 }  // namespace neuralyarn::rdm

@@ -42,9 +42,14 @@ class YarnTracer final : public FiberMedium {
   double entry_ = 0.0, half_ = 0.0;
 };
 
+/* Which intersector a yarn-level gather walks through: the slabs of chord tubes (YarnGridTracer, the default)
+ * or Embree's round curves (YarnTracer: the reference it is checked and timed against). */
+enum class YarnIntersector { kGrid, kEmbree };
+
 /* Gathers the maps of a yarn of `structure.plies` plies of the preset's fibers at ply twist
  * `structure.ply_twist` (the yarn level). The maps' structure records the yarn and its surface twist.
  * Throws ParameterError for a one-ply yarn (plies and yarns coincide: gather the ply) or bad parameters. */
-RdmMaps gather_yarn(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &options);
+RdmMaps gather_yarn(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &options,
+                    YarnIntersector intersector = YarnIntersector::kGrid);
 
 }  // namespace neuralyarn::rdm
