@@ -26,7 +26,7 @@ case "$LEVEL" in
   # --scene closeup measures both; D54): fleece, silk, polyester and cotton keep earlier trainers' draws.
   ply) PATHS="${NY_BAKE_PATHS:-4e7}"; CHECK_PATHS="${NY_CHECK_PATHS:-2e7}"; SUFFIX=""
        LEVEL_ARGS=(--layouts 32 --m-candidates 4 --m-choice image-centre) ;;
-  # The yarn's walks cost 3-9x the ply's (Embree on an explicit yarn, docs/benchmarks.md): half the paths. Of
+  # The yarn's walks cost 3-6x the ply's (slabs of an explicit yarn, D66; docs/benchmarks.md): half the paths. Of
   # four M trainings the one whose close-up images under distant lights are closest to the maps' (D53): the
   # trainings' 4D scores do not rank how they render at this level.
   yarn) PATHS="${NY_BAKE_PATHS:-2e7}"; CHECK_PATHS="${NY_CHECK_PATHS:-1e7}"; SUFFIX="_yarn"

@@ -335,6 +335,8 @@ TEST(YarnMaps, KeepTheirStructureThroughTheFile)
   EXPECT_EQ(back.structure.ply_twist, 0.5);
   EXPECT_EQ(back.structure.surface_alpha, maps.structure.surface_alpha);
   EXPECT_EQ(back.surface_alpha(), maps.structure.surface_alpha);
+  EXPECT_EQ(maps.intersector, "slabs");
+  EXPECT_EQ(back.intersector, "slabs");
   EXPECT_EQ(back.p_t, maps.p_t);
   std::filesystem::remove(path);
 }

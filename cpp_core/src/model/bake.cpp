@@ -130,13 +130,17 @@ NetworkRecord train_one(const char *name, const rdm::RdmMaps &maps, const Networ
 json maps_provenance(const rdm::RdmMaps &maps)
 {
   const rdm::MapResolution &b = maps.bins;
-  return {{"paths", maps.paths},
-          {"seed", maps.seed},
-          {"packing_seed", maps.packing_seed},
-          {"layouts", maps.layouts},
-          {"symmetrized", maps.symmetrized},
-          {"bins", std::to_string(b.theta_i) + "x" + std::to_string(b.phi_i) + "x" + std::to_string(b.theta_o) + "x" +
-                       std::to_string(b.phi_o)}};
+  json j = {{"paths", maps.paths},
+            {"seed", maps.seed},
+            {"packing_seed", maps.packing_seed},
+            {"layouts", maps.layouts},
+            {"symmetrized", maps.symmetrized},
+            {"bins", std::to_string(b.theta_i) + "x" + std::to_string(b.phi_i) + "x" + std::to_string(b.theta_o) + "x" +
+                         std::to_string(b.phi_o)}};
+  if (!maps.intersector.empty()) {
+    j["intersector"] = maps.intersector; /* the yarn level's: what the same seed reproduces */
+  }
+  return j;
 }
 
 ProxyFitResult fit_model_proxy(YarnModel *model, const rdm::RdmMaps &maps, const ProxyFitOptions &options)

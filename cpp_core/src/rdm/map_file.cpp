@@ -172,6 +172,9 @@ void save_maps(const RdmMaps &maps, const std::string &path)
   if (maps.structure.is_yarn()) {
     h["structure"] = geometry::structure_to_json(maps.structure);
   }
+  if (!maps.intersector.empty()) {
+    h["geometry"]["intersector"] = maps.intersector;
+  }
   h["summary"] = stats_json(maps.stats);
   h["arrays"] = pl.arrays;
   h["payload_bytes"] = pl.bytes.size();
@@ -271,6 +274,7 @@ void read_description(const std::string &path, const json &h, uint32_t version, 
   maps.fiber_radius = h.at("geometry").at("fiber_radius").get<double>();
   maps.slab_length = h.at("geometry").at("slab_length").get<double>();
   maps.sagitta = h.at("geometry").at("chord_sagitta_fiber_radii").get<double>();
+  maps.intersector = h.at("geometry").value("intersector", ""); /* yarn maps before D66: Embree's */
 }
 
 /* The header's summary: what stats_json wrote (the parts a loaded map is asked for). */

@@ -78,11 +78,17 @@ RdmMaps gather_yarn(const FiberPreset &preset, const geometry::YarnStructure &st
   s.surface_alpha = geometry::surface_twist(yarn);
   if (intersector == YarnIntersector::kEmbree) {
     const YarnTracer plain(yarn, entry, half, false), mirror(yarn, entry, half, true);
-    return gather_through(preset, s, options, plain, mirror);
+    RdmMaps maps = gather_through(preset, s, options, plain, mirror);
+    maps.intersector = "embree";
+    return maps;
   }
-  const auto slabs = std::make_shared<const YarnSlabs>(yarn, half);
+  TracerOptions tracer = yarn_tracer_options();
+  tracer.sagitta = options.tracer.sagitta;
+  const auto slabs = std::make_shared<const YarnSlabs>(yarn, half, tracer);
   const YarnGridTracer plain(slabs, entry, false), mirror(slabs, entry, true);
-  return gather_through(preset, s, options, plain, mirror);
+  RdmMaps maps = gather_through(preset, s, options, plain, mirror);
+  maps.intersector = "slabs";
+  return maps;
 }
 
 }  // namespace neuralyarn::rdm

@@ -97,6 +97,9 @@ struct RdmMaps {
   int layouts = 1; /* cross-sections, seeded packing_seed, packing_seed + 1, ... (GatherOptions) */
   bool symmetrized = false;
   double fiber_radius = 0.0, slab_length = 0.0, sagitta = 0.0; /* ply radius R = 1 */
+  /* The yarn level's intersector ("slabs": chord tubes within `sagitta`; "embree": round curves of 128 segments
+   * per turn); empty for a ply, whose PlyTracer the sagitta describes. */
+  std::string intersector;
   /* The R lobe's surface-fiber twist: the preset's alpha for a ply, the yarn's surface twist for a yarn. */
   double surface_alpha() const { return structure.is_yarn() ? structure.surface_alpha : preset.alpha; }
   std::vector<uint64_t> count;    /* [theta_i][phi_i]: paths                                    */
