@@ -6,6 +6,7 @@
 #include <cstring>
 #include <limits>
 #include <numeric>
+#include <stdexcept>
 
 #include <Eigen/Geometry>
 
@@ -156,6 +157,9 @@ TubeGrid::TubeGrid(const std::vector<Chord> &chords, float r, float bound, float
       entries_ = std::accumulate(count.begin(), count.end(), size_t(0));
     }
     for (const Chord &ch : chords) {
+      if (!(ch.a.x == x0)) {
+        throw std::invalid_argument("TubeGrid: a chord does not start on its slab's near face");
+      }
       const double rp = ch.capsule_radius;
       const int y0 = cell_index(float(std::min(ch.y0, ch.y1) - rp)), y1 = cell_index(float(std::max(ch.y0, ch.y1) + rp));
       const int z0 = cell_index(float(std::min(ch.z0, ch.z1) - rp)), z1 = cell_index(float(std::max(ch.z0, ch.z1) + rp));
@@ -181,7 +185,7 @@ TubeGrid::TubeGrid(const std::vector<Chord> &chords, float r, float bound, float
              * distances wins either way. */
             TubeBlock &b = blocks_[start_[c] + fill[c] / kTubeLanes];
             const int lane = int(fill[c] % kTubeLanes);
-            b.ax[lane] = ch.a.x, b.ay[lane] = ch.a.y, b.az[lane] = ch.a.z;
+            b.ay[lane] = ch.a.y, b.az[lane] = ch.a.z;
             b.ux[lane] = ch.axis.x, b.uy[lane] = ch.axis.y, b.uz[lane] = ch.axis.z;
             b.fiber[lane] = ch.fiber;
             fill[c]++;
@@ -208,6 +212,8 @@ float TubeGrid::nearest(Vec3 o, Vec3 d, float t_end, int exclude, float travelle
   const float delta_y = std::abs(cell_ * inv_dy);
   const float delta_z = std::abs(cell_ * inv_dz);
   const LanesF ox = splat<LanesF>(o.x), oy = splat<LanesF>(o.y), oz = splat<LanesF>(o.z);
+  /* Every chord starts on the slab's near face (the constructor checks it): w.x = o.x - x0 for all lanes. */
+  const LanesF wx = splat<LanesF>(o.x - x0_);
   const LanesF dx = splat<LanesF>(d.x), dy = splat<LanesF>(d.y), dz = splat<LanesF>(d.z);
   const LanesF r2 = splat<LanesF>(r_ * r_), inf = splat<LanesF>(kInf);
   const LanesF slab_start = splat<LanesF>(x0_), slab_end = splat<LanesF>(x1_);
@@ -222,7 +228,7 @@ float TubeGrid::nearest(Vec3 o, Vec3 d, float t_end, int exclude, float travelle
       /* tube_entry on a block of tubes; +inf in the padding lanes. */
       const TubeBlock &b = blocks_[k];
       const LanesI lane_fiber = load<LanesI>(b.fiber);
-      const LanesF t = lane_fiber >= 0 ? tube_entry_lanes(ox - load<LanesF>(b.ax), oy - load<LanesF>(b.ay),
+      const LanesF t = lane_fiber >= 0 ? tube_entry_lanes(wx, oy - load<LanesF>(b.ay),
                                                           oz - load<LanesF>(b.az), load<LanesF>(b.ux),
                                                           load<LanesF>(b.uy), load<LanesF>(b.uz), dx, dy, dz, r2)
                                        : inf;
