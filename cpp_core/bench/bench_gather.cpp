@@ -3,13 +3,14 @@
 // RDM gathering throughput (docs/benchmarks.md, "RDM gathering"). Two parts:
 //
 //   1. end to end: `neuralyarn::rdm::gather` per preset at the paper's resolution, paths/s and peak memory
-//      (with --level yarn: `gather_yarn`, the walk through an explicit 3-ply yarn in Embree);
+//      (with --level yarn: `gather_yarn`, the walk through an explicit 3-ply yarn: slabs of chord tubes, or with
+//      --yarn-intersector embree Embree's round curves, the reference; D66);
 //   2. the intersector: the same recorded walk queries answered by PlyTracer and by Embree 3 round linear
 //      curves over an explicit ply (queries/s, and how often the two disagree on the fiber hit).
 //
 // Usage: bench_gather [--presets fleece,silk,...] [--paths 1e7] [--threads 2] [--bins 22x90x45x90]
 //                     [--cell 2] [--sagitta 0.01] [--queries 200000] [--skip-gather] [--skip-queries]
-//                     [--level ply|yarn [--plies 3] [--ply-twist 0.5]]
+//                     [--level ply|yarn [--plies 3] [--ply-twist 0.5] [--yarn-intersector grid|embree]]
 #include <sys/resource.h>
 
 #include <chrono>
