@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <string>
 
 #include <Eigen/Geometry>
@@ -50,12 +51,14 @@ double crossing(const geometry::Yarn &yarn, int k, int i, double X, double guess
   for (int it = 0; it < 20; it++) {
     const double f = yarn.fiber_point(k, i, u).x() - X;
     if (std::abs(f) <= 1e-13 * (1.0 + std::abs(X))) {
-      break;
+      return u;
     }
     const double df = (yarn.fiber_point(k, i, u + h).x() - yarn.fiber_point(k, i, u - h).x()) / (2.0 * h);
     u -= f / df;
   }
-  return u;
+  /* A fiber that turns back along the axis is no yarn geometry.h builds: say so rather than tube a wrong chord. */
+  throw std::runtime_error("YarnSlabs: fiber " + std::to_string(i) + " of ply " + std::to_string(k) +
+                           " does not cross the plane x = " + std::to_string(X) + " once");
 }
 
 }  // namespace
@@ -94,32 +97,35 @@ YarnSlabs::YarnSlabs(const geometry::Yarn &yarn, double half_length, const Trace
       }
     }
   }
-  chord_a_.resize(size_t(S) * size_t(fibers_));
-  chord_axis_.resize(chord_a_.size());
-  std::vector<std::vector<Chord>> slab_chords(static_cast<size_t>(S));
+  auto chord = [&](int j, int f) {
+    return make_chord(f, points[size_t(j) * size_t(fibers_) + size_t(f)].data(),
+                      points[size_t(j + 1) * size_t(fibers_) + size_t(f)].data(), r, R);
+  };
+  /* The grids span the bounding cylinder: first how far the tubes reach (only those near the envelope can pass
+   * it), then the grids slab by slab, so that one slab's chords are held at a time. */
   double bound = R * (1.0 + 1e-4);
   for (int j = 0; j < S; j++) {
-    std::vector<Chord> &chords = slab_chords[size_t(j)];
-    chords.reserve(size_t(fibers_));
     for (int f = 0; f < fibers_; f++) {
       const Eigen::Vector3d &p0 = points[size_t(j) * size_t(fibers_) + size_t(f)];
       const Eigen::Vector3d &p1 = points[size_t(j + 1) * size_t(fibers_) + size_t(f)];
-      chords.push_back(make_chord(f, p0.data(), p1.data(), r, R));
-      chord_a_[size_t(j) * size_t(fibers_) + size_t(f)] = chords.back().a;
-      chord_axis_[size_t(j) * size_t(fibers_) + size_t(f)] = chords.back().axis;
-      /* Only tubes near the envelope can reach past it. */
       if (std::max(std::hypot(p0.y(), p0.z()), std::hypot(p1.y(), p1.z())) > R - 3.0 * r) {
-        bound = std::max(bound, clipped_tube_reach(chords.back(), r, X[size_t(j)], X[size_t(j) + 1], 8) + 1e-2 * r);
+        bound = std::max(bound, clipped_tube_reach(chord(j, f), r, X[size_t(j)], X[size_t(j) + 1], 8) + 1e-2 * r);
       }
     }
   }
   bound_ = float(bound);
   const double cell = std::max(options.cell_size * r, 1e-6 * R);
+  chord_a_.resize(size_t(S) * size_t(fibers_));
+  chord_axis_.resize(chord_a_.size());
   grids_.reserve(size_t(S));
+  std::vector<Chord> chords(static_cast<size_t>(fibers_));
   for (int j = 0; j < S; j++) {
-    grids_.emplace_back(slab_chords[size_t(j)], r_, bound_, planes_[size_t(j)], planes_[size_t(j) + 1], cell);
-    slab_chords[size_t(j)].clear();
-    slab_chords[size_t(j)].shrink_to_fit();
+    for (int f = 0; f < fibers_; f++) {
+      chords[size_t(f)] = chord(j, f);
+      chord_a_[size_t(j) * size_t(fibers_) + size_t(f)] = chords[size_t(f)].a;
+      chord_axis_[size_t(j) * size_t(fibers_) + size_t(f)] = chords[size_t(f)].axis;
+    }
+    grids_.emplace_back(chords, r_, bound_, planes_[size_t(j)], planes_[size_t(j) + 1], cell);
   }
 }
 
