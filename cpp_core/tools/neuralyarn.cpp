@@ -102,6 +102,10 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
   ProgressBar bar(!quiet);
   opt.progress = [&bar](uint64_t done, uint64_t total) { bar.update(done, total); };
   const rdm::RdmMaps maps = gather_level(preset, level, opt);
+  if (level.level == "yarn" && level.yarn_intersector == "grid" && maps.intersector != "slabs") {
+    std::printf("note: this yarn's fibers turn back along its axis, which slabs cannot hold: walked through Embree's "
+                "curves (the maps say so)\n");
+  }
   rdm::save_maps(maps, out);
   const rdm::GatherStats &s = maps.stats;
   auto rgb = [](const double v[3]) {

@@ -223,6 +223,25 @@ TEST(YarnGridTracer, WalksLikeEmbreesYarn)
   }
 }
 
+/* Slabs need fibers that cross every face once. Plies twisted so steeply that their outer fibers turn back along
+ * the axis are refused by the slabs (rather than tubed by wrong chords) and told apart beforehand, so that
+ * gather_yarn walks them through Embree's curves; the shipped plying and a one-ply yarn advance. */
+TEST(YarnGridTracer, KnowsTheYarnsItCannotHold)
+{
+  const FiberPreset p = find_preset("polyester");
+  geometry::YarnStructure steep;
+  steep.plies = 2;
+  steep.ply_twist = 8.0;
+  const geometry::Yarn steep_yarn(geometry::yarn_params(p, steep), 1);
+  EXPECT_FALSE(rdm::fibers_advance_along_axis(steep_yarn));
+  EXPECT_THROW(rdm::YarnSlabs(steep_yarn, 2.0 * steep_yarn.yarn_radius()), std::runtime_error);
+  geometry::YarnStructure shipped;
+  shipped.plies = 3;
+  shipped.ply_twist = 0.5;
+  EXPECT_TRUE(rdm::fibers_advance_along_axis(geometry::Yarn(geometry::yarn_params(p, shipped), 1)));
+  EXPECT_TRUE(rdm::fibers_advance_along_axis(one_ply_yarn(p, 1)));
+}
+
 TEST(YarnGridTracer, RefusesABadHalfLength)
 {
   const geometry::Yarn yarn = one_ply_yarn(find_preset("silk"), 1);

@@ -63,6 +63,26 @@ double crossing(const geometry::Yarn &yarn, int k, int i, double X, double guess
 
 }  // namespace
 
+bool fibers_advance_along_axis(const geometry::Yarn &yarn)
+{
+  const int K = yarn.num_plies(), N = int(yarn.cross_section(0).centers.size());
+  const double length = yarn.sampling_length(), h = 1e-4 * yarn.params().ply.R;
+  const int samples = 64;
+  for (int k = 0; k < K; k++) {
+    for (int i = 0; i < N; i++) {
+      for (int s = 0; s < samples; s++) {
+        const double u = length * (s + 0.5) / samples;
+        /* dx/du, with a margin: a fiber nearly normal to the axis would need slabs shorter than its crossing's
+         * Newton steps resolve. */
+        if ((yarn.fiber_point(k, i, u + h).x() - yarn.fiber_point(k, i, u - h).x()) / (2.0 * h) < 0.05) {
+          return false;
+        }
+      }
+    }
+  }
+  return true;
+}
+
 YarnSlabs::YarnSlabs(const geometry::Yarn &yarn, double half_length, const TracerOptions &options)
     : R_(float(yarn.yarn_radius())), r_(float(yarn.cross_section(0).r)), half_(half_length)
 {

@@ -76,7 +76,7 @@ RdmMaps gather_yarn(const FiberPreset &preset, const geometry::YarnStructure &st
   const double half = 0.5 * entry + kYarnEndMargin * R;
   geometry::YarnStructure s = structure;
   s.surface_alpha = geometry::surface_twist(yarn);
-  if (intersector == YarnIntersector::kEmbree) {
+  if (intersector == YarnIntersector::kEmbree || !fibers_advance_along_axis(yarn)) {
     const YarnTracer plain(yarn, entry, half, false), mirror(yarn, entry, half, true);
     RdmMaps maps = gather_through(preset, s, options, plain, mirror);
     maps.intersector = "embree";

@@ -32,11 +32,18 @@ inline TracerOptions yarn_tracer_options()
   return o;
 }
 
+/* Whether the yarn's fibers advance along its axis everywhere (x grows with each fiber's parameter, sampled over
+ * a period of the plies), as slabs need: each fiber crosses each face once. Plies twisted so steeply that the
+ * fibers on their outer side turn back along the axis (ply twist ~8 for 2 plies) do not; gather_yarn walks those
+ * through Embree's curves. */
+bool fibers_advance_along_axis(const geometry::Yarn &yarn);
+
 /* The slabs of one yarn (shared by the tracer and its mirror image). */
 class YarnSlabs {
  public:
   /* The yarn's fibers over |x| <= half_length; fiber k N + i is fiber i of ply k. Throws ParameterError for a
-   * half length that is not positive and finite. */
+   * half length that is not positive and finite, std::runtime_error for fibers that do not advance along the
+   * axis (fibers_advance_along_axis). */
   YarnSlabs(const geometry::Yarn &yarn, double half_length, const TracerOptions &options = yarn_tracer_options());
 
   float bound_radius() const { return bound_; }

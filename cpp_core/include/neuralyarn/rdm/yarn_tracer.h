@@ -43,7 +43,9 @@ class YarnTracer final : public FiberMedium {
 };
 
 /* Which intersector a yarn-level gather walks through: the slabs of chord tubes (YarnGridTracer, the default)
- * or Embree's round curves (YarnTracer: the reference it is checked and timed against). */
+ * or Embree's round curves (YarnTracer: the reference it is checked and timed against). A yarn whose fibers turn
+ * back along its axis (rdm::fibers_advance_along_axis) is walked through Embree's whichever is asked for; the maps'
+ * `intersector` says which. */
 enum class YarnIntersector { kGrid, kEmbree };
 
 /* Gathers the maps of a yarn of `structure.plies` plies of the preset's fibers at ply twist
