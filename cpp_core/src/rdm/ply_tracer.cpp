@@ -146,12 +146,10 @@ bool PlyTracer::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit
     if (fiber >= 0) {
       const Chord &f = fibers_[size_t(fiber)];
       const Vec3 p = o + d * t;
-      const Vec3 w = p - f.a;
-      const Vec3 wp = w - f.axis * ny::dot(w, f.axis);
       hit->t = travelled + t;
       hit->fiber = fiber;
       hit->point = p;
-      hit->normal = ny::normalize(wp);
+      hit->normal = ny::normalize(chord_radial(f.a, f.axis, p));
       hit->axis = f.axis;
       ray->o = p;
       return true;

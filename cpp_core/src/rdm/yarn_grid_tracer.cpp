@@ -149,15 +149,6 @@ YarnSlabs::YarnSlabs(const geometry::Yarn &yarn, double half_length, const Trace
   }
 }
 
-size_t YarnSlabs::bytes() const
-{
-  size_t b = (chord_a_.size() + chord_axis_.size()) * sizeof(Vec3) + planes_.size() * sizeof(float);
-  for (const TubeGrid &g : grids_) {
-    b += g.bytes();
-  }
-  return b;
-}
-
 float YarnSlabs::intersect_chord(int slab, int fiber, Vec3 o, Vec3 d) const
 {
   Chord c;
@@ -169,8 +160,7 @@ float YarnSlabs::intersect_chord(int slab, int fiber, Vec3 o, Vec3 d) const
 float YarnSlabs::distance_from_chord(int slab, int fiber, Vec3 p) const
 {
   const size_t c = size_t(slab) * size_t(fibers_) + size_t(fiber);
-  const Vec3 w = p - chord_a_[c];
-  return ny::length(w - chord_axis_[c] * ny::dot(w, chord_axis_[c]));
+  return ny::length(chord_radial(chord_a_[c], chord_axis_[c], p));
 }
 
 bool YarnSlabs::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const
@@ -225,12 +215,10 @@ bool YarnSlabs::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit
     if (fiber >= 0) {
       const size_t c = size_t(j) * size_t(fibers_) + size_t(fiber);
       const Vec3 p = o + d * t;
-      const Vec3 w = p - chord_a_[c];
-      const Vec3 wp = w - chord_axis_[c] * ny::dot(w, chord_axis_[c]);
       hit->t = travelled + t;
       hit->fiber = fiber;
       hit->point = p;
-      hit->normal = ny::normalize(wp);
+      hit->normal = ny::normalize(chord_radial(chord_a_[c], chord_axis_[c], p));
       hit->axis = chord_axis_[c];
       ray->o = p;
       return true;

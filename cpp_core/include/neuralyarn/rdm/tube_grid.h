@@ -48,6 +48,13 @@ Chord make_chord(int fiber, const double p0[3], const double p1[3], double r, do
  * r (1 - cos(pi / 64)) ~ 1.2e-3 r of the true maximum for steps of at most a few r. */
 double clipped_tube_reach(const Chord &c, double r, double x0, double x1, int steps);
 
+/* p's offset from the line a + s axis (axis unit), normal to it: a hit's outward normal once normalised. */
+inline ny::Vec3 chord_radial(ny::Vec3 a, ny::Vec3 axis, ny::Vec3 p)
+{
+  const ny::Vec3 w = p - a;
+  return w - axis * ny::dot(w, axis);
+}
+
 /* Entry distance of the ray o + t d (d unit) into the round tube of radius sqrt(r2) about the chord's line;
  * +inf if it misses, moves away from the axis or starts inside. */
 float tube_entry(const Chord &c, ny::Vec3 o, ny::Vec3 d, float r2);
@@ -67,7 +74,6 @@ class TubeGrid {
   int resolution() const { return n_; }
   /* Number of (chord, cell) entries: the grid's size and the mean candidate count. */
   size_t entries() const { return entries_; }
-  size_t bytes() const { return start_.size() * sizeof(uint32_t) + blocks_.size() * sizeof(TubeBlock); }
 
  private:
   float r_ = 0.0f, bound_ = 1.0f, x0_ = 0.0f, x1_ = 1.0f;

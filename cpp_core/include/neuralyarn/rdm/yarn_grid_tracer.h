@@ -9,7 +9,7 @@
 // Paths enter over `entry_length` about x = 0; a path that leaves through an end rather than the envelope is
 // counted by the gather (GatherStats::paths_past_ends).
 //
-// It answers the queries YarnTracer (Embree's round curves over the same fibers) answers, 5-10x faster
+// It answers the queries YarnTracer (Embree's round curves over the same fibers) answers, 1.1-2x faster
 // (docs/benchmarks.md); YarnTracer stays as the independent intersector the tests compare it with.
 #pragma once
 
@@ -50,9 +50,7 @@ class YarnSlabs {
   float envelope_radius() const { return R_; }
   float fiber_radius() const { return r_; }
   double half_length() const { return half_; }
-  float slab_length() const { return L_; }
   int num_slabs() const { return int(grids_.size()); }
-  size_t bytes() const;
 
   /* Entry distance of the ray into fiber `fiber`'s tube of slab `slab`, ignoring the slab's x range; +inf if
    * it misses or starts inside. (Brute-force reference for tests.) */
