@@ -232,15 +232,15 @@ def _check_preset(args, ny) -> None:
         raise BatchError(f"unknown preset '{args.preset}' ({', '.join(ny.resources.PRESETS)})")
 
 
-def _apply_level(ny, obj) -> tuple:
+def _apply_level(ny, obj) -> list:
     """Applies a yarn object's level of detail (addon/level_of_detail.py), prints the batch log's line for it and
-    returns (the object that renders it: its plies, surface or itself, the level)."""
+    returns [(an object that renders it: its plies, a part of its split, its surface or itself, that one's level)]."""
     try:
-        level = ny.level_of_detail.apply_level(bpy.context, obj).level
+        ny.level_of_detail.apply_level(bpy.context, obj)
     except ny.geometry.GeometryError as e:
         raise BatchError(f"{obj.name}: the level of detail could not be built: {e}") from None
     print(f"level of detail: {obj.name}: {obj.neural_yarn.chosen}")
-    return ny.level_of_detail.rendered_object(obj), level
+    return ny.level_of_detail.rendered_objects(obj)
 
 
 def run(argv: list[str]) -> str:
@@ -279,8 +279,7 @@ def run(argv: list[str]) -> str:
                 obj.neural_yarn.plies = args.plies
                 if not args.model:  # the preset's material first: the level's material follows from it
                     obj.data.materials.append(ny.operators.preset_material(args.preset, "plies"))
-                shown, level = _apply_level(ny, obj)
-                levels[shown] = level
+                levels.update(_apply_level(ny, obj))
             yarns = list(levels)
         else:
             print(f"level of detail: {', '.join(o.name for o in yarns)}: plies (--plies 1: the curves are plies)")
@@ -291,9 +290,9 @@ def run(argv: list[str]) -> str:
         if args.lod is not None:
             scene.neural_yarn_lod = args.lod.upper()
         for obj in [o for o in yarns if o.neural_yarn.chosen]:
-            shown, level = _apply_level(ny, obj)
-            levels[shown] = level
-        yarns = [o for o in yarns if not o.hide_render]
+            levels.update(_apply_level(ny, obj))
+        # What renders now, the plies or parts the levels just made included.
+        yarns = [o for o in scene.objects if o.type == "CURVES" and not o.hide_render]
     levels = {obj: levels.get(obj, "plies") for obj in yarns}
     surfaces = [obj for obj in yarns if levels[obj] == "surface"]  # drawn with their own material
     yarns = [obj for obj in yarns if levels[obj] != "surface"]

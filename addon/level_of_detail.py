@@ -13,7 +13,7 @@ import math
 import bpy
 import numpy as np
 
-from . import fallback_nodes, nodes, resources, scene_bpy, scene_description
+from . import curves_bpy, fallback_nodes, nodes, resources, scene_bpy, scene_description
 from .geometry import lod, ply_center_distance
 from .geometry.lod import YARN_MODEL_PLIES, YARN_MODEL_PLY_TWIST
 
@@ -31,6 +31,10 @@ OVERRIDE_ITEMS = [("OBJECT", "Per Object", "Each yarn object's own level of deta
 SWATCH_KEY = "neural_yarn_swatch"
 #: The format of a shipped surface-level material (`neuralyarn surface --material-out`).
 CLOTH_SURFACE_FORMAT = "neuralyarn-cloth-surface 1"
+#: The object key under which a part of a split yarn object (D67) keeps the indices of the yarns it draws.
+PART_KEY = "neural_yarn_part"
+#: The level a split object is applied at: its near yarns as plies, the far ones as yarns.
+SPLIT_LEVEL = "plies+yarns"
 
 
 def view_of(scene) -> lod.View | None:
@@ -59,22 +63,33 @@ def curve_points(obj) -> tuple[np.ndarray, np.ndarray]:
     return world, rad * scale
 
 
+def curve_counts(obj) -> np.ndarray:
+    """The number of points of each curve of a Curves object, in order."""
+    offsets = np.empty(len(obj.data.curves) + 1, dtype=np.int64)
+    obj.data.curve_offset_data.foreach_get("value", offsets)
+    return np.diff(offsets)
+
+
 def choose_for_yarns(obj, scene, plies: int, requested: str = "auto") -> lod.LevelChoice:
     """The level for a Curves object of yarns that would be twisted into `plies` plies (the add-on's ply twist):
     plies or yarns (a yarn-level model exists only for the shipped plying; fibers are drawn by
-    `neuralyarn cycles-scene`, not the add-on: both give plies with a warning)."""
+    `neuralyarn cycles-scene`, not the add-on: both give plies with a warning), and under Auto the yarns it draws
+    as yarns where it splits the object (`far`)."""
     points, radii = curve_points(obj)
     ply_radius = radii / (1.0 + ply_center_distance(plies, 1.0, YARN_MODEL_PLY_TWIST)) if plies > 1 else radii
-    c = lod.choose_level(points, ply_radius, view_of(scene), requested=requested)
+    c = lod.choose_level(points, ply_radius, view_of(scene), requested=requested,
+                         curve_counts=curve_counts(obj) if obj.neural_yarn.split else None)
     notes = [c.warning] if c.warning else []
-    level = c.level
-    if level == "yarns" and plies != YARN_MODEL_PLIES:
-        notes.append(f"the yarn-level models are of {YARN_MODEL_PLIES}-ply yarns, these have {plies}: drawing plies")
-        level = "plies"
+    level, far = c.level, c.far
+    if (level == "yarns" or far) and plies != YARN_MODEL_PLIES:
+        what = "drawing plies" if level == "yarns" else f"the {len(far)} far yarns stay plies"
+        notes.append(f"the yarn-level models are of {YARN_MODEL_PLIES}-ply yarns, these have {plies}: {what}")
+        level = "plies" if level == "yarns" else level
+        far = ()
     if level == "fibers":
         notes.append("the add-on draws no explicit fibers (neuralyarn cycles-scene does): drawing plies")
         level = "plies"
-    return lod.LevelChoice(level, c.ply_pixels, "; ".join(notes) or None)
+    return lod.LevelChoice(level, c.ply_pixels, "; ".join(notes) or None, far)
 
 
 class NeuralYarnObjectSettings(bpy.types.PropertyGroup):
@@ -84,11 +99,22 @@ class NeuralYarnObjectSettings(bpy.types.PropertyGroup):
                                   description="How this object's yarns are drawn (Apply Level of Detail builds it)")
     plies: bpy.props.IntProperty(name="Plies", default=YARN_MODEL_PLIES, min=1, max=16,
                                  description="Plies per yarn at the ply level (1: the curves are plies already)")
+    split: bpy.props.BoolProperty(
+        name="Split by Distance", default=True,
+        description="Auto: where this object's yarns lie at different distances, draw its far yarns as yarns and "
+                    "its near ones as plies (faster; where the two levels' colours differ, the boundary can show)")
     plies_object: bpy.props.PointerProperty(name="Plies Object", type=bpy.types.Object,
                                             description="The ply curves built from this object's yarns")
+    near_plies_object: bpy.props.PointerProperty(
+        name="Near Plies Object", type=bpy.types.Object,
+        description="Where Auto split this object: the ply curves of its yarns near the camera")
+    far_yarns_object: bpy.props.PointerProperty(
+        name="Far Yarns Object", type=bpy.types.Object,
+        description="Where Auto split this object: its yarns far from the camera, drawn with the yarn-level model")
     surface_object: bpy.props.PointerProperty(name="Surface Object", type=bpy.types.Object,
                                               description="The cloth surface built for this swatch")
-    applied: bpy.props.StringProperty(name="Applied", description="The level last applied (plies, yarns or surface)")
+    applied: bpy.props.StringProperty(name="Applied",
+                                      description="The level last applied (plies, yarns, plies+yarns or surface)")
     chosen: bpy.props.StringProperty(name="Chosen", description="The level last applied, and why")
 
 
@@ -98,19 +124,36 @@ def requested_level(obj, scene) -> str:
     return (obj.neural_yarn.level if override == "OBJECT" else override).lower()
 
 
+def _made_objects(obj) -> list:
+    """The objects apply_level made for a yarn object: its plies, its split's two parts and its surface."""
+    s = obj.neural_yarn
+    return [o for o in (s.plies_object, s.near_plies_object, s.far_yarns_object, s.surface_object) if o is not None]
+
+
 def yarn_object_of(obj, scene):
-    """The yarn object whose plies or surface `obj` is, else `obj` itself: they are set and applied through it."""
-    return next((o for o in scene.objects if o.type == "CURVES" and obj in (o.neural_yarn.plies_object,
-                                                                             o.neural_yarn.surface_object)), obj)
+    """The yarn object whose plies, part or surface `obj` is, else `obj` itself: they are set and applied through
+    it."""
+    return next((o for o in scene.objects if o.type == "CURVES" and obj in _made_objects(o)), obj)
 
 
-def rendered_object(obj):
-    """What renders a yarn object after apply_level: its plies or its surface where shown in its place, else itself."""
-    if obj.hide_render:
-        for other in (obj.neural_yarn.plies_object, obj.neural_yarn.surface_object):
-            if other is not None and not other.hide_render:
-                return other
-    return obj
+def rendered_objects(obj) -> list:
+    """What renders a yarn object after apply_level, with the level each draws: (its plies, "plies"), its split's
+    near plies and far yarns, its surface, or (itself, its applied level)."""
+    if not obj.hide_render:
+        return [(obj, obj.neural_yarn.applied if obj.neural_yarn.applied in lod.LEVELS else "plies")]
+    s = obj.neural_yarn
+    levels = ((s.plies_object, "plies"), (s.near_plies_object, "plies"), (s.far_yarns_object, "yarns"),
+              (s.surface_object, "surface"))
+    return [(o, level) for o, level in levels if o is not None and not o.hide_render]
+
+
+def _part(obj) -> tuple | None:
+    """The yarns a part of a split object draws (PART_KEY), None for anything else."""
+    try:
+        part = json.loads(obj.get(PART_KEY)) if obj is not None and isinstance(obj.get(PART_KEY), str) else None
+    except ValueError:
+        return None
+    return tuple(part) if isinstance(part, list) else None
 
 
 @functools.lru_cache(maxsize=None)
@@ -228,7 +271,7 @@ def decide_level(obj, scene, requested: str | None = None) -> lod.LevelChoice:
     object's own), with its notes; changes nothing."""
     choice = choose_for_yarns(obj, scene, obj.neural_yarn.plies, requested or requested_level(obj, scene))
     notes = [choice.warning] if choice.warning else []
-    level, mat = choice.level, obj.active_material
+    level, far, mat = choice.level, choice.far, obj.active_material
     if level == "surface":
         why = _surface_refusal(obj)
         if why:
@@ -236,19 +279,54 @@ def decide_level(obj, scene, requested: str | None = None) -> lod.LevelChoice:
             level = "yarns"
     ours = mat is not None and mat.node_tree is not None and any(
         n.bl_idname == nodes.NODE_IDNAME for n in mat.node_tree.nodes)
-    if level == "yarns" and ours and _plain_preset(mat) is None:
+    if (level == "yarns" or far) and ours and _plain_preset(mat) is None:
+        what = "drawing plies" if level == "yarns" else f"the {len(far)} far yarns stay plies"
         notes.append(f"material '{mat.name}' is not a plain preset material, whose yarn-level model the add-on "
-                     "knows: drawing plies")
-        level = "plies"
-    return lod.LevelChoice(level, choice.ply_pixels, "; ".join(notes) or None)
+                     f"knows: {what}")
+        level = "plies" if level == "yarns" else level
+        far = ()
+    return lod.LevelChoice(level, choice.ply_pixels, "; ".join(notes) or None, far)
+
+
+def applied_name(choice: lod.LevelChoice) -> str:
+    """What apply_level records as applied for a decision: its level, or SPLIT_LEVEL for a split."""
+    return SPLIT_LEVEL if choice.far else choice.level
+
+
+def _split_parts(obj, near_obj, far_obj, near: tuple, far: tuple, make_near, make_far) -> tuple:
+    """The split's two part objects: `near_obj` and `far_obj` where they draw the yarns `near` and `far`, else new
+    ones from make_near() and make_far(), both made before anything is removed (a failure leaves the file as it
+    was). A part the camera no longer asks for is removed: it is the yarns' geometry cut where one camera put the
+    threshold, not an object of its own, and keeping every past cut would fill the file."""
+    made = []
+    try:
+        parts = []
+        for old, yarns, make in ((near_obj, near, make_near), (far_obj, far, make_far)):
+            if old is not None and _part(old) == yarns:
+                parts.append(old)
+                continue
+            new = make()
+            made.append(new)
+            new[PART_KEY] = json.dumps(list(yarns))
+            parts.append(new)
+    except Exception:
+        for o in made:
+            curves_bpy.remove_curves_object(o)
+        raise
+    obj.neural_yarn.near_plies_object, obj.neural_yarn.far_yarns_object = parts
+    for old, new in zip((near_obj, far_obj), parts):
+        if old is not None and old != new and _part(old) is not None:
+            curves_bpy.remove_curves_object(old)
+    return tuple(parts)
 
 
 def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
     """Decides the level of a yarn object (decide_level) and builds it: at the ply level the object's plies object
     (made once, with the preset's ply material; the yarns hidden), at the yarn level the yarns themselves with the
     preset's yarn-level material, at the surface level the swatch's surface quad with the preset's surface material
-    (what another level does not show is hidden, never deleted). Only a material that is nothing but a preset's
-    node is exchanged between levels. Records the level in obj.neural_yarn (applied, chosen: with why) and
+    (what another level does not show is hidden, never deleted); split by Auto (D67), two part objects of the
+    yarns, its near ones as plies and its far ones as yarns, each with its level's material (remade when the split
+    moves). Only a material that is nothing but a preset's node is exchanged between levels. Records the level in obj.neural_yarn (applied, chosen: with why) and
     returns the decision."""
     from . import operators  # noqa: PLC0415 (operators imports this module)
 
@@ -259,9 +337,34 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
     preset = _plain_preset(mat)
     plies_obj = s.plies_object if s.plies_object is not None and s.plies_object.name in scene.objects else None
     surface_obj = s.surface_object if s.surface_object is not None and s.surface_object.name in scene.objects else None
+    near_obj = s.near_plies_object if s.near_plies_object is not None and s.near_plies_object.name in scene.objects \
+        else None
+    far_obj = s.far_yarns_object if s.far_yarns_object is not None and s.far_yarns_object.name in scene.objects \
+        else None
     if surface_obj is not None and level != "surface":
         _show(surface_obj, False)
-    if level == "surface":
+    if not choice.far:
+        for part in (near_obj, far_obj):
+            if part is not None:
+                _show(part, False)
+    if choice.far:  # split (D67): the near yarns' plies and the far yarns, each a part object of its own
+        far = choice.far
+        near = tuple(k for k in range(len(obj.data.curves)) if k not in set(far))
+        near_obj, far_obj = _split_parts(
+            obj, near_obj, far_obj, near, far,
+            lambda: operators.make_plies_object(context, obj, s.plies, YARN_MODEL_PLY_TWIST,
+                                                operators.PLY_SAMPLES_PER_TURN, None if preset else mat, yarns=near),
+            lambda: operators.make_yarns_part(context, obj, far, None if preset else mat))
+        if preset:  # else both keep the object's own material (not a neural yarn one: nothing to exchange)
+            _set_material(near_obj, operators.preset_material(preset, "plies"))
+            _set_material(far_obj, operators.preset_material(preset, "yarns"))
+        for other in (plies_obj, surface_obj):
+            if other is not None:
+                _show(other, False)
+        _show(near_obj, True)
+        _show(far_obj, True)
+        _show(obj, False)
+    elif level == "surface":
         if surface_obj is None:
             surface_obj = s.surface_object = _make_surface_object(obj)
         _set_material(surface_obj, _surface_material(preset))  # the swatch's preset now, not when it was made
@@ -288,8 +391,11 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
             _set_material(obj, operators.preset_material(preset, level))
         _show(obj, True)
     px = f" (ply {choice.ply_pixels:.3g} px wide)" if choice.ply_pixels is not None else ""
-    s.applied = level
-    s.chosen = level + px + (f"; warning: {choice.warning}" if choice.warning else "")
+    if choice.far:
+        px = (f" (ply {choice.ply_pixels:.3g} px wide at the nearest; {len(choice.far)} of {len(obj.data.curves)} "
+              f"yarns as yarns, their ply under {lod.YARNS_BELOW_PLY_PIXELS:g} px)")
+    s.applied = applied_name(choice)
+    s.chosen = s.applied + px + (f"; warning: {choice.warning}" if choice.warning else "")
     return choice
 
 
@@ -298,10 +404,15 @@ def stale_levels(scene) -> list[str]:
     no longer what its setting gives for the scene's camera and render size."""
     out = []
     for obj in scene.objects:
-        if obj.type == "CURVES" and obj.neural_yarn.applied:
-            now = decide_level(obj, scene).level
-            if now != obj.neural_yarn.applied:
-                out.append(f"{obj.name}: {obj.neural_yarn.applied} applied, the camera now asks for {now}")
+        s = obj.neural_yarn if obj.type == "CURVES" else None
+        if s is not None and s.applied:
+            choice = decide_level(obj, scene)
+            now = applied_name(choice)
+            if now != s.applied:
+                out.append(f"{obj.name}: {s.applied} applied, the camera now asks for {now}")
+            elif choice.far and _part(s.far_yarns_object) != choice.far:
+                out.append(f"{obj.name}: {s.applied} applied, the camera now asks for {len(choice.far)} far yarns "
+                           f"instead of {len(_part(s.far_yarns_object) or ())}")
     return out
 
 

@@ -293,17 +293,31 @@ class NEURALYARN_OT_make_plies(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def make_plies_object(context, src, plies: int, ply_twist: float, samples_per_turn: int, material):
-    """A new Curves object "<src> plies": each yarn of `src` replaced by `plies` plies S-twisted around it, with
-    `material` (or none); `src` itself is left as it is. Raises GeometryError (nothing is created)."""
-    yarns = curves_bpy.read_curves_object(src)
+def make_plies_object(context, src, plies: int, ply_twist: float, samples_per_turn: int, material, yarns=None):
+    """A new Curves object "<src> plies": each yarn of `src` (or those of the indices `yarns`) replaced by `plies`
+    plies S-twisted around it, with `material` (or none); `src` itself is left as it is. Raises GeometryError
+    (nothing is created)."""
+    curves = curves_bpy.read_curves_object(src)
+    if yarns is not None:
+        curves = [curves[k] for k in yarns]
     out = []
-    with _Progress(context, len(yarns)) as progress:
-        for k, yarn in enumerate(yarns):
+    with _Progress(context, len(curves)) as progress:
+        for k, yarn in enumerate(curves):
             out += geometry.twist_plies(yarn, plies, alpha_yarn=ply_twist, samples_per_turn=samples_per_turn)
             progress.update(k + 1)
-    obj = curves_bpy.create_curves_object(context, f"{src.name} plies", out, material=material)
+    name = f"{src.name} plies" if yarns is None else f"{src.name} near plies"
+    obj = curves_bpy.create_curves_object(context, name, out, material=material)
     obj.neural_yarn.plies = 1  # its curves are plies: a level of detail applied to it never twists them again
+    return obj
+
+
+def make_yarns_part(context, src, yarns, material):
+    """A new Curves object "<src> far yarns": the yarns of `src` of the indices `yarns`, as they are, with `material`
+    (or none). Raises GeometryError (nothing is created)."""
+    curves = curves_bpy.read_curves_object(src)
+    obj = curves_bpy.create_curves_object(context, f"{src.name} far yarns", [curves[k] for k in yarns],
+                                          material=material)
+    obj.neural_yarn.plies = 1  # drawn as yarns; a level of detail is applied through `src`, never to it alone
     return obj
 
 

@@ -71,6 +71,7 @@ class VIEW3D_PT_neural_yarn(bpy.types.Panel):
             row.active = context.scene.neural_yarn_lod == "OBJECT"
             row.prop(obj.neural_yarn, "level", text=obj.name)
             col.prop(obj.neural_yarn, "plies")
+            col.prop(obj.neural_yarn, "split")  # Auto's (the object's or the scene's)
             if obj.neural_yarn.chosen:
                 col.label(text=f"Applied: {obj.neural_yarn.chosen}", icon="INFO")
         col.operator("neural_yarn.apply_lod", icon="MOD_DECIM")

@@ -7,9 +7,11 @@ as a cloth surface with stock closures, D44: measured and fitted by `neuralyarn 
 its Knitted Swatch of the default shape, when asked for: Auto never chooses it, as the evaluation harness never
 measured it as accurate as the yarn level). The choice is made from the
 projected width of a ply in pixels at the object's nearest visible point, as Cycles' Principled Hair Huang
-switches near/far field from the curve radius against the pixel footprint. The thresholds are the ply widths
-below which the coarser level is as accurate as the finer in the evaluation harness's distance sweep
-(docs/benchmarks.md, "Level of detail"). No bpy here: the Blender side fills a View from the scene camera.
+switches near/far field from the curve radius against the pixel footprint; where an object's yarns lie at different
+distances (a cloth receding from the camera), Auto splits it: the yarns nearer than the threshold as plies, the
+others as yarns, each yarn by its own nearest point (a yarn is cut nowhere: its ends would show). The thresholds
+are the ply widths below which the coarser level is as accurate as the finer in the evaluation harness's distance
+sweep (docs/benchmarks.md, "Level of detail"). No bpy here: the Blender side fills a View from the scene camera.
 """
 
 from __future__ import annotations
@@ -34,6 +36,11 @@ YARNS_BELOW_PLY_PIXELS = 1.0
 #: mean look and cannot show single fibers. (The harness's close-ups do not reach fibers this wide, so this is
 #: a judgement, not a measurement: a fiber two pixels wide is seen as a fiber.)
 FIBERS_ABOVE_FIBER_PIXELS = 2.0
+#: Auto splits an object whose yarns lie at different distances into two parts -- the yarns whose ply is at least
+#: YARNS_BELOW_PLY_PIXELS wide as plies, the others as yarns -- once the far part holds at least this share of its
+#: yarns. Below it the split saves less than a tenth of the object's ply curves, for a second object in the outliner
+#: (a judgement; what a split saves is measured in docs/benchmarks.md, "One object in two parts").
+SPLIT_MIN_FAR_SHARE = 0.1
 
 
 @dataclass(frozen=True)
@@ -56,6 +63,9 @@ class LevelChoice:
     level: str
     ply_pixels: float | None  # the widest ply's width on screen (None: no usable camera)
     warning: str | None
+    #: Auto on an object split in two: the indices of the curves it draws as yarns (their ply under
+    #: YARNS_BELOW_PLY_PIXELS wide, or behind the camera); the others get `level`. Empty: the whole object at `level`.
+    far: tuple = ()
 
 
 def _depths(points: np.ndarray, view: View) -> np.ndarray:
@@ -77,12 +87,32 @@ def ply_pixels(points: np.ndarray, ply_radius: float, view: View, depth: np.ndar
     return 2.0 * ply_radius * max(view.width, view.height) / (2.0 * float(front.min()) * math.tan(0.5 * view.fov))
 
 
+def curve_ply_pixels(points: np.ndarray, counts, ply_radius, view: View) -> np.ndarray:
+    """Each curve's ply width in pixels at its nearest point in front of the camera, as ply_pixels gives it for the
+    whole object: `points` (n, 3) holds the curves one after the other, `counts` their numbers of points (each >= 1),
+    `ply_radius` is a number or one per point. NaN for a curve wholly behind the camera."""
+    counts = np.asarray(counts, dtype=np.int64)
+    depth = _depths(points, view)
+    if counts.size == 0 or np.any(counts < 1) or counts.sum() != depth.size:
+        raise ValueError(f"{counts.size} curves of {int(counts.sum())} points do not hold {depth.size} points")
+    radii = np.broadcast_to(np.asarray(ply_radius, dtype=np.float64), depth.shape)
+    with np.errstate(divide="ignore"):
+        if view.kind == "ORTHO":
+            px = 2.0 * radii * max(view.width, view.height) / view.ortho_scale
+        else:
+            px = 2.0 * radii * max(view.width, view.height) / (2.0 * depth * math.tan(0.5 * view.fov))
+    widest = np.maximum.reduceat(np.where(depth > 0.0, px, -np.inf), np.concatenate([[0], np.cumsum(counts)[:-1]]))
+    return np.where(np.isfinite(widest), widest, np.nan)
+
+
 def choose_level(points: np.ndarray, ply_radius, view: View | None, *, fiber_radius_ratio: float = 0.03,
-                 requested: str = "auto") -> LevelChoice:
+                 requested: str = "auto", curve_counts=None) -> LevelChoice:
     """The level for one object: `requested` ("auto" or one of LEVELS) for the curve points `points` (n, 3)
     whose plies have radius `ply_radius` (a number or one per point; world units). Never raises for a bad
     camera: no camera, a zero resolution or a camera inside the cloth give plies (the look of fibers at any
-    size) with one warning; an object behind the camera gets yarns; `surface` only when asked for."""
+    size) with one warning; an object behind the camera gets yarns; `surface` only when asked for.
+    With `curve_counts` (the points of each curve, in order), Auto may split the object: the curves whose own
+    ply is under YARNS_BELOW_PLY_PIXELS wide become `far` once they are SPLIT_MIN_FAR_SHARE of them."""
     if requested not in ("auto",) + LEVELS:
         raise ValueError(f"level of detail must be auto or one of {', '.join(LEVELS)}, got {requested!r}")
     if requested == "surface":  # asked for only: Auto never draws it (it is never as accurate as the yarn level)
@@ -109,7 +139,14 @@ def choose_level(points: np.ndarray, ply_radius, view: View | None, *, fiber_rad
     px = ply_pixels(points, float(radii.max()), view, depth)
     if px is None:
         return LevelChoice("yarns", None, "the object is behind the camera: drawing yarns")
-    return LevelChoice(level_for_ply_pixels(px, fiber_radius_ratio), px, warning)
+    level = level_for_ply_pixels(px, fiber_radius_ratio)
+    far = ()
+    if curve_counts is not None and level != "yarns":
+        per_curve = curve_ply_pixels(points, curve_counts, radii if radii.size > 1 else float(radii[0]), view)
+        far_curves = np.flatnonzero(~(per_curve >= YARNS_BELOW_PLY_PIXELS))  # NaN: behind the camera, unseen
+        if far_curves.size >= SPLIT_MIN_FAR_SHARE * per_curve.size:
+            far = tuple(int(k) for k in far_curves)
+    return LevelChoice(level, px, warning, far)
 
 
 def level_for_ply_pixels(px: float, fiber_radius_ratio: float = 0.03) -> str:

@@ -83,7 +83,7 @@ inline void add_level_options(CLI::App *cmd, LevelOptions *o)
       ->capture_default_str();
   cmd->add_option("--yarn-intersector", o->yarn_intersector,
                   "--level yarn: the yarn's fibers as slabs of chord tubes (grid) or Embree's round curves (embree, "
-                  "the reference: 5-10x slower)")
+                  "the slower reference)")
       ->check(CLI::IsMember({"grid", "embree"}))
       ->capture_default_str();
 }

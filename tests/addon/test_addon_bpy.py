@@ -353,6 +353,93 @@ def test_level_of_detail_builds_the_level_the_camera_needs(bpy, addon, empty):
     assert two != plies and len(two.data.curves) == 2 * len(knit.data.curves) and plies.hide_render
 
 
+def _receding_knit(bpy, addon, rows=20, plies=3):
+    """A knit of `rows` courses seen by the add-on's camera (its courses recede from it, their plies ~1.5x wider
+    at the near end than at the far one) at 400 px wide, and each course's ply width there, twisted into `plies`."""
+    bpy.ops.neural_yarn.add_knit(rows=rows, stitches=2, preset="fleece")
+    knit = bpy.context.active_object
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 400, 100, 100
+    addon.scene_setup.frame(scene, [knit])
+    bpy.context.view_layer.update()
+    lod = addon.geometry.lod
+    points, radii = addon.level_of_detail.curve_points(knit)
+    ply_radius = radii / (1.0 + addon.geometry.ply_center_distance(plies, 1.0, lod.YARN_MODEL_PLY_TWIST))
+    px = lod.curve_ply_pixels(points, addon.level_of_detail.curve_counts(knit), ply_radius,
+                              addon.level_of_detail.view_of(scene))
+    return knit, px
+
+
+def test_level_of_detail_splits_a_receding_knit_into_near_plies_and_far_yarns(bpy, addon, empty):
+    """Auto on a knit whose courses recede past the threshold: its near courses' plies and its far courses as yarns,
+    two part objects with their levels' materials, the knit hidden; the same split again reuses them; a camera that
+    needs no split hides them (the whole plies made); a moved split remakes both and removes the old ones."""
+    lod, ld = addon.geometry.lod, addon.level_of_detail
+    knit, px = _receding_knit(bpy, addon)
+    scene = bpy.context.scene
+    width = int(round(400 * lod.YARNS_BELOW_PLY_PIXELS / np.median(px)))
+    scene.render.resolution_x = width
+    bpy.context.view_layer.update()
+    expect_far = tuple(int(k) for k in np.flatnonzero(px * width / 400 < lod.YARNS_BELOW_PLY_PIXELS))
+    assert 4 <= len(expect_far) <= 16, px  # the courses recede: a split of the knit, not all or nothing
+    _apply_lod(bpy, knit)
+    s = knit.neural_yarn
+    near, far = s.near_plies_object, s.far_yarns_object
+    assert s.applied == "plies+yarns" and s.chosen.startswith(f"plies+yarns (ply ") and f"{len(expect_far)} of 20" in s.chosen
+    assert ld._part(far) == expect_far and len(far.data.curves) == len(expect_far)
+    assert len(near.data.curves) == 3 * (20 - len(expect_far)) and s.plies_object is None
+    assert near.active_material.name == "Neural Yarn fleece" and far.active_material.name == "Neural Yarn fleece yarn"
+    assert knit.hide_render and not near.hide_render and not far.hide_render
+    assert ld.rendered_objects(knit) == [(near, "plies"), (far, "yarns")] and ld.stale_levels(scene) == []
+    # The far yarns are the knit's own curves, in place.
+    src = addon.curves_bpy.read_curves_object(knit)
+    got = addon.curves_bpy.read_curves_object(far)
+    assert all(np.allclose(src[k].points, g.points, atol=1e-6) for k, g in zip(expect_far, got))
+    n_objects = len(bpy.data.objects)
+    _apply_lod(bpy, far)  # a part stands for its knit; the same split: nothing made again
+    assert (s.near_plies_object, s.far_yarns_object, len(bpy.data.objects)) == (near, far, n_objects)
+    scene.render.resolution_x = width * 10  # every course's ply wide: one level, the whole plies
+    bpy.context.view_layer.update()
+    assert ld.stale_levels(scene) == ["knit: plies+yarns applied, the camera now asks for plies"]
+    _apply_lod(bpy, knit)
+    assert s.chosen.startswith("plies (ply ") and len(s.plies_object.data.curves) == 60
+    assert near.hide_render and far.hide_render and not s.plies_object.hide_render
+    scene.render.resolution_x = int(width * 0.9)  # the threshold nearer: more far courses
+    bpy.context.view_layer.update()
+    _apply_lod(bpy, knit)
+    assert len(ld._part(s.far_yarns_object)) > len(expect_far) and s.plies_object.hide_render
+    assert sum(o.name.startswith("knit near plies") for o in bpy.data.objects) == 1
+    assert sum(o.name.startswith("knit far yarns") for o in bpy.data.objects) == 1
+
+
+def test_level_of_detail_splits_only_what_it_can_draw_as_yarns(bpy, addon, empty):
+    """No split where the far yarns could not be drawn at the yarn level (another plying, an edited material: each
+    says why), nor for a fixed level or an object whose Split by Distance is off: plies, whole."""
+    knit, px = _receding_knit(bpy, addon, plies=2)
+    scene = bpy.context.scene
+    scene.render.resolution_x = int(round(400 * addon.geometry.lod.YARNS_BELOW_PLY_PIXELS / np.median(px)))
+    bpy.context.view_layer.update()
+    knit.neural_yarn.plies = 2  # its far half under the threshold: a split, if 2-ply yarns had a yarn-level model
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.chosen.startswith("plies (ply ") and "far yarns stay plies" in knit.neural_yarn.chosen
+    assert knit.neural_yarn.far_yarns_object is None
+    knit.neural_yarn.plies = 3
+    node = next(n for n in knit.active_material.node_tree.nodes if n.bl_idname == addon.nodes.NODE_IDNAME)
+    node.inputs[addon.fallback_nodes.GROUP_INPUT_TINT].default_value = (1.0, 0.5, 0.5, 1.0)
+    _apply_lod(bpy, knit)
+    assert "not a plain preset material" in knit.neural_yarn.chosen and knit.neural_yarn.far_yarns_object is None
+    knit.neural_yarn.level = "PLIES"
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.chosen == "plies" and knit.neural_yarn.far_yarns_object is None
+    node.inputs[addon.fallback_nodes.GROUP_INPUT_TINT].default_value = (1.0, 1.0, 1.0, 1.0)
+    knit.neural_yarn.level = "AUTO"  # a plain material, 3 plies, Auto: split, unless the artist turned it off
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.applied == "plies+yarns"
+    knit.neural_yarn.split = False
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.chosen.startswith("plies (ply ") and knit.neural_yarn.far_yarns_object.hide_render
+
+
 class _Recorder:
     """A UILayout stand-in that records what is drawn: (kind, data, name or text)."""
 
@@ -383,6 +470,7 @@ def test_level_of_detail_panel_shows_the_yarns_settings_for_their_plies(bpy, add
     props = [(d, n) for kind, d, n in layout.drawn if kind == "prop"]
     assert (bpy.context.scene, "neural_yarn_lod") in props
     assert (knit.neural_yarn, "level") in props and (knit.neural_yarn, "plies") in props
+    assert (knit.neural_yarn, "split") in props
     assert ("label", None, f"Applied: {knit.neural_yarn.chosen}") in layout.drawn
     assert ("operator", None, "neural_yarn.apply_lod") in layout.drawn
 
@@ -451,7 +539,7 @@ def test_level_of_detail_draws_a_default_knit_as_its_surface(bpy, addon, empty, 
     assert knit.neural_yarn.surface_object == surface and surface.active_material.name == "Neural Yarn cotton surface"
     knit.neural_yarn.level = "AUTO"  # another level hides the surface; the surface selected stands for its knit
     _apply_lod(bpy, surface)
-    assert surface.hide_render and not addon.level_of_detail.rendered_object(knit).hide_render
+    assert surface.hide_render and [o.hide_render for o, _ in addon.level_of_detail.rendered_objects(knit)] == [False]
 
 
 def test_level_of_detail_surface_faces_the_purl_side_and_refuses_other_cloth(bpy, addon, empty):
@@ -1069,6 +1157,32 @@ def test_batch_applies_a_files_level_of_detail_for_its_own_camera(bpy, addon, em
     assert "level of detail: knit: plies\n" in capsys.readouterr().out
     knit = bpy.data.objects["knit"]
     assert knit.hide_render and knit.neural_yarn.plies_object.active_material.name == "Neural Yarn silk"
+
+
+def test_batch_renders_a_split_knit_with_each_parts_material(bpy, addon, empty, tmp_path, capsys):
+    """A receding knit saved with Auto applied at a size that needs no split: batch applies it again for a render
+    size that does, logs the split and gives the near plies and the far yarns it made --preset's material of their
+    level; the image is lit."""
+    import importlib
+    batch = importlib.import_module("neural_yarn.batch")
+    knit, px = _receding_knit(bpy, addon)
+    width = int(round(400 * addon.geometry.lod.YARNS_BELOW_PLY_PIXELS / np.median(px)))
+    bpy.context.scene.render.resolution_x = 10 * width
+    _apply_lod(bpy, knit)
+    assert knit.neural_yarn.applied == "plies"
+    path = str(tmp_path / "knit.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    out = str(tmp_path / "split.png")
+    batch.run(["--blend", path, "--out", out, "--resolution", str(width), "100", "--samples", "1",
+               "--preset", "silk"])
+    assert "level of detail: knit: plies+yarns (ply " in capsys.readouterr().out
+    s = bpy.data.objects["knit"].neural_yarn
+    assert s.near_plies_object.active_material.name == "Neural Yarn silk"
+    assert s.far_yarns_object.active_material.name == "Neural Yarn silk yarn"
+    img = bpy.data.images.load(out)
+    px = np.empty(len(img.pixels), dtype=np.float32)
+    img.pixels.foreach_get(px)
+    assert px.reshape(-1, 4)[:, :3].max() > 0.05  # something lit is drawn
 
 
 # ---------------------------------------------------------------------------------------------------------

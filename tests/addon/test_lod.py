@@ -83,3 +83,50 @@ def test_the_shipped_yarn_models_are_of_the_plying_the_choice_assumes():
     for f in files:
         s = json.load(open(f))["structure"]
         assert (s["plies"], s["ply_twist"]) == (lod.YARN_MODEL_PLIES, lod.YARN_MODEL_PLY_TWIST), f
+
+
+def test_a_receding_object_is_split_by_each_curves_own_footprint():
+    """Ten curves at depths 1..10 behind z = -9 (176 px down to 1.76 px ... ): each curve's width at its own nearest
+    point, as ply_pixels gives it for one curve; Auto keeps the object's level (that of its nearest curve) and draws
+    the curves under YARNS_BELOW_PLY_PIXELS as yarns once they are SPLIT_MIN_FAR_SHARE of them."""
+    r, cam = 0.01, view()
+    curves = [line(z, n=3 + k) for k, z in enumerate(np.linspace(-9.0, 30.0, 10))]
+    pts, counts = np.vstack(curves), [len(c) for c in curves]
+    per = lod.curve_ply_pixels(pts, counts, r, cam)
+    assert per == pytest.approx([lod.ply_pixels(c, r, cam) for c in curves], rel=1e-12)
+    c = lod.choose_level(pts, r, cam, curve_counts=counts)
+    expect_far = tuple(k for k in range(10) if per[k] < lod.YARNS_BELOW_PLY_PIXELS)
+    assert c.level == "plies" and c.ply_pixels == pytest.approx(per.max()) and 0 < len(expect_far) < 10
+    assert c.far == expect_far
+    # Without the curves, or a fixed level asked for: one level for the whole object.
+    assert lod.choose_level(pts, r, cam).far == ()
+    assert lod.choose_level(pts, r, cam, curve_counts=counts, requested="plies").far == ()
+    # A curve wholly behind the camera has no width (it is not seen); an object on both sides of the camera is the
+    # camera inside the cloth: plies, whole, with the warning.
+    behind = line(-20.0)
+    per = lod.curve_ply_pixels(np.vstack([pts, behind]), counts + [5], r, cam)
+    assert np.isnan(per[-1]) and np.all(np.isfinite(per[:-1]))
+    inside = lod.choose_level(np.vstack([pts, behind]), r, cam, curve_counts=counts + [5])
+    assert (inside.level, inside.far) == ("plies", ()) and "inside" in inside.warning
+    # Per-point radii: a curve's own widest ply decides.
+    radii = np.concatenate([np.full(n, 2 * r if k == 9 else r) for k, n in enumerate(counts)])
+    assert lod.curve_ply_pixels(pts, counts, radii, cam)[9] == pytest.approx(2 * lod.ply_pixels(curves[9], r, cam))
+    with pytest.raises(ValueError):
+        lod.curve_ply_pixels(pts, counts[:-1], r, cam)
+
+
+def test_a_split_waits_for_a_tenth_of_the_yarns_and_never_comes_from_a_flat_view():
+    r, cam = 0.01, view()
+    near = [line(-9.0) for _ in range(19)]  # 17.6 px each
+    far = [line(30.0)]                       # 0.44 px
+    pts, counts = np.vstack(near + far), [5] * 20
+    assert lod.choose_level(pts, r, cam, curve_counts=counts).far == ()  # 1 of 20: under a tenth
+    pts, counts = np.vstack(near[:9] + far), [5] * 10
+    assert lod.choose_level(pts, r, cam, curve_counts=counts).far == (9,)  # 1 of 10
+    # Orthographic: every curve is as wide as the others; a far object is yarns whole, not split.
+    assert lod.choose_level(pts, r, view(kind="ORTHO"), curve_counts=counts).far == ()
+    whole = lod.choose_level(np.vstack(far * 3), r, cam, curve_counts=[5] * 3)
+    assert (whole.level, whole.far) == ("yarns", ())
+    # A camera it cannot use: plies, whole, with the warning.
+    assert lod.choose_level(pts, r, None, curve_counts=counts) == lod.LevelChoice(
+        "plies", None, "no scene camera: drawing plies")
