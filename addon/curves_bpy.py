@@ -148,6 +148,13 @@ def remove_curves_object(obj) -> None:
         bpy.data.hair_curves.remove(data)
 
 
+def curve_offsets(obj) -> np.ndarray:
+    """Where each curve of a Curves object starts in its points, and their count last (len(curves) + 1 entries)."""
+    offsets = np.empty(len(obj.data.curves) + 1, dtype=np.int32)
+    obj.data.curve_offset_data.foreach_get("value", offsets)
+    return offsets
+
+
 def read_curves_object(obj) -> list[YarnCurve]:
     """The curves of a Curves object as YarnCurves (world space), e.g. to twist plies around them."""
     if obj is None or obj.type != "CURVES":
@@ -169,8 +176,7 @@ def read_curves_object(obj) -> list[YarnCurve]:
     pos = pos @ M[:3, :3].T + M[:3, 3]
     scale = float(np.cbrt(abs(np.linalg.det(M[:3, :3])))) or 1.0
     out = []
-    offsets = np.empty(len(data.curves) + 1, dtype=np.int32)
-    data.curve_offset_data.foreach_get("value", offsets)
+    offsets = curve_offsets(obj)
     for a, b in zip(offsets[:-1], offsets[1:]):
         P, R = pos[a:b], rad[a:b] * scale
         cyclic = len(P) > 3 and np.allclose(P[0], P[-1])

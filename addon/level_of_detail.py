@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+import zlib
 
 import bpy
 import numpy as np
@@ -31,7 +32,8 @@ OVERRIDE_ITEMS = [("OBJECT", "Per Object", "Each yarn object's own level of deta
 SWATCH_KEY = "neural_yarn_swatch"
 #: The format of a shipped surface-level material (`neuralyarn surface --material-out`).
 CLOTH_SURFACE_FORMAT = "neuralyarn-cloth-surface 1"
-#: The object key under which a part of a split yarn object (D67) keeps the indices of the yarns it draws.
+#: The object key under which what apply_level makes of a yarn object's curves (its plies, the parts of its split,
+#: D67) keeps what it was made from: the yarns' indices, the plies per yarn and a checksum of the curves.
 PART_KEY = "neural_yarn_part"
 #: The level a split object is applied at: its near yarns as plies, the far ones as yarns.
 SPLIT_LEVEL = "plies+yarns"
@@ -63,13 +65,6 @@ def curve_points(obj) -> tuple[np.ndarray, np.ndarray]:
     return world, rad * scale
 
 
-def curve_counts(obj) -> np.ndarray:
-    """The number of points of each curve of a Curves object, in order."""
-    offsets = np.empty(len(obj.data.curves) + 1, dtype=np.int64)
-    obj.data.curve_offset_data.foreach_get("value", offsets)
-    return np.diff(offsets)
-
-
 def choose_for_yarns(obj, scene, plies: int, requested: str = "auto") -> lod.LevelChoice:
     """The level for a Curves object of yarns that would be twisted into `plies` plies (the add-on's ply twist):
     plies or yarns (a yarn-level model exists only for the shipped plying; fibers are drawn by
@@ -77,8 +72,8 @@ def choose_for_yarns(obj, scene, plies: int, requested: str = "auto") -> lod.Lev
     as yarns where it splits the object (`far`)."""
     points, radii = curve_points(obj)
     ply_radius = radii / (1.0 + ply_center_distance(plies, 1.0, YARN_MODEL_PLY_TWIST)) if plies > 1 else radii
-    c = lod.choose_level(points, ply_radius, view_of(scene), requested=requested,
-                         curve_counts=curve_counts(obj) if obj.neural_yarn.split else None)
+    counts = np.diff(curves_bpy.curve_offsets(obj)) if obj.neural_yarn.split else None
+    c = lod.choose_level(points, ply_radius, view_of(scene), requested=requested, curve_counts=counts)
     notes = [c.warning] if c.warning else []
     level, far = c.level, c.far
     if (level == "yarns" or far) and plies != YARN_MODEL_PLIES:
@@ -111,6 +106,9 @@ class NeuralYarnObjectSettings(bpy.types.PropertyGroup):
     far_yarns_object: bpy.props.PointerProperty(
         name="Far Yarns Object", type=bpy.types.Object,
         description="Where Auto split this object: its yarns far from the camera, drawn with the yarn-level model")
+    part_of: bpy.props.PointerProperty(
+        name="Part Of", type=bpy.types.Object,
+        description="On a part of a split: the yarn object it draws part of (a copy of that object does not own it)")
     surface_object: bpy.props.PointerProperty(name="Surface Object", type=bpy.types.Object,
                                               description="The cloth surface built for this swatch")
     applied: bpy.props.StringProperty(name="Applied",
@@ -133,6 +131,9 @@ def _made_objects(obj) -> list:
 def yarn_object_of(obj, scene):
     """The yarn object whose plies, part or surface `obj` is, else `obj` itself: they are set and applied through
     it."""
+    owner = obj.neural_yarn.part_of if obj.type == "CURVES" else None
+    if owner is not None and owner.name in scene.objects:
+        return owner
     return next((o for o in scene.objects if o.type == "CURVES" and obj in _made_objects(o)), obj)
 
 
@@ -147,13 +148,71 @@ def rendered_objects(obj) -> list:
     return [(o, level) for o, level in levels if o is not None and not o.hide_render]
 
 
-def _part(obj) -> tuple | None:
-    """The yarns a part of a split object draws (PART_KEY), None for anything else."""
+def _part_tag(part) -> dict:
     try:
-        part = json.loads(obj.get(PART_KEY)) if obj is not None and isinstance(obj.get(PART_KEY), str) else None
+        tag = json.loads(part.get(PART_KEY)) if part is not None and isinstance(part.get(PART_KEY), str) else None
     except ValueError:
+        return {}
+    return tag if isinstance(tag, dict) else {}
+
+
+def part_yarns(part) -> tuple | None:
+    """The indices of the yarns a part of a split object draws, None for anything else."""
+    yarns = _part_tag(part).get("yarns")
+    return tuple(yarns) if isinstance(yarns, list) else None
+
+
+def _geometry_key(obj) -> str:
+    """A checksum of a Curves object's curves in its own space (points, radii, where each curve starts): a part made
+    from them is still theirs while it holds; moving the object moves its parts (they are its children)."""
+    data = obj.data
+    pos = np.empty(len(data.points) * 3, dtype=np.float32)
+    data.position_data.foreach_get("vector", pos)
+    key = zlib.crc32(pos.tobytes())
+    attr = data.attributes.get("radius")
+    if attr is not None:
+        rad = np.empty(len(data.points), dtype=np.float32)
+        attr.data.foreach_get("value", rad)
+        key = zlib.crc32(rad.tobytes(), key)
+    return f"{zlib.crc32(curves_bpy.curve_offsets(obj).tobytes(), key):08x}"
+
+
+def _owns(obj, part) -> bool:
+    """Whether `part` was made of `obj`'s curves (not of those of an object `obj` was copied from)."""
+    return part is not None and part.neural_yarn.part_of == obj and part_yarns(part) is not None
+
+
+def _made_for(obj, other, scene):
+    """`other` (a pointer of obj's settings) where apply_level may reuse, show or hide it for obj: in the scene and
+    made for obj, not for an object obj was copied from (a copy copies the pointers). Plies made before they named
+    their object count as obj's; a surface is obj's child."""
+    if other is None or other.name not in scene.objects:
         return None
-    return tuple(part) if isinstance(part, list) else None
+    if other.type == "MESH":
+        return other if other.parent == obj else None
+    owner = other.neural_yarn.part_of
+    return other if owner == obj or (owner is None and part_yarns(other) is None) else None
+
+
+def _is_part(obj, part, yarns: tuple, plies: int, geometry: str) -> bool:
+    """Whether `part` is what `obj`'s yarns `yarns`, twisted into `plies` plies (1: as they are), make now."""
+    tag = _part_tag(part)
+    return _owns(obj, part) and part_yarns(part) == yarns and tag.get("plies") == plies and \
+        tag.get("geometry") == geometry
+
+
+def _adopt(obj, made, yarns: tuple, plies: int, geometry: str):
+    """Makes `made` (new curves in world space from obj's yarns `yarns`) obj's: tagged with what it was made from,
+    a child of obj (moving obj moves it) in obj's collections."""
+    made[PART_KEY] = json.dumps({"yarns": list(yarns), "plies": plies, "geometry": geometry})
+    made.neural_yarn.part_of = obj
+    made.parent = obj
+    made.matrix_parent_inverse = obj.matrix_world.inverted()  # it was made where obj is now
+    for collection in list(made.users_collection):
+        collection.objects.unlink(made)
+    for collection in obj.users_collection:
+        collection.objects.link(made)
+    return made
 
 
 @functools.lru_cache(maxsize=None)
@@ -293,30 +352,41 @@ def applied_name(choice: lod.LevelChoice) -> str:
     return SPLIT_LEVEL if choice.far else choice.level
 
 
-def _split_parts(obj, near_obj, far_obj, near: tuple, far: tuple, make_near, make_far) -> tuple:
-    """The split's two part objects: `near_obj` and `far_obj` where they draw the yarns `near` and `far`, else new
-    ones from make_near() and make_far(), both made before anything is removed (a failure leaves the file as it
-    was). A part the camera no longer asks for is removed: it is the yarns' geometry cut where one camera put the
-    threshold, not an object of its own, and keeping every past cut would fill the file."""
-    made = []
+def _split_parts(context, obj, near_obj, far_obj, far: tuple, preset: str | None) -> tuple:
+    """The split's two part objects (D67): `near_obj` and `far_obj` where they are obj's parts for its yarns as they
+    are now, else new ones, both made before anything is removed (a failure leaves the file as it was), children of
+    obj in its collections, with the preset's material of their level (or obj's own material, not a Neural Yarn
+    one). A part of obj the camera no longer asks for is removed: it is the yarns' geometry cut where one camera
+    put the threshold, not an object of its own, and keeping every past cut would fill the file."""
+    from . import operators  # noqa: PLC0415 (operators imports this module)
+
+    s, mat = obj.neural_yarn, obj.active_material
+    far_set = set(far)
+    near = tuple(k for k in range(len(obj.data.curves)) if k not in far_set)
+    geometry = _geometry_key(obj)
+    own = None if preset else mat
+    wanted = ((near_obj, near, lambda: operators.make_plies_object(
+                   context, obj, s.plies, YARN_MODEL_PLY_TWIST, operators.PLY_SAMPLES_PER_TURN, own, yarns=near)),
+              (far_obj, far, lambda: operators.make_yarns_part(context, obj, far, own)))
+    made, parts = [], []
     try:
-        parts = []
-        for old, yarns, make in ((near_obj, near, make_near), (far_obj, far, make_far)):
-            if old is not None and _part(old) == yarns:
+        for (old, yarns, make), plies in zip(wanted, (s.plies, 1)):
+            if _is_part(obj, old, yarns, plies, geometry):
                 parts.append(old)
                 continue
-            new = make()
-            made.append(new)
-            new[PART_KEY] = json.dumps(list(yarns))
-            parts.append(new)
+            made.append(make())
+            parts.append(_adopt(obj, made[-1], yarns, plies, geometry))
     except Exception:
         for o in made:
             curves_bpy.remove_curves_object(o)
         raise
-    obj.neural_yarn.near_plies_object, obj.neural_yarn.far_yarns_object = parts
+    s.near_plies_object, s.far_yarns_object = parts
     for old, new in zip((near_obj, far_obj), parts):
-        if old is not None and old != new and _part(old) is not None:
+        if old is not None and old != new and _owns(obj, old):
             curves_bpy.remove_curves_object(old)
+    if preset:
+        _set_material(parts[0], operators.preset_material(preset, "plies"))
+        _set_material(parts[1], operators.preset_material(preset, "yarns"))
     return tuple(parts)
 
 
@@ -325,9 +395,9 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
     (made once, with the preset's ply material; the yarns hidden), at the yarn level the yarns themselves with the
     preset's yarn-level material, at the surface level the swatch's surface quad with the preset's surface material
     (what another level does not show is hidden, never deleted); split by Auto (D67), two part objects of the
-    yarns, its near ones as plies and its far ones as yarns, each with its level's material (remade when the split
-    moves). Only a material that is nothing but a preset's node is exchanged between levels. Records the level in obj.neural_yarn (applied, chosen: with why) and
-    returns the decision."""
+    yarns, its near ones as plies and its far ones as yarns, each with its level's material (_split_parts). Only a
+    material that is nothing but a preset's node is exchanged between levels. Records the level in obj.neural_yarn
+    (applied, chosen: with why) and returns the decision."""
     from . import operators  # noqa: PLC0415 (operators imports this module)
 
     scene = context.scene
@@ -335,61 +405,38 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
     choice = decide_level(obj, scene, requested)
     level, mat = choice.level, obj.active_material
     preset = _plain_preset(mat)
-    plies_obj = s.plies_object if s.plies_object is not None and s.plies_object.name in scene.objects else None
-    surface_obj = s.surface_object if s.surface_object is not None and s.surface_object.name in scene.objects else None
-    near_obj = s.near_plies_object if s.near_plies_object is not None and s.near_plies_object.name in scene.objects \
-        else None
-    far_obj = s.far_yarns_object if s.far_yarns_object is not None and s.far_yarns_object.name in scene.objects \
-        else None
-    if surface_obj is not None and level != "surface":
-        _show(surface_obj, False)
-    if not choice.far:
-        for part in (near_obj, far_obj):
-            if part is not None:
-                _show(part, False)
-    if choice.far:  # split (D67): the near yarns' plies and the far yarns, each a part object of its own
-        far = choice.far
-        near = tuple(k for k in range(len(obj.data.curves)) if k not in set(far))
-        near_obj, far_obj = _split_parts(
-            obj, near_obj, far_obj, near, far,
-            lambda: operators.make_plies_object(context, obj, s.plies, YARN_MODEL_PLY_TWIST,
-                                                operators.PLY_SAMPLES_PER_TURN, None if preset else mat, yarns=near),
-            lambda: operators.make_yarns_part(context, obj, far, None if preset else mat))
-        if preset:  # else both keep the object's own material (not a neural yarn one: nothing to exchange)
-            _set_material(near_obj, operators.preset_material(preset, "plies"))
-            _set_material(far_obj, operators.preset_material(preset, "yarns"))
-        for other in (plies_obj, surface_obj):
-            if other is not None:
-                _show(other, False)
-        _show(near_obj, True)
-        _show(far_obj, True)
-        _show(obj, False)
+
+    def mine(o):
+        return _made_for(obj, o, scene)
+
+    plies_obj, surface_obj = mine(s.plies_object), mine(s.surface_object)
+    near_obj, far_obj = mine(s.near_plies_object), mine(s.far_yarns_object)
+    # What the level draws is built first; nothing is shown or hidden before that has succeeded.
+    other = [plies_obj]  # plies made of other curves or for another number of plies stay, hidden
+    if choice.far:
+        shown = list(_split_parts(context, obj, near_obj, far_obj, choice.far, preset))
     elif level == "surface":
         if surface_obj is None:
             surface_obj = s.surface_object = _make_surface_object(obj)
         _set_material(surface_obj, _surface_material(preset))  # the swatch's preset now, not when it was made
-        if plies_obj is not None:
-            _show(plies_obj, False)
-        _show(surface_obj, True)
-        _show(obj, False)
+        shown = [surface_obj]
     elif level == "plies" and s.plies > 1:
-        if plies_obj is not None and len(plies_obj.data.curves) != s.plies * len(obj.data.curves):
-            _show(plies_obj, False)  # made for another number of plies: kept, hidden, and made anew
-            plies_obj = None
-        if plies_obj is None:
-            plies_obj = operators.make_plies_object(context, obj, s.plies, YARN_MODEL_PLY_TWIST,
-                                                    operators.PLY_SAMPLES_PER_TURN, None if preset else mat)
-            s.plies_object = plies_obj
+        every, geometry = tuple(range(len(obj.data.curves))), _geometry_key(obj)
+        if not _is_part(obj, plies_obj, every, s.plies, geometry):  # made of other curves, plies or an original
+            plies_obj = s.plies_object = _adopt(obj, operators.make_plies_object(
+                context, obj, s.plies, YARN_MODEL_PLY_TWIST, operators.PLY_SAMPLES_PER_TURN, None if preset else mat),
+                every, s.plies, geometry)
         if preset:
             _set_material(plies_obj, operators.preset_material(preset, "plies"))
-        _show(plies_obj, True)
-        _show(obj, False)
+        shown = [plies_obj]
     else:
-        if plies_obj is not None:
-            _show(plies_obj, False)
         if preset:
             _set_material(obj, operators.preset_material(preset, level))
-        _show(obj, True)
+        shown = [obj]
+    for o in dict.fromkeys([obj, *other, mine(s.plies_object), mine(s.surface_object), mine(s.near_plies_object),
+                            mine(s.far_yarns_object)]):
+        if o is not None:
+            _show(o, o in shown)
     px = f" (ply {choice.ply_pixels:.3g} px wide)" if choice.ply_pixels is not None else ""
     if choice.far:
         px = (f" (ply {choice.ply_pixels:.3g} px wide at the nearest; {len(choice.far)} of {len(obj.data.curves)} "
@@ -410,9 +457,12 @@ def stale_levels(scene) -> list[str]:
             now = applied_name(choice)
             if now != s.applied:
                 out.append(f"{obj.name}: {s.applied} applied, the camera now asks for {now}")
-            elif choice.far and _part(s.far_yarns_object) != choice.far:
-                out.append(f"{obj.name}: {s.applied} applied, the camera now asks for {len(choice.far)} far yarns "
-                           f"instead of {len(_part(s.far_yarns_object) or ())}")
+            elif choice.far and not _is_part(obj, s.far_yarns_object, choice.far, 1, _geometry_key(obj)):
+                out.append(f"{obj.name}: {s.applied} applied, the camera now asks for another split (or the yarns "
+                           "changed)")
+            elif now == "plies" and s.plies > 1 and not _is_part(obj, s.plies_object, tuple(range(len(
+                    obj.data.curves))), s.plies, _geometry_key(obj)):
+                out.append(f"{obj.name}: its plies were made of other curves (or another number of plies)")
     return out
 
 

@@ -71,27 +71,26 @@ def receding(addon, rows: int, stitches: int, mode: str, a) -> dict:
     cam.location = centre + direction * size * a.distance
     cam.rotation_euler = (-direction).to_track_quat("-Z", "Y").to_euler()
     bpy.context.view_layer.update()
-    share = addon.geometry.lod.SPLIT_MIN_FAR_SHARE
-    addon.geometry.lod.SPLIT_MIN_FAR_SHARE = share if mode == "split" else math.inf
+    knit.neural_yarn.split = mode == "split"
     scene.neural_yarn_lod = "YARNS" if mode == "yarns" else "OBJECT"
-    try:
-        t0 = time.perf_counter()
-        assert bpy.ops.neural_yarn.apply_lod() == {"FINISHED"}
-        lod_s = time.perf_counter() - t0
-    finally:
-        addon.geometry.lod.SPLIT_MIN_FAR_SHARE = share
+    t0 = time.perf_counter()
+    assert bpy.ops.neural_yarn.apply_lod() == {"FINISHED"}
+    lod_s = time.perf_counter() - t0
     lod, ld = addon.geometry.lod, addon.level_of_detail
     points, radii = ld.curve_points(knit)
-    px = lod.curve_ply_pixels(points, ld.curve_counts(knit), radii / (1.0 + addon.geometry.ply_center_distance(
-        knit.neural_yarn.plies, 1.0, lod.YARN_MODEL_PLY_TWIST)), ld.view_of(scene))
+    px = lod.curve_ply_pixels(points, np.diff(addon.curves_bpy.curve_offsets(knit)), radii / (
+        1.0 + addon.geometry.ply_center_distance(knit.neural_yarn.plies, 1.0, lod.YARN_MODEL_PLY_TWIST)),
+        ld.view_of(scene))
     shown = [o for o in scene.objects if o.type == "CURVES" and not o.hide_render]
-    out = {"px": (float(np.nanmin(px)), float(np.nanmax(px))), "lod_s": lod_s, "chosen": knit.neural_yarn.chosen, "curves": sum(len(o.data.curves) for o in shown),
-           "points": sum(len(o.data.points) for o in shown), "far": list(addon.level_of_detail._part(
+    out = {"px": (float(np.nanmin(px)), float(np.nanmax(px))), "lod_s": lod_s, "chosen": knit.neural_yarn.chosen,
+           "curves": sum(len(o.data.curves) for o in shown),
+           "points": sum(len(o.data.points) for o in shown), "far": list(ld.part_yarns(
                knit.neural_yarn.far_yarns_object) or ()) if mode == "split" else []}
     if a.render_spp:
         scene.render.engine = "CYCLES"
         scene.cycles.device, scene.cycles.shading_system = "CPU", False
-        scene.cycles.samples, scene.cycles.use_adaptive_sampling, scene.cycles.use_denoising = a.render_spp, False, False
+        scene.cycles.samples = a.render_spp
+        scene.cycles.use_adaptive_sampling = scene.cycles.use_denoising = False
         scene.cycles.seed = 1
         scene.render.threads_mode, scene.render.threads = "FIXED", 2
         scene.render.image_settings.file_format = "OPEN_EXR"
@@ -150,6 +149,17 @@ def main() -> None:
                     b_ = runs[mode]["image"][rows, :, :3].reshape(-1, 3).mean(axis=0)
                     print(f"{mode} against plies, {name}: mean colour " +
                           " / ".join(f"{(y / x - 1) * 100:+.1f}" for x, y in zip(a_, b_)) + " % (R / G / B)")
+            # The step at the boundary: the split's luminance over the plies' in bands of rows, far to near (bands
+            # where the whole frame is sky, the same in both, are left out).
+            lum = np.array([0.2126, 0.7152, 0.0722])
+            band = max(h // 24, 1)
+            steps = []
+            for r0 in range(h - band, -1, -band):
+                a_, b_ = whole[r0:r0 + band, :, :3] @ lum, runs["split"]["image"][r0:r0 + band, :, :3] @ lum
+                if abs(b_.mean() / a_.mean() - 1) > 1e-6:
+                    steps.append(f"{(b_.mean() / a_.mean() - 1) * 100:+.1f}")
+            print(f"split against plies, luminance in bands of {band} rows, far to near, where they differ: "
+                  + " ".join(steps) + " %")
         sys.stdout.flush()
         os._exit(0)
     print(f"{args.rows} x {args.stitches} stitches, fleece, {args.repeats} repeats (seconds: best / median)")

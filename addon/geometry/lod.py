@@ -144,7 +144,9 @@ def choose_level(points: np.ndarray, ply_radius, view: View | None, *, fiber_rad
     if curve_counts is not None and level != "yarns":
         per_curve = curve_ply_pixels(points, curve_counts, radii if radii.size > 1 else float(radii[0]), view)
         far_curves = np.flatnonzero(~(per_curve >= YARNS_BELOW_PLY_PIXELS))  # NaN: behind the camera, unseen
-        if far_curves.size >= SPLIT_MIN_FAR_SHARE * per_curve.size:
+        # (All of them can be far where the radii differ per point: the object's width is its widest ply at its
+        # nearest point, a curve's its own. Then there is nothing to split: the object's level stands.)
+        if SPLIT_MIN_FAR_SHARE * per_curve.size <= far_curves.size < per_curve.size:
             far = tuple(int(k) for k in far_curves)
     return LevelChoice(level, px, warning, far)
 

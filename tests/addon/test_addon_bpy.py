@@ -365,7 +365,7 @@ def _receding_knit(bpy, addon, rows=20, plies=3):
     lod = addon.geometry.lod
     points, radii = addon.level_of_detail.curve_points(knit)
     ply_radius = radii / (1.0 + addon.geometry.ply_center_distance(plies, 1.0, lod.YARN_MODEL_PLY_TWIST))
-    px = lod.curve_ply_pixels(points, addon.level_of_detail.curve_counts(knit), ply_radius,
+    px = lod.curve_ply_pixels(points, np.diff(addon.curves_bpy.curve_offsets(knit)), ply_radius,
                               addon.level_of_detail.view_of(scene))
     return knit, px
 
@@ -385,8 +385,9 @@ def test_level_of_detail_splits_a_receding_knit_into_near_plies_and_far_yarns(bp
     _apply_lod(bpy, knit)
     s = knit.neural_yarn
     near, far = s.near_plies_object, s.far_yarns_object
-    assert s.applied == "plies+yarns" and s.chosen.startswith(f"plies+yarns (ply ") and f"{len(expect_far)} of 20" in s.chosen
-    assert ld._part(far) == expect_far and len(far.data.curves) == len(expect_far)
+    assert s.applied == "plies+yarns" and s.chosen.startswith("plies+yarns (ply ")
+    assert f"{len(expect_far)} of 20" in s.chosen
+    assert ld.part_yarns(far) == expect_far and len(far.data.curves) == len(expect_far)
     assert len(near.data.curves) == 3 * (20 - len(expect_far)) and s.plies_object is None
     assert near.active_material.name == "Neural Yarn fleece" and far.active_material.name == "Neural Yarn fleece yarn"
     assert knit.hide_render and not near.hide_render and not far.hide_render
@@ -407,9 +408,83 @@ def test_level_of_detail_splits_a_receding_knit_into_near_plies_and_far_yarns(bp
     scene.render.resolution_x = int(width * 0.9)  # the threshold nearer: more far courses
     bpy.context.view_layer.update()
     _apply_lod(bpy, knit)
-    assert len(ld._part(s.far_yarns_object)) > len(expect_far) and s.plies_object.hide_render
+    assert len(ld.part_yarns(s.far_yarns_object)) > len(expect_far) and s.plies_object.hide_render
     assert sum(o.name.startswith("knit near plies") for o in bpy.data.objects) == 1
     assert sum(o.name.startswith("knit far yarns") for o in bpy.data.objects) == 1
+
+
+def test_level_of_detail_never_draws_plies_of_other_curves(bpy, addon, empty):
+    """Plies are made of the yarns as they are: after the yarns are edited, a render says the plies are stale and
+    Apply makes new ones (the old hidden, kept); a copy of the knit makes its own instead of showing the original's;
+    the plies are the knit's children."""
+    knit = _knit_seen_from(bpy, addon, 1.0)
+    _apply_lod(bpy, knit)
+    plies = knit.neural_yarn.plies_object
+    assert plies.parent == knit and addon.level_of_detail.stale_levels(bpy.context.scene) == []
+    pos = np.empty(len(knit.data.points) * 3, dtype=np.float32)
+    knit.data.position_data.foreach_get("vector", pos)
+    pos[2] += 0.01  # one point of one yarn moved
+    knit.data.position_data.foreach_set("vector", pos)
+    assert addon.level_of_detail.stale_levels(bpy.context.scene) == [
+        "knit: its plies were made of other curves (or another number of plies)"]
+    _apply_lod(bpy, knit)
+    new = knit.neural_yarn.plies_object
+    assert new != plies and plies.hide_render and not new.hide_render and plies.name in bpy.data.objects
+    copy = knit.copy()  # as Shift+D: the pointers copied
+    bpy.context.scene.collection.objects.link(copy)
+    _apply_lod(bpy, copy)
+    assert copy.neural_yarn.plies_object not in (None, new, plies) and not new.hide_render
+    assert addon.level_of_detail.yarn_object_of(new, bpy.context.scene) == knit
+
+
+def test_level_of_detail_parts_follow_their_knit_and_belong_to_it(bpy, addon, empty, monkeypatch):
+    """The parts are the knit's children (moving it moves them; the same split is still theirs); a copy of the knit
+    neither reuses nor removes the original's parts; a split whose build fails changes nothing."""
+    ld = addon.level_of_detail
+    knit, px = _receding_knit(bpy, addon)
+    scene = bpy.context.scene
+    scene.render.resolution_x = int(round(400 * addon.geometry.lod.YARNS_BELOW_PLY_PIXELS / np.median(px)))
+    bpy.context.view_layer.update()
+    _apply_lod(bpy, knit)
+    s = knit.neural_yarn
+    near, far = s.near_plies_object, s.far_yarns_object
+    assert near.parent == knit and far.parent == knit and ld.yarn_object_of(far, scene) == knit
+    before = np.array(addon.curves_bpy.read_curves_object(far)[0].points)
+    knit.location.x += 0.25  # along the courses: the same footprints, the same split
+    bpy.context.view_layer.update()
+    assert np.allclose(np.array(addon.curves_bpy.read_curves_object(far)[0].points), before + [0.25, 0, 0],
+                       atol=1e-5)
+    _apply_lod(bpy, knit)
+    assert (s.near_plies_object, s.far_yarns_object) == (near, far)
+    # A copy (Shift+D copies the pointers): it makes parts of its own and leaves the original's alone.
+    copy = knit.copy()
+    scene.collection.objects.link(copy)
+    copy.location += (knit.location - scene.camera.location) * 0.1  # a tenth farther: more far yarns
+    bpy.context.view_layer.update()
+    _apply_lod(bpy, copy)
+    assert copy.neural_yarn.far_yarns_object not in (None, far) and copy.neural_yarn.near_plies_object != near
+    assert far.name in bpy.data.objects and near.name in bpy.data.objects and not far.hide_render
+    assert ld.yarn_object_of(far, scene) == knit and ld.yarn_object_of(copy.neural_yarn.far_yarns_object, scene) == copy
+    # A build that fails (here the far part's) leaves every object as it was and adds none.
+    scene.render.resolution_x = int(scene.render.resolution_x * 0.9)
+    bpy.context.view_layer.update()
+    names = sorted(o.name for o in bpy.data.objects)
+    shown = {o.name: o.hide_render for o in bpy.data.objects}
+
+    def fail(*_a, **_k):
+        raise addon.geometry.GeometryError("no memory for the far yarns")
+    monkeypatch.setattr(addon.operators, "make_yarns_part", fail)
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    knit.hide_set(False)
+    knit.select_set(True)
+    bpy.context.view_layer.objects.active = knit
+    with pytest.raises(RuntimeError, match="no memory for the far yarns"):  # the operator's error report
+        bpy.ops.neural_yarn.apply_lod()
+    knit.hide_set(True)
+    assert sorted(o.name for o in bpy.data.objects) == names
+    assert {o.name: o.hide_render for o in bpy.data.objects} == shown
+    assert (s.near_plies_object, s.far_yarns_object, s.applied) == (near, far, "plies+yarns")
 
 
 def test_level_of_detail_splits_only_what_it_can_draw_as_yarns(bpy, addon, empty):

@@ -86,7 +86,7 @@ def test_the_shipped_yarn_models_are_of_the_plying_the_choice_assumes():
 
 
 def test_a_receding_object_is_split_by_each_curves_own_footprint():
-    """Ten curves at depths 1..10 behind z = -9 (176 px down to 1.76 px ... ): each curve's width at its own nearest
+    """Ten curves at depths 1 to 40 from the camera (17.6 px down to 0.44 px): each curve's width at its own nearest
     point, as ply_pixels gives it for one curve; Auto keeps the object's level (that of its nearest curve) and draws
     the curves under YARNS_BELOW_PLY_PIXELS as yarns once they are SPLIT_MIN_FAR_SHARE of them."""
     r, cam = 0.01, view()
@@ -113,6 +113,18 @@ def test_a_receding_object_is_split_by_each_curves_own_footprint():
     assert lod.curve_ply_pixels(pts, counts, radii, cam)[9] == pytest.approx(2 * lod.ply_pixels(curves[9], r, cam))
     with pytest.raises(ValueError):
         lod.curve_ply_pixels(pts, counts[:-1], r, cam)
+
+
+def test_no_split_where_every_curve_is_far_by_its_own_radius():
+    """A thin near curve and a thick far one: the object is plies by the thick ply's width at the nearest point, but
+    each curve by its own is under the threshold; a split would leave no near yarns: the object stays whole."""
+    cam = view()
+    near, far = line(-9.0), line(30.0)  # depths 1 and 40
+    radii = np.concatenate([np.full(5, 0.0005), np.full(5, 0.01)])
+    pts = np.vstack([near, far])
+    assert np.all(lod.curve_ply_pixels(pts, [5, 5], radii, cam) < lod.YARNS_BELOW_PLY_PIXELS)
+    c = lod.choose_level(pts, radii, cam, curve_counts=[5, 5])
+    assert (c.level, c.far) == ("plies", ())
 
 
 def test_a_split_waits_for_a_tenth_of_the_yarns_and_never_comes_from_a_flat_view():
