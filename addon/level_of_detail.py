@@ -15,7 +15,7 @@ import bpy
 import numpy as np
 
 from . import curves_bpy, fallback_nodes, nodes, resources, scene_bpy, scene_description
-from .geometry import lod, ply_center_distance
+from .geometry import GeometryError, lod, ply_center_distance
 from .geometry.lod import YARN_MODEL_PLIES, YARN_MODEL_PLY_TWIST
 
 LEVEL_ITEMS = [
@@ -37,6 +37,8 @@ CLOTH_SURFACE_FORMAT = "neuralyarn-cloth-surface 1"
 PART_KEY = "neural_yarn_part"
 #: The level a split object is applied at: its near yarns as plies, the far ones as yarns.
 SPLIT_LEVEL = "plies+yarns"
+#: A yarn object's settings that point at what apply_level (or Twist Plies) made of it.
+POINTERS = ("plies_object", "near_plies_object", "far_yarns_object", "surface_object")
 
 
 def view_of(scene) -> lod.View | None:
@@ -184,14 +186,17 @@ def _owns(obj, part) -> bool:
 
 def _made_for(obj, other, scene):
     """`other` (a pointer of obj's settings) where apply_level may reuse, show or hide it for obj: in the scene and
-    made for obj, not for an object obj was copied from (a copy copies the pointers). Plies made before they named
-    their object count as obj's; a surface is obj's child."""
+    made for obj, not for an object obj was copied from (a copy copies the pointers). A surface is obj's child;
+    curves made before they named their object (part_of) are obj's where they carry its name, as the add-on names
+    them ("<object> plies", "<object> near plies", ...)."""
     if other is None or other.name not in scene.objects:
         return None
     if other.type == "MESH":
         return other if other.parent == obj else None
     owner = other.neural_yarn.part_of
-    return other if owner == obj or (owner is None and part_yarns(other) is None) else None
+    if owner is not None:
+        return other if owner == obj else None
+    return other if other.name.startswith(obj.name + " ") else None
 
 
 def _is_part(obj, part, yarns: tuple, plies: int, geometry: str) -> bool:
@@ -201,18 +206,34 @@ def _is_part(obj, part, yarns: tuple, plies: int, geometry: str) -> bool:
         tag.get("geometry") == geometry
 
 
-def _adopt(obj, made, yarns: tuple, plies: int, geometry: str):
-    """Makes `made` (new curves in world space from obj's yarns `yarns`) obj's: tagged with what it was made from,
-    a child of obj (moving obj moves it) in obj's collections."""
-    made[PART_KEY] = json.dumps({"yarns": list(yarns), "plies": plies, "geometry": geometry})
+def adopt(obj, made, yarns: tuple, plies: int, *, parent: bool = True):
+    """Makes `made` (new curves in world space from obj's yarns `yarns`, twisted into `plies`) obj's: tagged with what
+    it was made from and its object (part_of); with `parent`, a child of obj (moving obj moves it) in obj's
+    collections (those a library links in cannot take it: it stays where it was made)."""
+    made[PART_KEY] = json.dumps({"yarns": list(yarns), "plies": plies, "geometry": _geometry_key(obj)})
     made.neural_yarn.part_of = obj
-    made.parent = obj
-    made.matrix_parent_inverse = obj.matrix_world.inverted()  # it was made where obj is now
-    for collection in list(made.users_collection):
-        collection.objects.unlink(made)
-    for collection in obj.users_collection:
-        collection.objects.link(made)
+    if parent:
+        made.parent = obj
+        made.matrix_parent_inverse = obj.matrix_world.inverted()  # it was made where obj is now
+        targets = [c for c in obj.users_collection if getattr(c, "library", None) is None]
+        if targets:
+            for collection in targets:
+                if made.name not in collection.objects:
+                    collection.objects.link(made)
+            for collection in list(made.users_collection):
+                if collection not in targets:
+                    collection.objects.unlink(made)
     return made
+
+
+def _remove(made) -> None:
+    if made.type == "CURVES":
+        curves_bpy.remove_curves_object(made)
+    else:
+        data = made.data
+        bpy.data.objects.remove(made)
+        if data is not None and data.users == 0:
+            bpy.data.meshes.remove(data)
 
 
 @functools.lru_cache(maxsize=None)
@@ -352,41 +373,26 @@ def applied_name(choice: lod.LevelChoice) -> str:
     return SPLIT_LEVEL if choice.far else choice.level
 
 
-def _split_parts(context, obj, near_obj, far_obj, far: tuple, preset: str | None) -> tuple:
+def _split_parts(context, obj, near_obj, far_obj, far: tuple, material, made: list) -> tuple:
     """The split's two part objects (D67): `near_obj` and `far_obj` where they are obj's parts for its yarns as they
-    are now, else new ones, both made before anything is removed (a failure leaves the file as it was), children of
-    obj in its collections, with the preset's material of their level (or obj's own material, not a Neural Yarn
-    one). A part of obj the camera no longer asks for is removed: it is the yarns' geometry cut where one camera
-    put the threshold, not an object of its own, and keeping every past cut would fill the file."""
+    are now, else new ones with `material` (None: the level's preset material follows), children of obj in its
+    collections; what it makes is appended to `made` as it is made (apply_level removes it if anything fails)."""
     from . import operators  # noqa: PLC0415 (operators imports this module)
 
-    s, mat = obj.neural_yarn, obj.active_material
+    s = obj.neural_yarn
     far_set = set(far)
     near = tuple(k for k in range(len(obj.data.curves)) if k not in far_set)
     geometry = _geometry_key(obj)
-    own = None if preset else mat
-    wanted = ((near_obj, near, lambda: operators.make_plies_object(
-                   context, obj, s.plies, YARN_MODEL_PLY_TWIST, operators.PLY_SAMPLES_PER_TURN, own, yarns=near)),
-              (far_obj, far, lambda: operators.make_yarns_part(context, obj, far, own)))
-    made, parts = [], []
-    try:
-        for (old, yarns, make), plies in zip(wanted, (s.plies, 1)):
-            if _is_part(obj, old, yarns, plies, geometry):
-                parts.append(old)
-                continue
-            made.append(make())
-            parts.append(_adopt(obj, made[-1], yarns, plies, geometry))
-    except Exception:
-        for o in made:
-            curves_bpy.remove_curves_object(o)
-        raise
-    s.near_plies_object, s.far_yarns_object = parts
-    for old, new in zip((near_obj, far_obj), parts):
-        if old is not None and old != new and _owns(obj, old):
-            curves_bpy.remove_curves_object(old)
-    if preset:
-        _set_material(parts[0], operators.preset_material(preset, "plies"))
-        _set_material(parts[1], operators.preset_material(preset, "yarns"))
+    wanted = ((near_obj, near, s.plies, lambda: operators.make_plies_object(
+                   context, obj, s.plies, YARN_MODEL_PLY_TWIST, operators.PLY_SAMPLES_PER_TURN, material, yarns=near)),
+              (far_obj, far, 1, lambda: operators.make_yarns_part(context, obj, far, material)))
+    parts = []
+    for old, yarns, plies, make in wanted:
+        if _is_part(obj, old, yarns, plies, geometry):
+            parts.append(old)
+            continue
+        made.append(make())
+        parts.append(adopt(obj, made[-1], yarns, plies))
     return tuple(parts)
 
 
@@ -405,38 +411,65 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
     choice = decide_level(obj, scene, requested)
     level, mat = choice.level, obj.active_material
     preset = _plain_preset(mat)
+    twisted = bool(choice.far) or (level == "plies" and s.plies > 1)
+    if twisted and not abs(np.linalg.det(np.array(obj.matrix_world)[:3, :3])) > 0.0:
+        raise GeometryError(f"'{obj.name}' has a zero scale: no plies can be made of its yarns")
 
     def mine(o):
         return _made_for(obj, o, scene)
 
-    plies_obj, surface_obj = mine(s.plies_object), mine(s.surface_object)
-    near_obj, far_obj = mine(s.near_plies_object), mine(s.far_yarns_object)
-    # What the level draws is built first; nothing is shown or hidden before that has succeeded.
-    other = [plies_obj]  # plies made of other curves or for another number of plies stay, hidden
+    before = {name: mine(getattr(s, name)) for name in POINTERS}
+    # Everything that can fail first, nothing shown, hidden or removed before it has succeeded: the materials, then
+    # the level's objects (removed again if one of them cannot be made).
+    levels = ("plies", "yarns") if choice.far else ("plies",) if twisted else (level,)
+    mats = {"surface": _surface_material(preset)} if level == "surface" and not choice.far else \
+        {lv: operators.preset_material(preset, lv) for lv in levels} if preset else {}
+    now, made = dict(before), []
+    try:
+        if choice.far:
+            now["near_plies_object"], now["far_yarns_object"] = _split_parts(
+                context, obj, before["near_plies_object"], before["far_yarns_object"], choice.far,
+                None if preset else mat, made)
+            shown = [now["near_plies_object"], now["far_yarns_object"]]
+        elif level == "surface":
+            if now["surface_object"] is None:
+                made.append(_make_surface_object(obj))
+                now["surface_object"] = made[-1]
+            shown = [now["surface_object"]]
+        elif twisted:
+            every = tuple(range(len(obj.data.curves)))
+            if not _is_part(obj, now["plies_object"], every, s.plies, _geometry_key(obj)):
+                made.append(operators.make_plies_object(context, obj, s.plies, YARN_MODEL_PLY_TWIST,
+                                                        operators.PLY_SAMPLES_PER_TURN, None if preset else mat))
+                now["plies_object"] = adopt(obj, made[-1], every, s.plies)
+            shown = [now["plies_object"]]
+        else:
+            shown = [obj]
+    except Exception:
+        for o in made:
+            _remove(o)
+        raise
+    # A copy of another yarn object keeps none of that object's pointers; a part of a split the camera no longer
+    # asks for is removed: it is the yarns' geometry cut where one camera put the threshold, not an object of its
+    # own, and keeping every past cut would fill the file. Plies and surfaces are hidden, never deleted.
+    for name in POINTERS:
+        setattr(s, name, now[name])
+    removed = []  # (a removed object's wrapper raises on any access: they are told apart by identity)
+    for name in ("near_plies_object", "far_yarns_object"):
+        old = before[name]
+        if old is not None and old != now[name] and _owns(obj, old):
+            removed.append(old)
+            curves_bpy.remove_curves_object(old)
     if choice.far:
-        shown = list(_split_parts(context, obj, near_obj, far_obj, choice.far, preset))
-    elif level == "surface":
-        if surface_obj is None:
-            surface_obj = s.surface_object = _make_surface_object(obj)
-        _set_material(surface_obj, _surface_material(preset))  # the swatch's preset now, not when it was made
-        shown = [surface_obj]
-    elif level == "plies" and s.plies > 1:
-        every, geometry = tuple(range(len(obj.data.curves))), _geometry_key(obj)
-        if not _is_part(obj, plies_obj, every, s.plies, geometry):  # made of other curves, plies or an original
-            plies_obj = s.plies_object = _adopt(obj, operators.make_plies_object(
-                context, obj, s.plies, YARN_MODEL_PLY_TWIST, operators.PLY_SAMPLES_PER_TURN, None if preset else mat),
-                every, s.plies, geometry)
-        if preset:
-            _set_material(plies_obj, operators.preset_material(preset, "plies"))
-        shown = [plies_obj]
-    else:
-        if preset:
-            _set_material(obj, operators.preset_material(preset, level))
-        shown = [obj]
-    for o in dict.fromkeys([obj, *other, mine(s.plies_object), mine(s.surface_object), mine(s.near_plies_object),
-                            mine(s.far_yarns_object)]):
-        if o is not None:
-            _show(o, o in shown)
+        if mats:
+            _set_material(now["near_plies_object"], mats["plies"])
+            _set_material(now["far_yarns_object"], mats["yarns"])
+    elif mats:
+        _set_material(shown[0], mats[level if level in mats else "plies"])
+    candidates = [obj] + [o for o in (*before.values(), *now.values())
+                          if o is not None and not any(o is r for r in removed)]
+    for o in dict.fromkeys(candidates):
+        _show(o, o in shown)
     px = f" (ply {choice.ply_pixels:.3g} px wide)" if choice.ply_pixels is not None else ""
     if choice.far:
         px = (f" (ply {choice.ply_pixels:.3g} px wide at the nearest; {len(choice.far)} of {len(obj.data.curves)} "

@@ -281,11 +281,19 @@ class NEURALYARN_OT_make_plies(bpy.types.Operator):
         try:
             obj = make_plies_object(context, src, self.plies, self.ply_twist, self.samples_per_turn,
                                     src.active_material if self.preset == "KEEP" else None)
-            if self.preset != "KEEP":
-                _give_preset_material(obj, self.preset)
-        except (geometry.GeometryError, model_io.ModelFileError, OSError, ValueError, MemoryError) as e:
+        except (geometry.GeometryError, MemoryError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
+        try:
+            if self.preset != "KEEP":
+                _give_preset_material(obj, self.preset)
+        except (model_io.ModelFileError, OSError, ValueError) as e:
+            curves_bpy.remove_curves_object(obj)
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        # Its yarns' plies: a level of detail applied to the yarns reuses them while the yarns are as they were (a
+        # copy of the yarns does not); an object of their own, not the yarns' child.
+        level_of_detail.adopt(src, obj, tuple(range(len(src.data.curves))), self.plies, parent=False)
         src.neural_yarn.plies_object, src.neural_yarn.plies = obj, self.plies
         src.hide_set(True)
         src.hide_render = True

@@ -465,26 +465,41 @@ def test_level_of_detail_parts_follow_their_knit_and_belong_to_it(bpy, addon, em
     assert copy.neural_yarn.far_yarns_object not in (None, far) and copy.neural_yarn.near_plies_object != near
     assert far.name in bpy.data.objects and near.name in bpy.data.objects and not far.hide_render
     assert ld.yarn_object_of(far, scene) == knit and ld.yarn_object_of(copy.neural_yarn.far_yarns_object, scene) == copy
-    # A build that fails (here the far part's) leaves every object as it was and adds none.
-    scene.render.resolution_x = int(scene.render.resolution_x * 0.9)
-    bpy.context.view_layer.update()
+    # A copy that was never applied is stale, though its pointers show the original's parts for the same split.
+    twin = knit.copy()
+    scene.collection.objects.link(twin)
+    assert f"{twin.name}: plies+yarns applied, the camera now asks for another split" in " ".join(
+        ld.stale_levels(scene))
+    bpy.data.objects.remove(twin)
+    # A build that fails leaves every object as it was and adds none: the far part of a moved split, and the whole
+    # plies after a split (whose parts a failure must not have hidden).
     names = sorted(o.name for o in bpy.data.objects)
     shown = {o.name: o.hide_render for o in bpy.data.objects}
 
     def fail(*_a, **_k):
-        raise addon.geometry.GeometryError("no memory for the far yarns")
-    monkeypatch.setattr(addon.operators, "make_yarns_part", fail)
-    for o in bpy.context.view_layer.objects:
-        o.select_set(False)
-    knit.hide_set(False)
-    knit.select_set(True)
-    bpy.context.view_layer.objects.active = knit
-    with pytest.raises(RuntimeError, match="no memory for the far yarns"):  # the operator's error report
-        bpy.ops.neural_yarn.apply_lod()
-    knit.hide_set(True)
-    assert sorted(o.name for o in bpy.data.objects) == names
-    assert {o.name: o.hide_render for o in bpy.data.objects} == shown
-    assert (s.near_plies_object, s.far_yarns_object, s.applied) == (near, far, "plies+yarns")
+        raise addon.geometry.GeometryError("no memory for them")
+    for attr, width in (("make_yarns_part", 0.9), ("make_plies_object", 10.0)):
+        scene.render.resolution_x = int(width * int(round(400 / np.median(px))))
+        bpy.context.view_layer.update()
+        assert ld.applied_name(ld.decide_level(knit, scene)) == ("plies+yarns" if width < 1 else "plies")
+        with monkeypatch.context() as m:
+            m.setattr(addon.operators, attr, fail)
+            for o in bpy.context.view_layer.objects:
+                o.select_set(False)
+            knit.hide_set(False)
+            knit.select_set(True)
+            bpy.context.view_layer.objects.active = knit
+            with pytest.raises(RuntimeError, match="no memory for them"):  # the operator's error report
+                bpy.ops.neural_yarn.apply_lod()
+            knit.hide_set(True)
+        assert sorted(o.name for o in bpy.data.objects) == names, attr
+        assert {o.name: o.hide_render for o in bpy.data.objects} == shown, attr
+        assert (s.near_plies_object, s.far_yarns_object, s.applied) == (near, far, "plies+yarns")
+    # A yarn object of zero scale has no plies to make: a clear error, nothing changed.
+    knit.scale.z = 0.0
+    bpy.context.view_layer.update()
+    with pytest.raises(ValueError, match="zero scale"):
+        ld.apply_level(bpy.context, knit, "plies")
 
 
 def test_level_of_detail_splits_only_what_it_can_draw_as_yarns(bpy, addon, empty):
