@@ -37,8 +37,9 @@ CLOTH_SURFACE_FORMAT = "neuralyarn-cloth-surface 1"
 PART_KEY = "neural_yarn_part"
 #: The level a split object is applied at: its near yarns as plies, the far ones as yarns.
 SPLIT_LEVEL = "plies+yarns"
-#: A yarn object's settings that point at what apply_level (or Twist Plies) made of it.
-POINTERS = ("plies_object", "near_plies_object", "far_yarns_object", "surface_object")
+#: A yarn object's settings that point at what apply_level (or Twist Plies) made of it, and the level each draws.
+POINTERS = {"plies_object": "plies", "near_plies_object": "plies", "far_yarns_object": "yarns",
+            "surface_object": "surface"}
 
 
 def view_of(scene) -> lod.View | None:
@@ -67,13 +68,19 @@ def curve_points(obj) -> tuple[np.ndarray, np.ndarray]:
     return world, rad * scale
 
 
+def ply_radii(obj, plies: int) -> tuple[np.ndarray, np.ndarray]:
+    """A yarn Curves object's points (world space) and the radius of the plies it would be twisted into at each (its
+    own radii where `plies` is 1: its curves are plies)."""
+    points, radii = curve_points(obj)
+    return points, radii / (1.0 + ply_center_distance(plies, 1.0, YARN_MODEL_PLY_TWIST)) if plies > 1 else radii
+
+
 def choose_for_yarns(obj, scene, plies: int, requested: str = "auto") -> lod.LevelChoice:
     """The level for a Curves object of yarns that would be twisted into `plies` plies (the add-on's ply twist):
     plies or yarns (a yarn-level model exists only for the shipped plying; fibers are drawn by
     `neuralyarn cycles-scene`, not the add-on: both give plies with a warning), and under Auto the yarns it draws
     as yarns where it splits the object (`far`)."""
-    points, radii = curve_points(obj)
-    ply_radius = radii / (1.0 + ply_center_distance(plies, 1.0, YARN_MODEL_PLY_TWIST)) if plies > 1 else radii
+    points, ply_radius = ply_radii(obj, plies)
     counts = np.diff(curves_bpy.curve_offsets(obj)) if obj.neural_yarn.split else None
     c = lod.choose_level(points, ply_radius, view_of(scene), requested=requested, curve_counts=counts)
     notes = [c.warning] if c.warning else []
@@ -126,8 +133,7 @@ def requested_level(obj, scene) -> str:
 
 def _made_objects(obj) -> list:
     """The objects apply_level made for a yarn object: its plies, its split's two parts and its surface."""
-    s = obj.neural_yarn
-    return [o for o in (s.plies_object, s.near_plies_object, s.far_yarns_object, s.surface_object) if o is not None]
+    return [o for o in (getattr(obj.neural_yarn, name) for name in POINTERS) if o is not None]
 
 
 def yarn_object_of(obj, scene):
@@ -144,9 +150,7 @@ def rendered_objects(obj) -> list:
     near plies and far yarns, its surface, or (itself, its applied level)."""
     if not obj.hide_render:
         return [(obj, obj.neural_yarn.applied if obj.neural_yarn.applied in lod.LEVELS else "plies")]
-    s = obj.neural_yarn
-    levels = ((s.plies_object, "plies"), (s.near_plies_object, "plies"), (s.far_yarns_object, "yarns"),
-              (s.surface_object, "surface"))
+    levels = ((getattr(obj.neural_yarn, name), level) for name, level in POINTERS.items())
     return [(o, level) for o, level in levels if o is not None and not o.hide_render]
 
 
@@ -200,17 +204,19 @@ def _made_for(obj, other, scene):
 
 
 def _is_part(obj, part, yarns: tuple, plies: int, geometry: str) -> bool:
-    """Whether `part` is what `obj`'s yarns `yarns`, twisted into `plies` plies (1: as they are), make now."""
-    tag = _part_tag(part)
-    return _owns(obj, part) and part_yarns(part) == yarns and tag.get("plies") == plies and \
-        tag.get("geometry") == geometry
+    """Whether `part` is what `obj`'s yarns `yarns`, twisted into `plies` plies (1: as they are), make now (`geometry`:
+    _geometry_key(obj))."""
+    return part is not None and part.neural_yarn.part_of == obj and \
+        _part_tag(part) == {"yarns": list(yarns), "plies": plies, "geometry": geometry}
 
 
-def adopt(obj, made, yarns: tuple, plies: int, *, parent: bool = True):
+def adopt(obj, made, yarns: tuple, plies: int, geometry: str | None = None, *, parent: bool = True):
     """Makes `made` (new curves in world space from obj's yarns `yarns`, twisted into `plies`) obj's: tagged with what
-    it was made from and its object (part_of); with `parent`, a child of obj (moving obj moves it) in obj's
-    collections (those a library links in cannot take it: it stays where it was made)."""
-    made[PART_KEY] = json.dumps({"yarns": list(yarns), "plies": plies, "geometry": _geometry_key(obj)})
+    it was made from (`geometry`: _geometry_key(obj), if known) and its object (part_of); with `parent`, a child of obj
+    (moving obj moves it) in obj's collections (those a library links in cannot take it: it stays where it was
+    made)."""
+    made[PART_KEY] = json.dumps({"yarns": list(yarns), "plies": plies,
+                                 "geometry": _geometry_key(obj) if geometry is None else geometry})
     made.neural_yarn.part_of = obj
     if parent:
         made.parent = obj
@@ -373,7 +379,7 @@ def applied_name(choice: lod.LevelChoice) -> str:
     return SPLIT_LEVEL if choice.far else choice.level
 
 
-def _split_parts(context, obj, near_obj, far_obj, far: tuple, material, made: list) -> tuple:
+def _split_parts(context, obj, near_obj, far_obj, far: tuple, material, geometry: str, made: list) -> tuple:
     """The split's two part objects (D67): `near_obj` and `far_obj` where they are obj's parts for its yarns as they
     are now, else new ones with `material` (None: the level's preset material follows), children of obj in its
     collections; what it makes is appended to `made` as it is made (apply_level removes it if anything fails)."""
@@ -382,7 +388,6 @@ def _split_parts(context, obj, near_obj, far_obj, far: tuple, material, made: li
     s = obj.neural_yarn
     far_set = set(far)
     near = tuple(k for k in range(len(obj.data.curves)) if k not in far_set)
-    geometry = _geometry_key(obj)
     wanted = ((near_obj, near, s.plies, lambda: operators.make_plies_object(
                    context, obj, s.plies, YARN_MODEL_PLY_TWIST, operators.PLY_SAMPLES_PER_TURN, material, yarns=near)),
               (far_obj, far, 1, lambda: operators.make_yarns_part(context, obj, far, material)))
@@ -392,7 +397,7 @@ def _split_parts(context, obj, near_obj, far_obj, far: tuple, material, made: li
             parts.append(old)
             continue
         made.append(make())
-        parts.append(adopt(obj, made[-1], yarns, plies))
+        parts.append(adopt(obj, made[-1], yarns, plies, geometry))
     return tuple(parts)
 
 
@@ -421,30 +426,31 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
     before = {name: mine(getattr(s, name)) for name in POINTERS}
     # Everything that can fail first, nothing shown, hidden or removed before it has succeeded: the materials, then
     # the level's objects (removed again if one of them cannot be made).
-    levels = ("plies", "yarns") if choice.far else ("plies",) if twisted else (level,)
-    mats = {"surface": _surface_material(preset)} if level == "surface" and not choice.far else \
-        {lv: operators.preset_material(preset, lv) for lv in levels} if preset else {}
+    needed = ("plies", "yarns") if choice.far else ("plies",) if twisted else (level,)
+    mats = {lv: _surface_material(preset) if lv == "surface" else operators.preset_material(preset, lv)
+            for lv in needed} if preset else {}
+    geometry = _geometry_key(obj) if twisted else None
     now, made = dict(before), []
     try:
         if choice.far:
             now["near_plies_object"], now["far_yarns_object"] = _split_parts(
                 context, obj, before["near_plies_object"], before["far_yarns_object"], choice.far,
-                None if preset else mat, made)
-            shown = [now["near_plies_object"], now["far_yarns_object"]]
+                None if preset else mat, geometry, made)
+            shown = [(now["near_plies_object"], "plies"), (now["far_yarns_object"], "yarns")]
         elif level == "surface":
             if now["surface_object"] is None:
                 made.append(_make_surface_object(obj))
                 now["surface_object"] = made[-1]
-            shown = [now["surface_object"]]
+            shown = [(now["surface_object"], "surface")]
         elif twisted:
             every = tuple(range(len(obj.data.curves)))
-            if not _is_part(obj, now["plies_object"], every, s.plies, _geometry_key(obj)):
+            if not _is_part(obj, now["plies_object"], every, s.plies, geometry):
                 made.append(operators.make_plies_object(context, obj, s.plies, YARN_MODEL_PLY_TWIST,
                                                         operators.PLY_SAMPLES_PER_TURN, None if preset else mat))
-                now["plies_object"] = adopt(obj, made[-1], every, s.plies)
-            shown = [now["plies_object"]]
+                now["plies_object"] = adopt(obj, made[-1], every, s.plies, geometry)
+            shown = [(now["plies_object"], "plies")]
         else:
-            shown = [obj]
+            shown = [(obj, level)]
     except Exception:
         for o in made:
             _remove(o)
@@ -460,16 +466,13 @@ def apply_level(context, obj, requested: str | None = None) -> lod.LevelChoice:
         if old is not None and old != now[name] and _owns(obj, old):
             removed.append(old)
             curves_bpy.remove_curves_object(old)
-    if choice.far:
+    for o, lv in shown:
         if mats:
-            _set_material(now["near_plies_object"], mats["plies"])
-            _set_material(now["far_yarns_object"], mats["yarns"])
-    elif mats:
-        _set_material(shown[0], mats[level if level in mats else "plies"])
+            _set_material(o, mats[lv])
     candidates = [obj] + [o for o in (*before.values(), *now.values())
                           if o is not None and not any(o is r for r in removed)]
     for o in dict.fromkeys(candidates):
-        _show(o, o in shown)
+        _show(o, any(o == shown_obj for shown_obj, _ in shown))
     px = f" (ply {choice.ply_pixels:.3g} px wide)" if choice.ply_pixels is not None else ""
     if choice.far:
         px = (f" (ply {choice.ply_pixels:.3g} px wide at the nearest; {len(choice.far)} of {len(obj.data.curves)} "

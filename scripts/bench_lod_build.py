@@ -76,16 +76,13 @@ def receding(addon, rows: int, stitches: int, mode: str, a) -> dict:
     t0 = time.perf_counter()
     assert bpy.ops.neural_yarn.apply_lod() == {"FINISHED"}
     lod_s = time.perf_counter() - t0
-    lod, ld = addon.geometry.lod, addon.level_of_detail
-    points, radii = ld.curve_points(knit)
-    px = lod.curve_ply_pixels(points, np.diff(addon.curves_bpy.curve_offsets(knit)), radii / (
-        1.0 + addon.geometry.ply_center_distance(knit.neural_yarn.plies, 1.0, lod.YARN_MODEL_PLY_TWIST)),
-        ld.view_of(scene))
+    ld = addon.level_of_detail
+    points, ply_radius = ld.ply_radii(knit, knit.neural_yarn.plies)
+    px = addon.geometry.lod.curve_ply_pixels(points, np.diff(addon.curves_bpy.curve_offsets(knit)), ply_radius,
+                                             ld.view_of(scene))
     shown = [o for o in scene.objects if o.type == "CURVES" and not o.hide_render]
     out = {"px": (float(np.nanmin(px)), float(np.nanmax(px))), "lod_s": lod_s, "chosen": knit.neural_yarn.chosen,
-           "curves": sum(len(o.data.curves) for o in shown),
-           "points": sum(len(o.data.points) for o in shown), "far": list(ld.part_yarns(
-               knit.neural_yarn.far_yarns_object) or ()) if mode == "split" else []}
+           "curves": sum(len(o.data.curves) for o in shown), "points": sum(len(o.data.points) for o in shown)}
     if a.render_spp:
         scene.render.engine = "CYCLES"
         scene.cycles.device, scene.cycles.shading_system = "CPU", False

@@ -75,33 +75,36 @@ def _depths(points: np.ndarray, view: View) -> np.ndarray:
         fwd / np.linalg.norm(fwd))
 
 
+def _widths(ply_radius, depth: np.ndarray, view: View) -> np.ndarray:
+    """The pinhole width in pixels of a ply of `ply_radius` (a number or one per point) at each depth; -inf behind
+    the camera."""
+    with np.errstate(divide="ignore"):
+        if view.kind == "ORTHO":
+            px = 2.0 * np.asarray(ply_radius, dtype=np.float64) * max(view.width, view.height) / view.ortho_scale
+        else:
+            px = 2.0 * np.asarray(ply_radius, dtype=np.float64) * max(view.width, view.height) / (
+                2.0 * depth * math.tan(0.5 * view.fov))
+    return np.where(depth > 0.0, np.broadcast_to(px, depth.shape), -np.inf)
+
+
 def ply_pixels(points: np.ndarray, ply_radius: float, view: View, depth: np.ndarray | None = None) -> float | None:
     """Width in pixels of a ply of `ply_radius` at the nearest of `points` in front of the camera (None: every
     point is behind it). `depth`: the points' _depths, if known."""
     depth = _depths(points, view) if depth is None else depth
-    if view.kind == "ORTHO":
-        return 2.0 * ply_radius * max(view.width, view.height) / view.ortho_scale if np.any(depth > 0) else None
-    front = depth[depth > 0.0]
-    if front.size == 0:
-        return None
-    return 2.0 * ply_radius * max(view.width, view.height) / (2.0 * float(front.min()) * math.tan(0.5 * view.fov))
+    widest = float(_widths(ply_radius, depth, view).max()) if depth.size else -math.inf
+    return widest if math.isfinite(widest) else None
 
 
-def curve_ply_pixels(points: np.ndarray, counts, ply_radius, view: View) -> np.ndarray:
+def curve_ply_pixels(points: np.ndarray, counts, ply_radius, view: View, depth: np.ndarray | None = None) -> np.ndarray:
     """Each curve's ply width in pixels at its nearest point in front of the camera, as ply_pixels gives it for the
     whole object: `points` (n, 3) holds the curves one after the other, `counts` their numbers of points (each >= 1),
-    `ply_radius` is a number or one per point. NaN for a curve wholly behind the camera."""
+    `ply_radius` is a number or one per point; `depth`: the points' _depths, if known. NaN for a curve wholly behind
+    the camera."""
     counts = np.asarray(counts, dtype=np.int64)
-    depth = _depths(points, view)
+    depth = _depths(points, view) if depth is None else depth
     if counts.size == 0 or np.any(counts < 1) or counts.sum() != depth.size:
         raise ValueError(f"{counts.size} curves of {int(counts.sum())} points do not hold {depth.size} points")
-    radii = np.broadcast_to(np.asarray(ply_radius, dtype=np.float64), depth.shape)
-    with np.errstate(divide="ignore"):
-        if view.kind == "ORTHO":
-            px = 2.0 * radii * max(view.width, view.height) / view.ortho_scale
-        else:
-            px = 2.0 * radii * max(view.width, view.height) / (2.0 * depth * math.tan(0.5 * view.fov))
-    widest = np.maximum.reduceat(np.where(depth > 0.0, px, -np.inf), np.concatenate([[0], np.cumsum(counts)[:-1]]))
+    widest = np.maximum.reduceat(_widths(ply_radius, depth, view), np.concatenate([[0], np.cumsum(counts)[:-1]]))
     return np.where(np.isfinite(widest), widest, np.nan)
 
 
@@ -142,7 +145,7 @@ def choose_level(points: np.ndarray, ply_radius, view: View | None, *, fiber_rad
     level = level_for_ply_pixels(px, fiber_radius_ratio)
     far = ()
     if curve_counts is not None and level != "yarns":
-        per_curve = curve_ply_pixels(points, curve_counts, radii if radii.size > 1 else float(radii[0]), view)
+        per_curve = curve_ply_pixels(points, curve_counts, radii if radii.size > 1 else float(radii[0]), view, depth)
         far_curves = np.flatnonzero(~(per_curve >= YARNS_BELOW_PLY_PIXELS))  # NaN: behind the camera, unseen
         # (All of them can be far where the radii differ per point: the object's width is its widest ply at its
         # nearest point, a curve's its own. Then there is nothing to split: the object's level stands.)

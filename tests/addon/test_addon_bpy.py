@@ -362,11 +362,9 @@ def _receding_knit(bpy, addon, rows=20, plies=3):
     scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 400, 100, 100
     addon.scene_setup.frame(scene, [knit])
     bpy.context.view_layer.update()
-    lod = addon.geometry.lod
-    points, radii = addon.level_of_detail.curve_points(knit)
-    ply_radius = radii / (1.0 + addon.geometry.ply_center_distance(plies, 1.0, lod.YARN_MODEL_PLY_TWIST))
-    px = lod.curve_ply_pixels(points, np.diff(addon.curves_bpy.curve_offsets(knit)), ply_radius,
-                              addon.level_of_detail.view_of(scene))
+    points, ply_radius = addon.level_of_detail.ply_radii(knit, plies)
+    px = addon.geometry.lod.curve_ply_pixels(points, np.diff(addon.curves_bpy.curve_offsets(knit)), ply_radius,
+                                             addon.level_of_detail.view_of(scene))
     return knit, px
 
 

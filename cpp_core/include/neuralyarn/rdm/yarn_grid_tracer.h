@@ -9,8 +9,8 @@
 // Paths enter over `entry_length` about x = 0; a path that leaves through an end rather than the envelope is
 // counted by the gather (GatherStats::paths_past_ends).
 //
-// It answers the queries YarnTracer (Embree's round curves over the same fibers) answers, 1.1-2x faster
-// (docs/benchmarks.md); YarnTracer stays as the independent intersector the tests compare it with.
+// It answers the queries YarnTracer (Embree's round curves over the same fibers) answers, faster (by how much:
+// docs/benchmarks.md); YarnTracer stays as the independent intersector the tests compare it with.
 #pragma once
 
 #include <memory>
