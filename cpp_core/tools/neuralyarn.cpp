@@ -133,6 +133,23 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
   std::printf("exit displacement (envelope radii, scattered paths)  mean %.2f, 95th percentile %.2f; M only: mean %.2f, "
               "95th %.2f\n",
               s.mean_displacement, s.p95_displacement, s.mean_displacement_M, s.p95_displacement_M);
+  auto buf = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof(b), "%.2f", v);
+    return std::string(b);
+  };
+  auto levels = [&](const std::vector<double> &q) {
+    std::string t;
+    for (size_t k = 0; k < q.size(); k++) {
+      t += std::string(k ? ", " : "") + std::to_string(int(std::lround(100.0 * rdm::kAxialExitLevels[k]))) +
+           "% " + buf(q[k]);
+    }
+    return t;
+  };
+  std::printf("M along the axis (|x_exit - x_entry|, envelope radii, energy-weighted)  mean %.2f: %s; through the "
+              "far side: mean %.2f: %s\n",
+              s.mean_axial_exit_M, levels(s.axial_exit_M).c_str(), s.mean_axial_exit_M_through,
+              levels(s.axial_exit_M_through).c_str());
   if (s.invalid_weights) {
     std::printf("WARNING: %llu paths had invalid weights and were dropped\n", (unsigned long long)s.invalid_weights);
   }

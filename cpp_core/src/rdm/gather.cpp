@@ -89,6 +89,7 @@ struct LocalStats {
   std::vector<MapRecord> records;
   std::vector<uint64_t> events;
   std::vector<uint64_t> displacement, displacement_M;
+  std::vector<uint64_t> axial_M[2]; /* exit energy (fixed point) per |axial offset| bin: [0] reflected, [1] through */
   uint64_t energy[3][3] = {}; /* [T/R/M][rgb] fixed */
   uint64_t absorbed[3] = {}, lost[3] = {};
   double balance[3] = {}, balance_sq[3] = {}; /* per chunk in double: summed in chunk order below */
@@ -99,6 +100,7 @@ struct LocalStats {
 
 struct SharedStats {
   std::vector<uint64_t> events, displacement, displacement_M;
+  std::vector<uint64_t> axial_M[2];
   uint64_t energy[3][3] = {}, absorbed[3] = {}, lost[3] = {};
   std::vector<double> balance, balance_sq; /* [chunk][rgb]: combined in chunk order, so deterministic */
   uint64_t paths[3] = {}, terminated = 0, truncated = 0, events_total = 0, slab_crossings = 0,
@@ -118,6 +120,8 @@ void merge(SharedStats &s, const LocalStats &l, uint64_t chunk)
   for (size_t i = 0; i < l.displacement.size(); i++) {
     atomic_add(&s.displacement[i], l.displacement[i]);
     atomic_add(&s.displacement_M[i], l.displacement_M[i]);
+    atomic_add(&s.axial_M[0][i], l.axial_M[0][i]);
+    atomic_add(&s.axial_M[1][i], l.axial_M[1][i]);
   }
   for (int k = 0; k < 3; k++) {
     for (int c = 0; c < 3; c++) {
@@ -304,6 +308,24 @@ Walk walk(const Medium &tracer, const FiberLobeSampler &sampler, const GatherOpt
   }
 }
 
+/* Where along the axis (world x) light leaving from `p` along `d` crosses the envelope (radius R about the x axis),
+ * minus where a ray from the entry point along `d` crosses it: how far a renderer, which continues the path from
+ * its hit point, must move that ray along the ply to leave where the walk did (decisions D68). In double: a
+ * near-axial exit subtracts two long chords. A direction along the axis never crosses the side: its points' x. */
+double axial_exit_offset(Vec3 p, Vec3 d, Vec3 entry, double R)
+{
+  const double a2 = double(d.y) * d.y + double(d.z) * d.z;
+  auto crossing_x = [&](Vec3 o) {
+    if (!(a2 > 0.0)) {
+      return double(o.x);
+    }
+    const double b = double(o.y) * d.y + double(o.z) * d.z, c = double(o.y) * o.y + double(o.z) * o.z - R * R;
+    const double t = (-b + std::sqrt(std::max(b * b - a2 * c, 0.0))) / a2;
+    return double(o.x) + std::max(t, 0.0) * double(d.x);
+  };
+  return crossing_x(p) - crossing_x(entry);
+}
+
 /* A finished walk into the accumulators: its incident bin's count and absorption, the energy balance, and,
  * if it left, its label (T, R or M), exit energy, displacement and map record. */
 template <class Medium>
@@ -368,6 +390,10 @@ void score(const Medium &tracer, const GatherOptions &opt, const Entry &e, const
     ls.displacement_M[dbin]++;
     ls.disp_sum_M += disp_fx;
     ls.disp_count_M++;
+    const double axial = std::abs(axial_exit_offset(p_w, d_w, e.point, double(tracer.bound_radius()))) /
+                         double(envelope_radius(tracer));
+    const size_t abin = size_t(std::min(axial / kDisplacementBin, double(kDisplacementBins - 1)));
+    ls.axial_M[wo.z < 0.0f ? 1 : 0][abin] += to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f));
   }
   int to, po;
   outgoing_bin(b, wo.x, wo.y, wo.z, &to, &po);
@@ -670,6 +696,8 @@ double accumulate(const FiberPreset &preset, const GatherOptions &opt, const Geo
   shared.events.assign(kEventBins, 0);
   shared.displacement.assign(kDisplacementBins, 0);
   shared.displacement_M.assign(kDisplacementBins, 0);
+  shared.axial_M[0].assign(kDisplacementBins, 0);
+  shared.axial_M[1].assign(kDisplacementBins, 0);
 
   const uint64_t n_chunks = (opt.paths + kChunk - 1) / kChunk;
   std::atomic<uint64_t> done{0};
@@ -681,6 +709,8 @@ double accumulate(const FiberPreset &preset, const GatherOptions &opt, const Geo
       ls.events.assign(kEventBins, 0);
       ls.displacement.assign(kDisplacementBins, 0);
       ls.displacement_M.assign(kDisplacementBins, 0);
+      ls.axial_M[0].assign(kDisplacementBins, 0);
+      ls.axial_M[1].assign(kDisplacementBins, 0);
       const uint64_t k0 = chunk * kChunk, k1 = std::min(opt.paths, k0 + kChunk);
       ls.records.reserve(k1 - k0);
       for (uint64_t k = k0; k < k1; k++) {
@@ -802,6 +832,33 @@ void finalize(const Accumulators &acc, const GatherOptions &opt, tbb::task_arena
   maps.symmetrized = opt.symmetrize;
 }
 
+/* A weighted histogram of |axial offset| (bins of kDisplacementBin) -> its quantiles at kAxialExitLevels, linear
+ * within a bin, and its mean (bin centres); both empty or 0 without weight. */
+void axial_summary(const std::vector<uint64_t> &hist, std::vector<double> &quantiles, double &mean)
+{
+  double total = 0.0, moment = 0.0;
+  for (size_t i = 0; i < hist.size(); i++) {
+    total += double(hist[i]);
+    moment += double(hist[i]) * (double(i) + 0.5) * kDisplacementBin;
+  }
+  quantiles.clear();
+  mean = total > 0.0 ? moment / total : 0.0;
+  if (!(total > 0.0)) {
+    return;
+  }
+  double cum = 0.0;
+  size_t i = 0;
+  for (const double level : kAxialExitLevels) {
+    const double target = level * total;
+    while (i + 1 < hist.size() && cum + double(hist[i]) < target) {
+      cum += double(hist[i]);
+      i++;
+    }
+    const double in_bin = hist[i] ? std::clamp((target - cum) / double(hist[i]), 0.0, 1.0) : 0.0;
+    quantiles.push_back((double(i) + in_bin) * kDisplacementBin);
+  }
+}
+
 /* The shared statistics -> the gather's summary (all but its timings). */
 void summarize(const SharedStats &shared, const GatherOptions &opt, GatherStats &st)
 {
@@ -841,6 +898,12 @@ void summarize(const SharedStats &shared, const GatherOptions &opt, GatherStats 
   st.mean_displacement_M = shared.disp_count_M ? double(shared.disp_sum_M) * 1e-6 / double(shared.disp_count_M) : 0.0;
   st.p95_displacement = percentile(shared.displacement, 0.95, kDisplacementBin);
   st.p95_displacement_M = percentile(shared.displacement_M, 0.95, kDisplacementBin);
+  std::vector<uint64_t> all(kDisplacementBins);
+  for (size_t i = 0; i < all.size(); i++) {
+    all[i] = shared.axial_M[0][i] + shared.axial_M[1][i];
+  }
+  axial_summary(all, st.axial_exit_M, st.mean_axial_exit_M);
+  axial_summary(shared.axial_M[1], st.axial_exit_M_through, st.mean_axial_exit_M_through);
 }
 
 RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &opt,
