@@ -154,6 +154,26 @@ def _refuse_constant(name: str):
     raise ValueError(f"{name} is not a number JSON allows")
 
 
+#: A model's near field (decisions D68): the quantiles of how far along the ply the light it sends through the ply
+#: travels, at the C++ core's levels (kernel/exit_placement.h, whose exit_quantiles_check this mirrors: the patched
+#: Cycles refuses, and renders in magenta, what this refuses).
+NEAR_FIELD_QUANTILES = 6
+_MAX_EXIT_OFFSET = 1000.0
+
+
+def near_field_problem(near_field) -> str | None:
+    """What is wrong with a model's "near_field" object, or None."""
+    q = near_field.get("axial_exit_through") if isinstance(near_field, dict) else None
+    if not isinstance(q, list) or len(q) != NEAR_FIELD_QUANTILES:
+        return f"must be an object whose 'axial_exit_through' holds {NEAR_FIELD_QUANTILES} quantiles"
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+               and 0.0 <= v <= _MAX_EXIT_OFFSET for v in q):
+        return f"'axial_exit_through' holds a value that is not a finite number in [0, {_MAX_EXIT_OFFSET:g}]"
+    if any(b < a for a, b in zip(q, q[1:])):
+        return "'axial_exit_through' decreases: quantiles at higher levels must not be smaller"
+    return None
+
+
 def parse_model(text: str, source: str) -> YarnModel:
     """Parses and checks a model's JSON text. `source` names it in error messages."""
     try:
@@ -224,6 +244,10 @@ def parse_model(text: str, source: str) -> YarnModel:
                             abs(flat[26] - free_path) > 1e-6 * max(1.0, free_path)):
             raise _fail(source, f"'r_free_path' must be a number in [0, {_MAX_FREE_PATH}] equal to the "
                                 f"kernel array's (got {free_path!r})")
+    if "near_field" in data:
+        problem = near_field_problem(data["near_field"])
+        if problem:
+            raise _fail(source, f"'near_field' {problem}")
     model = YarnModel(source=source, text=text, data=data, preset_name=preset["name"], alpha=float(alpha),
                       level=level, plies=int(plies), ply_twist=float(ply_twist))
     if flat and flat[0] in (4.0, 5.0, 6.0) and abs(flat[2] - model.alpha) > 1e-6 * max(1.0, abs(model.alpha)):

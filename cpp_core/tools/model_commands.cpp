@@ -340,6 +340,14 @@ class Commands : public ModelCommands {
     fallback_->add_option("--threads", threads_, "Worker threads (0: all cores); results do not depend on it")
         ->capture_default_str();
 
+    near_field_ = app.add_subcommand(
+        "near-field", "Set a model's near field (how far along the ply the light it sends through the ply travels before "
+                      "it leaves; docs/decisions.md D68) from maps of the same ply or yarn; nothing else changes");
+    near_field_->add_option("model", model_, "Model file (.json)")->required();
+    near_field_->add_option("--maps", maps_, "Map file (.nyrdm) gathered since D68 (it records the exits' offsets)")
+        ->required();
+    near_field_->add_option("--out", out_, "Model file to write (default: replace the input)");
+
     furnace_ = app.add_subcommand("furnace",
                                   "White furnace of a model: the largest energy it scatters from any incident "
                                   "direction under uniform white light (must not exceed 1)");
@@ -408,6 +416,9 @@ class Commands : public ModelCommands {
     if (furnace_->parsed()) {
       return run_furnace();
     }
+    if (near_field_->parsed()) {
+      return run_near_field();
+    }
     return -1;
   }
 
@@ -471,6 +482,9 @@ class Commands : public ModelCommands {
       print_network("R", m.R);
     }
     model::fit_model_proxy(&m, maps, topt_.fit);
+    if (const std::vector<float> q = model::axial_exit_of(maps); !q.empty()) {
+      m.axial_exit_through = q; /* maps from before D68 leave the model's near field as it was */
+    }
     if (topt_.r_free_path >= 0.0) {
       m.r_free_path = topt_.r_free_path;
     }
@@ -711,6 +725,48 @@ class Commands : public ModelCommands {
     return 0;
   }
 
+  int run_near_field()
+  {
+    /* Only "near_field" changes: the rest of the file stays as written (its kernel array, which the fallback
+     * tables name, included). */
+    const std::string source = "model file '" + model_ + "'";
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(read_file(model_));
+    }
+    catch (const nlohmann::json::exception &e) {
+      throw model::ModelError(source + ": not valid JSON (" + std::string(e.what()) + ")");
+    }
+    catch (const std::runtime_error &e) {
+      throw model::ModelError(source + ": " + e.what());
+    }
+    const model::YarnModel m = model::model_from_json(j, source);
+    const rdm::RdmMaps maps = rdm::load_maps(maps_);
+    require_same_preset(m, maps);
+    const std::vector<float> q = model::axial_exit_of(maps);
+    if (q.empty()) {
+      throw std::runtime_error("'" + maps_ + "' records no exit offsets (gathered before decisions D68: gather "
+                               "it again)");
+    }
+    const std::string out = out_.empty() ? model_ : out_;
+    check_writable(out);
+    j["near_field"] = model::near_field_to_json(q);
+    j["near_field"]["maps"] = model::maps_provenance(maps);
+    j["code_version"] = std::string(kVersion) + "+" + kGitRevision;
+    model::model_from_json(j, source); /* loads as it will be read before it replaces anything */
+    write_file_atomically(out, j.dump(1) + "\n", "");
+    std::string line;
+    for (float v : q) {
+      char b[32];
+      std::snprintf(b, sizeof(b), "%s%.3g", line.empty() ? "" : " ", double(v));
+      line += b;
+    }
+    std::printf("near field: through-ply exits' axial offset quantiles (25 50 75 90 95 99 %%, ply radii) %s\n",
+                line.c_str());
+    std::printf("wrote %s\n", out.c_str());
+    return 0;
+  }
+
   int run_fallback()
   {
     /* The model without its current tables: they are what this verb replaces, and stale or corrupt ones
@@ -793,7 +849,7 @@ class Commands : public ModelCommands {
     }
   }
 
-  CLI::App *train_, *fit_, *bake_, *check_, *fallback_, *furnace_;
+  CLI::App *train_, *fit_, *bake_, *check_, *fallback_, *furnace_, *near_field_;
   LevelOptions level_;
   std::optional<double> max_furnace_;
   bool furnace_inside_ = false;

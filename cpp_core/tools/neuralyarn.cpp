@@ -141,7 +141,7 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
   auto levels = [&](const std::vector<double> &q) {
     std::string t;
     for (size_t k = 0; k < q.size(); k++) {
-      t += std::string(k ? ", " : "") + std::to_string(int(std::lround(100.0 * rdm::kAxialExitLevels[k]))) +
+      t += std::string(k ? ", " : "") + std::to_string(int(std::lround(100.0 * double(ny::exit_knot_level(int(k) + 1))))) +
            "% " + buf(q[k]);
     }
     return t;

@@ -920,6 +920,9 @@ def _corruptions():
     def swap_offsets(f):
         f[14], f[15] = f[15], f[14]
 
+    def near_field(q):
+        return lambda data: json.dumps(dict(data, near_field=dict(data["near_field"], axial_exit_through=q)))
+
     def stale_tables(data):
         data["fallback"]["kernel_flat_fnv1a64"] = "0123456789abcdef"
         return json.dumps(data)
@@ -949,6 +952,9 @@ def _corruptions():
         ("stale fallback tables", stale_tables),
         ("no fallback bins", lambda data: _edit(["fallback", "theta_bins"], 0)(data)),
         ("1025 fallback bins", lambda data: _edit(["fallback", "phi_bins"], 1025)(data)),
+        ("a near field of five quantiles", near_field([0.1, 0.2, 0.3, 0.4, 0.5])),
+        ("a decreasing near field", near_field([0.1, 0.2, 0.3, 0.4, 0.5, 0.45])),
+        ("a negative near field", near_field([-0.1, 0.2, 0.3, 0.4, 0.5, 0.6])),
     ]
 
 
@@ -1098,6 +1104,11 @@ _REJECTIONS = [
      "fallback: 'E_R' has 971 values, expected 972"),
     ("R network of two outputs", lambda data: (_two_output_r(data["kernel_flat"]), json.dumps(data))[1],
      "'kernel_flat' has a malformed R network \\(3 -> 1 or 3 -> 3, exp head\\)"),
+    ("near field not an object", _edit(["near_field"], [0.1]), "'near_field' must be an object"),
+    ("near field out of range", _edit(["near_field", "axial_exit_through"], [0.1, 0.2, 0.3, 0.4, 0.5, 2000.0]),
+     "'near_field' 'axial_exit_through' holds a value that is not a finite number"),
+    ("near field decreasing", _edit(["near_field", "axial_exit_through"], [0.1, 0.2, 0.3, 0.4, 0.5, 0.45]),
+     "'near_field' 'axial_exit_through' decreases"),
 ]
 
 

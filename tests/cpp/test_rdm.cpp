@@ -716,8 +716,8 @@ TEST(Gather, AxialExitOffsetMatchesARendererWalk)
   }
   EXPECT_LT(lost, n_walks / 1000);
   const rdm::GatherStats &st = maps.stats;
-  ASSERT_EQ(int(st.axial_exit_M.size()), rdm::kAxialExitQuantiles);
-  ASSERT_EQ(int(st.axial_exit_M_through.size()), rdm::kAxialExitQuantiles);
+  ASSERT_EQ(int(st.axial_exit_M.size()), ny::kExitQuantiles);
+  ASSERT_EQ(int(st.axial_exit_M_through.size()), ny::kExitQuantiles);
   const double gathered[2] = {st.mean_axial_exit_M, st.mean_axial_exit_M_through};
   for (int j = 0; j < 2; j++) {
     const double W = m[j][0], mean = m[j][1] / W;
@@ -729,7 +729,7 @@ TEST(Gather, AxialExitOffsetMatchesARendererWalk)
     EXPECT_GT(mean, 0.1) << "the statistic must measure something: fleece's light moves ~0.5 radii";
   }
   /* Quantiles increase and bracket the median of the walk's distribution loosely: their order is the check. */
-  for (int q = 1; q < rdm::kAxialExitQuantiles; q++) {
+  for (int q = 1; q < ny::kExitQuantiles; q++) {
     EXPECT_GE(st.axial_exit_M[size_t(q)], st.axial_exit_M[size_t(q) - 1]);
     EXPECT_GE(st.axial_exit_M_through[size_t(q)], st.axial_exit_M_through[size_t(q) - 1]);
   }
@@ -1105,7 +1105,7 @@ TEST(MapFile, RoundTripAndCorruption)
   EXPECT_EQ(back.stats.axial_exit_M_through, maps.stats.axial_exit_M_through);
   EXPECT_EQ(back.stats.mean_axial_exit_M, maps.stats.mean_axial_exit_M);
   EXPECT_EQ(back.stats.mean_axial_exit_M_through, maps.stats.mean_axial_exit_M_through);
-  EXPECT_EQ(int(back.stats.axial_exit_M.size()), rdm::kAxialExitQuantiles);
+  EXPECT_EQ(int(back.stats.axial_exit_M.size()), ny::kExitQuantiles);
   /* No temporary file is left behind. */
   int files = 0;
   for (const auto &e : fs::directory_iterator(fs::path(path).parent_path())) {

@@ -4,8 +4,10 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
 
 #include "neuralyarn/io.h"
+#include "neuralyarn/kernel/exit_placement.h"
 #include "neuralyarn/kernel/yarn_bsdf.h"
 #include "neuralyarn/units.h"
 #include "neuralyarn/version.h"
@@ -214,6 +216,22 @@ RShapeTable r_shape_from(const json &j, const std::vector<float> &flat, const st
   }
   return t;
 }
+/* A model file's "near_field": its quantiles, checked (kernel/exit_placement.h). */
+std::vector<float> axial_exit_from(const json &j, const std::string &where)
+{
+  if (!j.is_object() || !j.contains("axial_exit_through") || !j["axial_exit_through"].is_array()) {
+    throw ModelError(where + "must be an object with an array 'axial_exit_through'");
+  }
+  std::vector<float> q;
+  for (const json &v : j["axial_exit_through"]) {
+    q.push_back(v.is_number() ? v.get<float>() : std::numeric_limits<float>::quiet_NaN());
+  }
+  if (const char *problem = ny::exit_quantiles_check(q.data(), int(q.size()))) {
+    throw ModelError(where + "'axial_exit_through' " + problem);
+  }
+  return q;
+}
+
 }  // namespace
 
 void check_network(const NetworkRecord &net, const char *name, int inputs, int outputs, ny::MlpHead head)
@@ -269,6 +287,18 @@ std::vector<float> YarnModel::kernel_flat() const
   return f;
 }
 
+json near_field_to_json(const std::vector<float> &axial_exit_through)
+{
+  std::vector<double> levels; /* the kernel's float levels, as the percentages they are */
+  for (int k = 1; k <= ny::kExitQuantiles; k++) {
+    levels.push_back(std::round(1000.0 * double(ny::exit_knot_level(k))) / 1000.0);
+  }
+  return {{"axial_exit_through", axial_exit_through},
+          {"levels", levels},
+          {"about", "energy-weighted quantiles of how far along the ply (ply radii) the light that M sends through "
+                    "it leaves from where it entered (the gather's walks; docs/decisions.md D68)"}};
+}
+
 json model_to_json(const YarnModel &m)
 {
   json j;
@@ -307,6 +337,9 @@ json model_to_json(const YarnModel &m)
     j["r_surface_frames"] = {{"spread", m.r_surface_spread},
                              {"layout", "per R node: cos, sin of P, of a, of M (w -> M R_x(a) P w, kernel/yarn_bsdf.h)"},
                              {"frames", frames}};
+  }
+  if (!m.axial_exit_through.empty()) {
+    j["near_field"] = near_field_to_json(m.axial_exit_through);
   }
   /* What a renderer uploads, ready to use (kernel/yarn_bsdf.h): the calibration table's values are only
    * here; the loader checks that the rest agrees with the parts above. */
@@ -454,6 +487,9 @@ YarnModel model_from_json(const json &j, const std::string &source)
     if (layout == 6 && m.kernel_flat() != flat) {
       throw ModelError(where + "'kernel_flat' disagrees with the networks, preset and sampling parameters");
     }
+  }
+  if (j.contains("near_field")) {
+    m.axial_exit_through = axial_exit_from(j["near_field"], where + "near_field: ");
   }
   m.provenance = j.value("provenance", json::object());
   m.fidelity = j.value("fidelity", json::object());

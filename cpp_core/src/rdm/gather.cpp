@@ -832,7 +832,7 @@ void finalize(const Accumulators &acc, const GatherOptions &opt, tbb::task_arena
   maps.symmetrized = opt.symmetrize;
 }
 
-/* A weighted histogram of |axial offset| (bins of kDisplacementBin) -> its quantiles at kAxialExitLevels, linear
+/* A weighted histogram of |axial offset| (bins of kDisplacementBin) -> its quantiles at ny::exit_knot_level(1 .. ny::kExitQuantiles), linear
  * within a bin, and its mean (bin centres); both empty or 0 without weight. */
 void axial_summary(const std::vector<uint64_t> &hist, std::vector<double> &quantiles, double &mean)
 {
@@ -848,7 +848,8 @@ void axial_summary(const std::vector<uint64_t> &hist, std::vector<double> &quant
   }
   double cum = 0.0;
   size_t i = 0;
-  for (const double level : kAxialExitLevels) {
+  for (int k = 1; k <= ny::kExitQuantiles; k++) {
+    const double level = double(ny::exit_knot_level(k));
     const double target = level * total;
     while (i + 1 < hist.size() && cum + double(hist[i]) < target) {
       cum += double(hist[i]);

@@ -29,6 +29,7 @@
 
 #include "neuralyarn/geometry/yarn_structure.h"
 #include "neuralyarn/presets.h"
+#include "neuralyarn/kernel/exit_placement.h"
 #include "neuralyarn/rdm/ply_tracer.h"
 
 namespace neuralyarn::rdm {
@@ -64,10 +65,6 @@ struct GatherOptions {
   std::function<void(uint64_t done, uint64_t total)> progress;
 };
 
-/* The levels of GatherStats' axial exit quantiles. */
-inline constexpr double kAxialExitLevels[] = {0.25, 0.5, 0.75, 0.9, 0.95, 0.99};
-constexpr int kAxialExitQuantiles = int(sizeof(kAxialExitLevels) / sizeof(kAxialExitLevels[0]));
-
 /* Summary numbers of one gather. Energies are means per path (RGB); they sum with `absorbed` and `lost`
  * to 1 in expectation. */
 struct GatherStats {
@@ -90,10 +87,10 @@ struct GatherStats {
   double mean_displacement = 0.0, p95_displacement = 0.0;
   double mean_displacement_M = 0.0, p95_displacement_M = 0.0;
   /* How far along the ply (yarn) axis M's light travels inside: |x_exit - x_entry| in ply radii, weighted by the
-   * exit energy (mean of RGB), at the levels kAxialExitLevels, over all M exits and over those that left through
+   * exit energy (mean of RGB), at the levels ny::exit_knot_level(1 .. ny::kExitQuantiles), over all M exits and over those that left through
    * the far side (w_o.z < 0 in the entry frame); with their means. A far-field BSDF puts every exit at its entry
    * point, so light that enters a lit part of a ply and leaves in a shadowed part is what it cannot render
-   * (decisions D68). Empty for maps written before these were measured. */
+   * (decisions D68; kernel/exit_placement.h). Empty for maps written before these were measured. */
   std::vector<double> axial_exit_M, axial_exit_M_through;
   double mean_axial_exit_M = 0.0, mean_axial_exit_M_through = 0.0;
   double paths_per_second() const { return seconds > 0.0 ? double(paths) / seconds : 0.0; }

@@ -1,0 +1,130 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
+"""Plies in each other's shadow (decisions D68): the native closure with and without its model's near field
+against explicit fibers, under one light, in scenes of several plies:
+
+    cd scripts && ../.venv/bin/python bench_near_field.py --out ../build/bench_near_field \\
+        [--preset cotton] [--light back] [--scenes crossed yarn yarn-1.3 yarn-2] [--spp 64] [--ref-spp 32]
+
+`crossed`: two straight plies crossed at 84 degrees, the back one touching the front one; `yarn`: the harness's
+yarn close-up (three plies twisted, touching); `yarn-S`: the same plies with their offsets from the yarn's axis
+times S (gaps between them); `lone`: one ply of the yarn alone. The reference is explicit fibers over four
+orientations of the cross-section (--ref-spp each); its floor is one half of them against the other. Prints per
+scene the luminance error (R / G / B) over the whole frame and, for `crossed`, over the front ply where the back
+one shadows it; writes OUT/bench_near_field.json. A benchmark: prints, never a test.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+
+import numpy as np
+
+import evaluate as ev
+from garment import straight_yarn_plies
+from images import LUMINANCE, read_exr
+
+ROTATIONS = (0, 90, 180, 270)
+WIDTH, HEIGHT = 160, 80
+#: The front ply where the back one shadows it in `crossed` (rows, columns of the 160 x 80 frame, camera at 12).
+OVERLAP = (slice(35, 45), slice(74, 86))
+YARN_LENGTH = 48.7  # ply radii: the harness's yarn close-up at its default camera
+
+
+def plies(scene: str) -> dict:
+    """The scene's plies file content."""
+    if scene == "crossed":
+        t = np.linspace(-0.5 * YARN_LENGTH, 0.5 * YARN_LENGTH, 400)
+        out = []
+        for k, a in enumerate((0.0, 84.0)):
+            c, s = math.cos(math.radians(a)), math.sin(math.radians(a))
+            out.append(np.stack([t * c, t * s, np.full_like(t, 2.0 * k)], axis=1))
+        return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": YARN_LENGTH,
+                "plies": [[round(float(v), 5) for v in p.ravel()] for p in out]}
+    d = straight_yarn_plies(YARN_LENGTH)
+    if scene == "lone":
+        d["plies"] = d["plies"][:1]
+    elif scene.startswith("yarn-"):
+        spread = float(scene.split("-", 1)[1])
+        d["plies"] = [[round(v * (spread if i % 3 else 1.0), 5) for i, v in enumerate(p)] for p in d["plies"]]
+    return d
+
+
+def render(a, args: list[str], name: str, spp: int) -> np.ndarray:
+    xml, exr = os.path.join(a.out, name + ".xml"), os.path.join(a.out, name + ".exr")
+    ev.cycles_scene([*args, "--out", xml])
+    try:
+        ev.render(a, xml, spp, exr, f"{name}, {spp} spp")
+    except ev.RenderFailed as e:
+        raise SystemExit(f"bench_near_field: {name}: {e}")
+    return read_exr(exr)[..., :3]
+
+
+def error(img: np.ndarray, ref: np.ndarray, region=(slice(None), slice(None))) -> dict:
+    m, r = img[region].mean(axis=(0, 1)), ref[region].mean(axis=(0, 1))
+    return {"luminance": float(m @ LUMINANCE / (r @ LUMINANCE) - 1.0), "rgb": [float(v) for v in m / r - 1.0]}
+
+
+def fmt(e: dict) -> str:
+    return f"{100 * e['luminance']:+.1f} ({' / '.join(f'{100 * v:+.1f}' for v in e['rgb'])})"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--preset", default="cotton")
+    ap.add_argument("--light", default="back")
+    ap.add_argument("--scenes", nargs="+", default=["crossed", "yarn", "yarn-1.3", "yarn-2"])
+    ap.add_argument("--spp", type=int, default=64, help="the native closure's samples")
+    ap.add_argument("--ref-spp", type=int, default=32, help="explicit fibers' samples per orientation")
+    ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per render")
+    ap.add_argument("--out", default=os.path.join(ev.ROOT, "build", "bench_near_field"))
+    a = ap.parse_args()
+    a.width, a.height = WIDTH, HEIGHT
+    for s in a.scenes:
+        if s not in ("crossed", "yarn", "lone") and not (s.startswith("yarn-") and s[5:].replace(".", "", 1).isdigit()):
+            print(f"bench_near_field: unknown scene '{s}' (crossed, yarn, lone, yarn-S)", file=sys.stderr)
+            return 1
+    os.makedirs(a.out, exist_ok=True)
+    shipped = os.path.join(ev.MODELS, f"{a.preset}.json")
+    model = json.load(open(shipped))
+    if "near_field" not in model:
+        print(f"bench_near_field: {shipped} has no near field", file=sys.stderr)
+        return 1
+    far = os.path.join(a.out, f"{a.preset}_far_field.json")
+    with open(far, "w") as f:
+        json.dump({k: v for k, v in model.items() if k != "near_field"}, f)
+    rows = []
+    print("| scene | frame: far field | frame: near field | shadowed ply: far | shadowed ply: near | floor, frame |")
+    print("|---|---|---|---|---|---|")
+    for scene in a.scenes:
+        path = os.path.join(a.out, f"plies_{scene}.json")
+        with open(path, "w") as f:
+            json.dump(plies(scene), f)
+        common = ["--preset", a.preset, "--lights", a.light, "--width", str(WIDTH), "--height", str(HEIGHT),
+                  "--plies", path]
+        parts = [render(a, [*common, "--seed", str(1001 + r), "--ply-rotation", str(r)], f"explicit_{scene}_{r}",
+                        a.ref_spp) for r in ROTATIONS]
+        ref = sum(parts) / len(parts)
+        floor = error((parts[0] + parts[1]) / 2, (parts[2] + parts[3]) / 2)
+        row = {"scene": scene, "floor": floor}
+        for name, m in (("far", far), ("near", shipped)):
+            img = render(a, [*common, "--model", m, "--seed", "1"], f"native_{scene}_{name}", a.spp)
+            row[name] = error(img, ref)
+            if scene == "crossed":
+                row[name + "_shadowed"] = error(img, ref, OVERLAP)
+        rows.append(row)
+        shadowed = [fmt(row[k]) if k in row else "" for k in ("far_shadowed", "near_shadowed")]
+        print(f"| {scene} | {fmt(row['far'])} | {fmt(row['near'])} | {shadowed[0]} | {shadowed[1]} | "
+              f"{100 * floor['luminance']:+.1f} |", flush=True)
+    with open(os.path.join(a.out, "bench_near_field.json"), "w") as f:
+        json.dump({"preset": a.preset, "light": a.light, "spp": a.spp, "ref_spp": a.ref_spp,
+                   "rotations": list(ROTATIONS), "rows": rows}, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
