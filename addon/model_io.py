@@ -154,23 +154,29 @@ def _refuse_constant(name: str):
     raise ValueError(f"{name} is not a number JSON allows")
 
 
-#: A model's near field (decisions D68): the quantiles of how far along the ply the light it sends through the ply
-#: travels, at the C++ core's levels (kernel/exit_placement.h, whose exit_quantiles_check this mirrors: the patched
+#: A model's near field (decisions D68): the quantiles of how far along the ply scattered light travels before it
+#: leaves (through the far side, and on the side it entered), at the C++ core's levels (kernel/exit_placement.h, whose exit_quantiles_check this mirrors: the patched
 #: Cycles refuses, and renders in magenta, what this refuses).
 NEAR_FIELD_QUANTILES = 6
 _MAX_EXIT_OFFSET = 1000.0
 
 
 def near_field_problem(near_field) -> str | None:
-    """What is wrong with a model's "near_field" object, or None."""
-    q = near_field.get("axial_exit_through") if isinstance(near_field, dict) else None
-    if not isinstance(q, list) or len(q) != NEAR_FIELD_QUANTILES:
+    """What is wrong with a model's "near_field" object, or None: 'axial_exit_through' required,
+    'axial_exit_reflected' optional (files from before it was measured)."""
+    if not isinstance(near_field, dict) or "axial_exit_through" not in near_field:
         return f"must be an object whose 'axial_exit_through' holds {NEAR_FIELD_QUANTILES} quantiles"
-    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-               and 0.0 <= v <= _MAX_EXIT_OFFSET for v in q):
-        return f"'axial_exit_through' holds a value that is not a finite number in [0, {_MAX_EXIT_OFFSET:g}]"
-    if any(b < a for a, b in zip(q, q[1:])):
-        return "'axial_exit_through' decreases: quantiles at higher levels must not be smaller"
+    for key in ("axial_exit_through", "axial_exit_reflected"):
+        if key not in near_field:
+            continue
+        q = near_field[key]
+        if not isinstance(q, list) or len(q) != NEAR_FIELD_QUANTILES:
+            return f"'{key}' must hold {NEAR_FIELD_QUANTILES} quantiles"
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                   and 0.0 <= v <= _MAX_EXIT_OFFSET for v in q):
+            return f"'{key}' holds a value that is not a finite number in [0, {_MAX_EXIT_OFFSET:g}]"
+        if any(b < a for a, b in zip(q, q[1:])):
+            return f"'{key}' decreases: quantiles at higher levels must not be smaller"
     return None
 
 

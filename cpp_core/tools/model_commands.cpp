@@ -482,8 +482,8 @@ class Commands : public ModelCommands {
       print_network("R", m.R);
     }
     model::fit_model_proxy(&m, maps, topt_.fit);
-    if (const std::vector<float> q = model::axial_exit_of(maps); !q.empty()) {
-      m.axial_exit_through = q; /* maps from before D68 leave the model's near field as it was */
+    if (const model::NearField nf = model::near_field_of(maps); !nf.empty()) {
+      m.near_field = nf; /* maps from before D68 leave the model's near field as it was */
     }
     if (topt_.r_free_path >= 0.0) {
       m.r_free_path = topt_.r_free_path;
@@ -743,26 +743,30 @@ class Commands : public ModelCommands {
     const model::YarnModel m = model::model_from_json(j, source);
     const rdm::RdmMaps maps = rdm::load_maps(maps_);
     require_same_preset(m, maps);
-    const std::vector<float> q = model::axial_exit_of(maps);
-    if (q.empty()) {
+    const model::NearField nf = model::near_field_of(maps);
+    if (nf.empty()) {
       throw std::runtime_error("'" + maps_ + "' records no exit offsets (gathered before decisions D68: gather "
                                "it again)");
     }
     const std::string out = out_.empty() ? model_ : out_;
     check_writable(out);
-    j["near_field"] = model::near_field_to_json(q);
+    j["near_field"] = model::near_field_to_json(nf);
     j["near_field"]["maps"] = model::maps_provenance(maps);
     j["code_version"] = std::string(kVersion) + "+" + kGitRevision;
     model::model_from_json(j, source); /* loads as it will be read before it replaces anything */
     write_file_atomically(out, j.dump(1) + "\n", "");
-    std::string line;
-    for (float v : q) {
-      char b[32];
-      std::snprintf(b, sizeof(b), "%s%.3g", line.empty() ? "" : " ", double(v));
-      line += b;
-    }
-    std::printf("near field: through-ply exits' axial offset quantiles (25 50 75 90 95 99 %%, ply radii) %s\n",
-                line.c_str());
+    auto line = [](const std::vector<float> &q) {
+      std::string t;
+      for (float v : q) {
+        char b[32];
+        std::snprintf(b, sizeof(b), "%s%.3g", t.empty() ? "" : " ", double(v));
+        t += b;
+      }
+      return t;
+    };
+    std::printf("near field: exits' axial offset quantiles (25 50 75 90 95 99 %%, ply radii) through the far side %s; "
+                "on the entry side %s\n",
+                line(nf.through).c_str(), line(nf.reflected).c_str());
     std::printf("wrote %s\n", out.c_str());
     return 0;
   }

@@ -146,10 +146,10 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
     }
     return t;
   };
-  std::printf("M along the axis (|x_exit - x_entry|, envelope radii, energy-weighted)  mean %.2f: %s; through the "
-              "far side: mean %.2f: %s\n",
-              s.mean_axial_exit_M, levels(s.axial_exit_M).c_str(), s.mean_axial_exit_M_through,
-              levels(s.axial_exit_M_through).c_str());
+  std::printf("exit along the axis (envelope radii, energy-weighted)  through the far side: mean %.2f: %s; on the "
+              "entry side: mean %.2f: %s\n",
+              s.mean_axial_exit_through, levels(s.axial_exit_through).c_str(), s.mean_axial_exit_reflected,
+              levels(s.axial_exit_reflected).c_str());
   if (s.invalid_weights) {
     std::printf("WARNING: %llu paths had invalid weights and were dropped\n", (unsigned long long)s.invalid_weights);
   }

@@ -955,6 +955,8 @@ def _corruptions():
         ("a near field of five quantiles", near_field([0.1, 0.2, 0.3, 0.4, 0.5])),
         ("a decreasing near field", near_field([0.1, 0.2, 0.3, 0.4, 0.5, 0.45])),
         ("a negative near field", near_field([-0.1, 0.2, 0.3, 0.4, 0.5, 0.6])),
+        ("an entry-side near field of five quantiles", lambda data: json.dumps(dict(data, near_field=dict(
+            data["near_field"], axial_exit_reflected=[0.1, 0.2, 0.3, 0.4, 0.5])))),
     ]
 
 
@@ -1105,6 +1107,8 @@ _REJECTIONS = [
     ("R network of two outputs", lambda data: (_two_output_r(data["kernel_flat"]), json.dumps(data))[1],
      "'kernel_flat' has a malformed R network \\(3 -> 1 or 3 -> 3, exp head\\)"),
     ("near field not an object", _edit(["near_field"], [0.1]), "'near_field' must be an object"),
+    ("entry-side near field decreasing", _edit(["near_field", "axial_exit_reflected"], [0.1, 0.2, 0.3, 0.4, 0.5, 0.45]),
+     "'near_field' 'axial_exit_reflected' decreases"),
     ("near field out of range", _edit(["near_field", "axial_exit_through"], [0.1, 0.2, 0.3, 0.4, 0.5, 2000.0]),
      "'near_field' 'axial_exit_through' holds a value that is not a finite number"),
     ("near field decreasing", _edit(["near_field", "axial_exit_through"], [0.1, 0.2, 0.3, 0.4, 0.5, 0.45]),

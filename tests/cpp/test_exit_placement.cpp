@@ -73,29 +73,35 @@ TEST(ExitPlacement, QuantileCheckNamesWhatIsWrong)
 }
 
 /* The model file carries them outside its kernel array (which the fallback tables name): written, read back
- * unchanged, the array the same with or without; bad values are refused with the key's name. */
+ * unchanged, the array the same with or without; bad values are refused with the key's name; the entry side's are
+ * optional (files from before they were measured). */
 TEST(ExitPlacement, ModelFileRoundTripAndRejection)
 {
   model::YarnModel m = synthetic_model("cotton", 7);
   const std::vector<float> flat = m.kernel_flat();
-  m.axial_exit_through = kCotton;
+  m.near_field = {kCotton, {0.01f, 0.05f, 0.2f, 0.9f, 2.0f, 8.0f}};
   EXPECT_EQ(m.kernel_flat(), flat);
   const nlohmann::json j = model::model_to_json(m);
   ASSERT_TRUE(j.contains("near_field"));
-  EXPECT_EQ(model::model_from_json(j, "t").axial_exit_through, kCotton);
+  EXPECT_TRUE(model::model_from_json(j, "t").near_field == m.near_field);
   nlohmann::json without = j;
   without.erase("near_field");
-  EXPECT_TRUE(model::model_from_json(without, "t").axial_exit_through.empty());
-  for (const auto &bad : {nlohmann::json({0.1, 0.2}), nlohmann::json({0.1, 0.2, 0.3, 0.2, 0.5, 0.6}),
-                          nlohmann::json({0.1, 0.2, 0.3, "x", 0.5, 0.6}), nlohmann::json("cotton")}) {
-    nlohmann::json k = j;
-    k["near_field"]["axial_exit_through"] = bad;
-    try {
-      model::model_from_json(k, "t");
-      ADD_FAILURE() << "accepted " << bad.dump();
-    }
-    catch (const model::ModelError &e) {
-      EXPECT_NE(std::string(e.what()).find("near_field"), std::string::npos) << e.what();
+  EXPECT_TRUE(model::model_from_json(without, "t").near_field.empty());
+  nlohmann::json through_only = j;
+  through_only["near_field"].erase("axial_exit_reflected");
+  EXPECT_TRUE((model::model_from_json(through_only, "t").near_field == model::NearField{kCotton, {}}));
+  for (const char *key : {"axial_exit_through", "axial_exit_reflected"}) {
+    for (const auto &bad : {nlohmann::json({0.1, 0.2}), nlohmann::json({0.1, 0.2, 0.3, 0.2, 0.5, 0.6}),
+                            nlohmann::json({0.1, 0.2, 0.3, "x", 0.5, 0.6}), nlohmann::json("cotton")}) {
+      nlohmann::json k = j;
+      k["near_field"][key] = bad;
+      try {
+        model::model_from_json(k, "t");
+        ADD_FAILURE() << "accepted " << key << " " << bad.dump();
+      }
+      catch (const model::ModelError &e) {
+        EXPECT_NE(std::string(e.what()).find(std::string("near_field: '") + key), std::string::npos) << e.what();
+      }
     }
   }
 }
@@ -104,7 +110,10 @@ TEST(ExitPlacement, ModelFileRoundTripAndRejection)
 TEST(ExitPlacement, TakenFromTheMapsStatistics)
 {
   rdm::RdmMaps maps;
-  EXPECT_TRUE(model::axial_exit_of(maps).empty());
-  maps.stats.axial_exit_M_through = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6};
-  EXPECT_EQ(model::axial_exit_of(maps), std::vector<float>({0.1f, 0.2f, 0.3f, 0.4f, 0.5f, 0.6f}));
+  EXPECT_TRUE(model::near_field_of(maps).empty());
+  maps.stats.axial_exit_through = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6};
+  maps.stats.axial_exit_reflected = {0.01, 0.02, 0.03, 0.04, 0.05, 0.06};
+  const model::NearField nf = model::near_field_of(maps);
+  EXPECT_EQ(nf.through, std::vector<float>({0.1f, 0.2f, 0.3f, 0.4f, 0.5f, 0.6f}));
+  EXPECT_EQ(nf.reflected, std::vector<float>({0.01f, 0.02f, 0.03f, 0.04f, 0.05f, 0.06f}));
 }

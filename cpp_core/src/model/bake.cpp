@@ -289,10 +289,13 @@ void select_m_candidate(YarnModel *model, const rdm::RdmMaps &maps, const TrainM
 }
 }  // namespace
 
-std::vector<float> axial_exit_of(const rdm::RdmMaps &maps)
+NearField near_field_of(const rdm::RdmMaps &maps)
 {
-  const std::vector<double> &q = maps.stats.axial_exit_M_through;
-  return q.size() == size_t(ny::kExitQuantiles) ? std::vector<float>(q.begin(), q.end()) : std::vector<float>();
+  auto quantiles = [](const std::vector<double> &q) {
+    return q.size() == size_t(ny::kExitQuantiles) ? std::vector<float>(q.begin(), q.end()) : std::vector<float>();
+  };
+  NearField nf{quantiles(maps.stats.axial_exit_through), quantiles(maps.stats.axial_exit_reflected)};
+  return nf.through.empty() ? NearField() : nf;
 }
 
 YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
@@ -332,7 +335,7 @@ YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)
   for (double &a : m.albedo_M) {
     a /= wsum;
   }
-  m.axial_exit_through = axial_exit_of(maps);
+  m.near_field = near_field_of(maps);
   /* The R lobe's shape (its energy is unchanged by it; it depends on R alone), then the energies. */
   const nlohmann::json r_scores = fit_r_lobe(&m, maps, o.r_free_path, o.r_surface_spread, stage("R shape"));
   report("calibration", 0.0);

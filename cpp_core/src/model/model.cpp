@@ -216,22 +216,32 @@ RShapeTable r_shape_from(const json &j, const std::vector<float> &flat, const st
   }
   return t;
 }
-/* A model file's "near_field": its quantiles, checked (kernel/exit_placement.h). */
-std::vector<float> axial_exit_from(const json &j, const std::string &where)
+/* A model file's "near_field": its quantiles, checked (kernel/exit_placement.h); 'axial_exit_through' is required,
+ * 'axial_exit_reflected' (added since) optional. */
+NearField near_field_from(const json &j, const std::string &where)
 {
-  if (!j.is_object() || !j.contains("axial_exit_through") || !j["axial_exit_through"].is_array()) {
+  if (!j.is_object() || !j.contains("axial_exit_through")) {
     throw ModelError(where + "must be an object with an array 'axial_exit_through'");
   }
-  std::vector<float> q;
-  for (const json &v : j["axial_exit_through"]) {
-    q.push_back(v.is_number() ? v.get<float>() : std::numeric_limits<float>::quiet_NaN());
+  NearField nf;
+  for (const char *key : {"axial_exit_through", "axial_exit_reflected"}) {
+    if (!j.contains(key)) {
+      continue;
+    }
+    if (!j[key].is_array()) {
+      throw ModelError(where + "'" + key + "' must be an array");
+    }
+    std::vector<float> q;
+    for (const json &v : j[key]) {
+      q.push_back(v.is_number() ? v.get<float>() : std::numeric_limits<float>::quiet_NaN());
+    }
+    if (const char *problem = ny::exit_quantiles_check(q.data(), int(q.size()))) {
+      throw ModelError(where + "'" + key + "' " + problem);
+    }
+    (std::string(key) == "axial_exit_through" ? nf.through : nf.reflected) = q;
   }
-  if (const char *problem = ny::exit_quantiles_check(q.data(), int(q.size()))) {
-    throw ModelError(where + "'axial_exit_through' " + problem);
-  }
-  return q;
+  return nf;
 }
-
 }  // namespace
 
 void check_network(const NetworkRecord &net, const char *name, int inputs, int outputs, ny::MlpHead head)
@@ -287,16 +297,21 @@ std::vector<float> YarnModel::kernel_flat() const
   return f;
 }
 
-json near_field_to_json(const std::vector<float> &axial_exit_through)
+json near_field_to_json(const NearField &near_field)
 {
   std::vector<double> levels; /* the kernel's float levels, as the percentages they are */
   for (int k = 1; k <= ny::kExitQuantiles; k++) {
     levels.push_back(std::round(1000.0 * double(ny::exit_knot_level(k))) / 1000.0);
   }
-  return {{"axial_exit_through", axial_exit_through},
-          {"levels", levels},
-          {"about", "energy-weighted quantiles of how far along the ply (ply radii) the light that M sends through "
-                    "it leaves from where it entered (the gather's walks; docs/decisions.md D68)"}};
+  json j = {{"axial_exit_through", near_field.through},
+            {"levels", levels},
+            {"about", "energy-weighted quantiles of how far along the ply (ply radii) scattered light leaves from "
+                      "where a ray from its entry point would: through the far side, and on the side it entered "
+                      "(the gather's walks; docs/decisions.md D68)"}};
+  if (!near_field.reflected.empty()) {
+    j["axial_exit_reflected"] = near_field.reflected;
+  }
+  return j;
 }
 
 json model_to_json(const YarnModel &m)
@@ -338,8 +353,8 @@ json model_to_json(const YarnModel &m)
                              {"layout", "per R node: cos, sin of P, of a, of M (w -> M R_x(a) P w, kernel/yarn_bsdf.h)"},
                              {"frames", frames}};
   }
-  if (!m.axial_exit_through.empty()) {
-    j["near_field"] = near_field_to_json(m.axial_exit_through);
+  if (!m.near_field.through.empty()) {
+    j["near_field"] = near_field_to_json(m.near_field);
   }
   /* What a renderer uploads, ready to use (kernel/yarn_bsdf.h): the calibration table's values are only
    * here; the loader checks that the rest agrees with the parts above. */
@@ -489,7 +504,7 @@ YarnModel model_from_json(const json &j, const std::string &source)
     }
   }
   if (j.contains("near_field")) {
-    m.axial_exit_through = axial_exit_from(j["near_field"], where + "near_field: ");
+    m.near_field = near_field_from(j["near_field"], where + "near_field: ");
   }
   m.provenance = j.value("provenance", json::object());
   m.fidelity = j.value("fidelity", json::object());

@@ -89,7 +89,7 @@ struct LocalStats {
   std::vector<MapRecord> records;
   std::vector<uint64_t> events;
   std::vector<uint64_t> displacement, displacement_M;
-  std::vector<uint64_t> axial_M[2]; /* exit energy (fixed point) per |axial offset| bin: [0] reflected, [1] through */
+  std::vector<uint64_t> axial[2]; /* exit energy (fixed point) per |axial offset| bin: [0] entry side, [1] far side */
   uint64_t energy[3][3] = {}; /* [T/R/M][rgb] fixed */
   uint64_t absorbed[3] = {}, lost[3] = {};
   double balance[3] = {}, balance_sq[3] = {}; /* per chunk in double: summed in chunk order below */
@@ -100,7 +100,7 @@ struct LocalStats {
 
 struct SharedStats {
   std::vector<uint64_t> events, displacement, displacement_M;
-  std::vector<uint64_t> axial_M[2];
+  std::vector<uint64_t> axial[2];
   uint64_t energy[3][3] = {}, absorbed[3] = {}, lost[3] = {};
   std::vector<double> balance, balance_sq; /* [chunk][rgb]: combined in chunk order, so deterministic */
   uint64_t paths[3] = {}, terminated = 0, truncated = 0, events_total = 0, slab_crossings = 0,
@@ -120,8 +120,8 @@ void merge(SharedStats &s, const LocalStats &l, uint64_t chunk)
   for (size_t i = 0; i < l.displacement.size(); i++) {
     atomic_add(&s.displacement[i], l.displacement[i]);
     atomic_add(&s.displacement_M[i], l.displacement_M[i]);
-    atomic_add(&s.axial_M[0][i], l.axial_M[0][i]);
-    atomic_add(&s.axial_M[1][i], l.axial_M[1][i]);
+    atomic_add(&s.axial[0][i], l.axial[0][i]);
+    atomic_add(&s.axial[1][i], l.axial[1][i]);
   }
   for (int k = 0; k < 3; k++) {
     for (int c = 0; c < 3; c++) {
@@ -390,11 +390,11 @@ void score(const Medium &tracer, const GatherOptions &opt, const Entry &e, const
     ls.displacement_M[dbin]++;
     ls.disp_sum_M += disp_fx;
     ls.disp_count_M++;
-    const double axial = std::abs(axial_exit_offset(p_w, d_w, e.point, double(tracer.bound_radius()))) /
-                         double(envelope_radius(tracer));
-    const size_t abin = size_t(std::min(axial / kDisplacementBin, double(kDisplacementBins - 1)));
-    ls.axial_M[wo.z < 0.0f ? 1 : 0][abin] += to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f));
   }
+  const double axial = std::abs(axial_exit_offset(p_w, d_w, e.point, double(tracer.bound_radius()))) /
+                       double(envelope_radius(tracer));
+  const size_t abin = size_t(std::min(axial / kDisplacementBin, double(kDisplacementBins - 1)));
+  ls.axial[wo.z < 0.0f ? 1 : 0][abin] += to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f));
   int to, po;
   outgoing_bin(b, wo.x, wo.y, wo.z, &to, &po);
   const size_t idx = (in_bin * b.outgoing() + size_t(to) * size_t(b.phi_o) + size_t(po)) * 3;
@@ -696,8 +696,8 @@ double accumulate(const FiberPreset &preset, const GatherOptions &opt, const Geo
   shared.events.assign(kEventBins, 0);
   shared.displacement.assign(kDisplacementBins, 0);
   shared.displacement_M.assign(kDisplacementBins, 0);
-  shared.axial_M[0].assign(kDisplacementBins, 0);
-  shared.axial_M[1].assign(kDisplacementBins, 0);
+  shared.axial[0].assign(kDisplacementBins, 0);
+  shared.axial[1].assign(kDisplacementBins, 0);
 
   const uint64_t n_chunks = (opt.paths + kChunk - 1) / kChunk;
   std::atomic<uint64_t> done{0};
@@ -709,8 +709,8 @@ double accumulate(const FiberPreset &preset, const GatherOptions &opt, const Geo
       ls.events.assign(kEventBins, 0);
       ls.displacement.assign(kDisplacementBins, 0);
       ls.displacement_M.assign(kDisplacementBins, 0);
-      ls.axial_M[0].assign(kDisplacementBins, 0);
-      ls.axial_M[1].assign(kDisplacementBins, 0);
+      ls.axial[0].assign(kDisplacementBins, 0);
+      ls.axial[1].assign(kDisplacementBins, 0);
       const uint64_t k0 = chunk * kChunk, k1 = std::min(opt.paths, k0 + kChunk);
       ls.records.reserve(k1 - k0);
       for (uint64_t k = k0; k < k1; k++) {
@@ -899,12 +899,8 @@ void summarize(const SharedStats &shared, const GatherOptions &opt, GatherStats 
   st.mean_displacement_M = shared.disp_count_M ? double(shared.disp_sum_M) * 1e-6 / double(shared.disp_count_M) : 0.0;
   st.p95_displacement = percentile(shared.displacement, 0.95, kDisplacementBin);
   st.p95_displacement_M = percentile(shared.displacement_M, 0.95, kDisplacementBin);
-  std::vector<uint64_t> all(kDisplacementBins);
-  for (size_t i = 0; i < all.size(); i++) {
-    all[i] = shared.axial_M[0][i] + shared.axial_M[1][i];
-  }
-  axial_summary(all, st.axial_exit_M, st.mean_axial_exit_M);
-  axial_summary(shared.axial_M[1], st.axial_exit_M_through, st.mean_axial_exit_M_through);
+  axial_summary(shared.axial[0], st.axial_exit_reflected, st.mean_axial_exit_reflected);
+  axial_summary(shared.axial[1], st.axial_exit_through, st.mean_axial_exit_through);
 }
 
 RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &opt,

@@ -111,10 +111,10 @@ json stats_json(const GatherStats &s)
   j["p95_displacement_R"] = s.p95_displacement;
   j["mean_displacement_M_R"] = s.mean_displacement_M;
   j["p95_displacement_M_R"] = s.p95_displacement_M;
-  j["axial_exit_M_R"] = s.axial_exit_M;
-  j["axial_exit_M_through_R"] = s.axial_exit_M_through;
-  j["mean_axial_exit_M_R"] = s.mean_axial_exit_M;
-  j["mean_axial_exit_M_through_R"] = s.mean_axial_exit_M_through;
+  j["axial_exit_reflected_R"] = s.axial_exit_reflected;
+  j["axial_exit_through_R"] = s.axial_exit_through;
+  j["mean_axial_exit_reflected_R"] = s.mean_axial_exit_reflected;
+  j["mean_axial_exit_through_R"] = s.mean_axial_exit_through;
   /* The path-length distribution, trimmed after its last non-empty bin. */
   size_t last = 0;
   for (size_t i = 0; i < s.events_histogram.size(); i++) {
@@ -301,11 +301,11 @@ void read_summary(const json &s, GatherStats &st)
   st.mean_displacement_M = s.at("mean_displacement_M_R").get<double>();
   st.p95_displacement_M = s.at("p95_displacement_M_R").get<double>();
   /* Measured since D68: older files have none. */
-  if (s.contains("axial_exit_M_R")) {
-    st.axial_exit_M = s.at("axial_exit_M_R").get<std::vector<double>>();
-    st.axial_exit_M_through = s.at("axial_exit_M_through_R").get<std::vector<double>>();
-    st.mean_axial_exit_M = s.at("mean_axial_exit_M_R").get<double>();
-    st.mean_axial_exit_M_through = s.at("mean_axial_exit_M_through_R").get<double>();
+  if (s.contains("axial_exit_through_R")) {
+    st.axial_exit_reflected = s.at("axial_exit_reflected_R").get<std::vector<double>>();
+    st.axial_exit_through = s.at("axial_exit_through_R").get<std::vector<double>>();
+    st.mean_axial_exit_reflected = s.at("mean_axial_exit_reflected_R").get<double>();
+    st.mean_axial_exit_through = s.at("mean_axial_exit_through_R").get<double>();
   }
 }
 

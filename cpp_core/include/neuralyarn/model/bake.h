@@ -73,9 +73,9 @@ NetworkRecord train_one(const char *name, const rdm::RdmMaps &maps, const Networ
  * every candidate, so it does not reorder them). Lower is better. */
 double candidate_score(const LobeComparison &m_lobe);
 
-/* A model's near field (YarnModel::axial_exit_through, decisions D68) from the maps' gather statistics; empty
- * for maps written before those were measured. */
-std::vector<float> axial_exit_of(const rdm::RdmMaps &maps);
+/* A model's near field (YarnModel::near_field, decisions D68) from the maps' gather statistics; empty for maps
+ * written before those were measured. */
+NearField near_field_of(const rdm::RdmMaps &maps);
 
 /* The whole model from maps. */
 YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &options);

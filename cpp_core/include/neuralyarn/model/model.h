@@ -68,6 +68,18 @@ struct RShapeTable {
   int stride() const { return azimuth_bins + 3; }
 };
 
+/* How far along the ply scattered light travels before it leaves (decisions D68, kernel/exit_placement.h): the
+ * gather's quantiles of the exit's axial offset (rdm::GatherStats::axial_exit_through, axial_exit_reflected), ply
+ * radii, for the light that leaves through the far side and for the light that leaves on the side it entered. A
+ * renderer moves the origin of such a path by an offset drawn from them. Not in the kernel array (the fallback
+ * tables name that array): the model file's "near_field". Empty: those paths leave from the hit point, as models
+ * before it rendered. */
+struct NearField {
+  std::vector<float> through, reflected;
+  bool empty() const { return through.empty() && reflected.empty(); }
+  bool operator==(const NearField &o) const { return through == o.through && reflected == o.reflected; }
+};
+
 struct YarnModel {
   FiberPreset preset;
   geometry::YarnStructure structure; /* the level: one ply of the preset, or a K-ply yarn of it */
@@ -84,12 +96,7 @@ struct YarnModel {
   double r_surface_spread = 0.0;
   std::vector<float> r_frames;
   std::array<double, 3> albedo_M{}; /* M albedo averaged over w_i on the hemisphere */
-  /* How far along the ply the light that M sends through it travels (decisions D68, kernel/exit_placement.h):
-   * the gather's quantiles of the exit's axial offset (rdm::GatherStats::axial_exit_M_through), ply radii. A
-   * renderer moves the origin of such a path by an offset drawn from them. Not in the kernel array (the fallback
-   * tables name that array): the model file's "near_field". Empty: paths leave from the hit point, as models
-   * before it rendered. */
-  std::vector<float> axial_exit_through;
+  NearField near_field;
   nlohmann::json provenance = nlohmann::json::object(); /* maps, seeds, code version, dates */
   nlohmann::json fidelity = nlohmann::json::object();   /* the numbers of `neuralyarn check`, if run */
   /* View-dependent tables for the stock-Blender fallbacks (model/fallback.h); optional. They describe
@@ -112,8 +119,8 @@ inline bool is_m_output_width(int outputs) { return outputs == 3 || outputs == 6
 inline bool is_r_output_width(int outputs) { return outputs == 1 || outputs == 3; }
 
 nlohmann::json model_to_json(const YarnModel &model);
-/* A model file's "near_field" object (YarnModel::axial_exit_through, with its levels). */
-nlohmann::json near_field_to_json(const std::vector<float> &axial_exit_through);
+/* A model file's "near_field" object (YarnModel::near_field, with its levels). */
+nlohmann::json near_field_to_json(const NearField &near_field);
 /* Validates everything (format, version, preset, network shapes, sizes, finiteness, proxy ranges);
  * throws ModelError whose message starts with `source` and names the problem. */
 YarnModel model_from_json(const nlohmann::json &j, const std::string &source);

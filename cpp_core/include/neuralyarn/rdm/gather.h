@@ -86,13 +86,15 @@ struct GatherStats {
   /* Distance between entry and exit point in ply radii, over paths that scattered and left: */
   double mean_displacement = 0.0, p95_displacement = 0.0;
   double mean_displacement_M = 0.0, p95_displacement_M = 0.0;
-  /* How far along the ply (yarn) axis M's light travels inside: |x_exit - x_entry| in ply radii, weighted by the
-   * exit energy (mean of RGB), at the levels ny::exit_knot_level(1 .. ny::kExitQuantiles), over all M exits and over those that left through
-   * the far side (w_o.z < 0 in the entry frame); with their means. A far-field BSDF puts every exit at its entry
-   * point, so light that enters a lit part of a ply and leaves in a shadowed part is what it cannot render
-   * (decisions D68; kernel/exit_placement.h). Empty for maps written before these were measured. */
-  std::vector<double> axial_exit_M, axial_exit_M_through;
-  double mean_axial_exit_M = 0.0, mean_axial_exit_M_through = 0.0;
+  /* How far along the ply (yarn) axis scattered light travels inside before it leaves: the offset of its exit along
+   * the axis (ply radii) from where a ray from the entry point along the exit direction would leave, weighted by the
+   * exit energy (mean of RGB), at the levels ny::exit_knot_level(1 .. ny::kExitQuantiles): over the exits on the
+   * entry side (R and M, w_o.z > 0 in the entry frame) and over those through the far side; with their means. A
+   * far-field BSDF puts every exit at its entry point, so light that enters a lit part of a ply and leaves in a
+   * shadowed part is what it cannot render (decisions D68; kernel/exit_placement.h). Empty for maps written before
+   * these were measured. */
+  std::vector<double> axial_exit_reflected, axial_exit_through;
+  double mean_axial_exit_reflected = 0.0, mean_axial_exit_through = 0.0;
   double paths_per_second() const { return seconds > 0.0 ? double(paths) / seconds : 0.0; }
 };
 
