@@ -23,7 +23,6 @@ import sys
 import numpy as np
 
 import evaluate as ev
-from images import LUMINANCE, read_exr
 
 ROTATIONS = (0, 90, 180, 270)
 
@@ -31,13 +30,10 @@ ROTATIONS = (0, 90, 180, 270)
 def render(a, args: list[str], name: str, spp: int) -> np.ndarray:
     """Writes the scene and renders it with the patched Cycles (the harness's render: its errors, its progress line
     on stderr; the table goes to stdout)."""
-    xml, exr = os.path.join(a.out, name + ".xml"), os.path.join(a.out, name + ".exr")
-    ev.cycles_scene([*args, "--out", xml])
     try:
-        ev.render(a, xml, spp, exr, f"{name}, {spp} spp")
+        return ev.render_image(a, args, os.path.join(a.out, name), spp)
     except ev.RenderFailed as e:
         raise SystemExit(f"bench_layer_pitch: {name}: {e}")
-    return read_exr(exr)[..., :3]
 
 
 def errors(img: np.ndarray, ref: np.ndarray) -> dict:

@@ -17,15 +17,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 
 import numpy as np
 
 import evaluate as ev
-from garment import straight_yarn_plies
-from images import LUMINANCE, read_exr
+from garment import crossed_plies, straight_yarn_plies
+from images import LUMINANCE
 
 ROTATIONS = (0, 90, 180, 270)
 WIDTH, HEIGHT = 160, 80
@@ -37,13 +36,7 @@ YARN_LENGTH = 48.7  # ply radii: the harness's yarn close-up at its default came
 def plies(scene: str) -> dict:
     """The scene's plies file content."""
     if scene == "crossed":
-        t = np.linspace(-0.5 * YARN_LENGTH, 0.5 * YARN_LENGTH, 400)
-        out = []
-        for k, a in enumerate((0.0, 84.0)):
-            c, s = math.cos(math.radians(a)), math.sin(math.radians(a))
-            out.append(np.stack([t * c, t * s, np.full_like(t, 2.0 * k)], axis=1))
-        return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": YARN_LENGTH,
-                "plies": [[round(float(v), 5) for v in p.ravel()] for p in out]}
+        return crossed_plies([0.0, 84.0], YARN_LENGTH)
     d = straight_yarn_plies(YARN_LENGTH)
     if scene == "lone":
         d["plies"] = d["plies"][:1]
@@ -54,13 +47,10 @@ def plies(scene: str) -> dict:
 
 
 def render(a, args: list[str], name: str, spp: int) -> np.ndarray:
-    xml, exr = os.path.join(a.out, name + ".xml"), os.path.join(a.out, name + ".exr")
-    ev.cycles_scene([*args, "--out", xml])
     try:
-        ev.render(a, xml, spp, exr, f"{name}, {spp} spp")
+        return ev.render_image(a, args, os.path.join(a.out, name), spp)
     except ev.RenderFailed as e:
         raise SystemExit(f"bench_near_field: {name}: {e}")
-    return read_exr(exr)[..., :3]
 
 
 def error(img: np.ndarray, ref: np.ndarray, region=(slice(None), slice(None))) -> dict:

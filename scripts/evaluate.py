@@ -515,6 +515,14 @@ def written(scene: str) -> dict:
     return WRITTEN[scene]
 
 
+def render_image(a, scene_args: list[str], stem: str, spp: int) -> np.ndarray:
+    """`neuralyarn cycles-scene SCENE_ARGS` written to STEM.xml, rendered by the patched Cycles to STEM.exr (render():
+    its progress line, its errors as RenderFailed): the image's RGB."""
+    cycles_scene([*scene_args, "--out", stem + ".xml"])
+    render(a, stem + ".xml", spp, stem + ".exr", f"{os.path.basename(stem)}, {spp} spp")
+    return read_exr(stem + ".exr")[..., :3]
+
+
 def empty_scene(a, ext: str = "xml") -> str:
     """Camera and a black background only: the renderer's own memory (baseline_rss_mb); `ext` json for Blender."""
     path = os.path.join(a.out, "scenes", f"empty.{ext}")

@@ -135,6 +135,19 @@ def straight_yarn_plies(length: float) -> dict:
             **_yarns([[round(float(v), 5) for v in axis[[0, -1]].ravel()]])}
 
 
+def crossed_plies(angles: list[float], length: float) -> dict:
+    """Straight plies `length` ply radii long through the view's axis (ply radius 1), the first at depth 0, each next
+    one diameter further (touching the one before), turned by `angles` degrees in the image plane: a ply in another's
+    shadow (decisions D68; tests/cycles/near_field.py, scripts/bench_near_field.py)."""
+    t = np.linspace(-0.5 * length, 0.5 * length, 400)
+    plies = []
+    for k, a in enumerate(angles):
+        c, s = math.cos(math.radians(a)), math.sin(math.radians(a))
+        p = np.stack([t * c, t * s, np.full_like(t, 2.0 * k)], axis=1)
+        plies.append([round(float(v), 5) for v in p.ravel()])
+    return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": length, "plies": plies}
+
+
 #: The patches' yarns (yarn radius 0.5 in Crane's units): examples/make_examples.py's and the harness's scenes
 #: `knit` and `twill`.
 PATCHES = {"knit": lambda: geometry.plain_knit(4, 4, samples_per_loop=48),

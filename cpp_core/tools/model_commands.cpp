@@ -729,17 +729,8 @@ class Commands : public ModelCommands {
   {
     /* Only "near_field" changes: the rest of the file stays as written (its kernel array, which the fallback
      * tables name, included). */
-    const std::string source = "model file '" + model_ + "'";
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(read_file(model_));
-    }
-    catch (const nlohmann::json::exception &e) {
-      throw model::ModelError(source + ": not valid JSON (" + std::string(e.what()) + ")");
-    }
-    catch (const std::runtime_error &e) {
-      throw model::ModelError(source + ": " + e.what());
-    }
+    const std::string source = model::model_source(model_);
+    nlohmann::json j = model::read_model_json(model_);
     const model::YarnModel m = model::model_from_json(j, source);
     const rdm::RdmMaps maps = rdm::load_maps(maps_);
     require_same_preset(m, maps);
@@ -775,17 +766,8 @@ class Commands : public ModelCommands {
   {
     /* The model without its current tables: they are what this verb replaces, and stale or corrupt ones
      * (which load_model rejects) must not stop it. */
-    const std::string source = "model file '" + model_ + "'";
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(read_file(model_));
-    }
-    catch (const nlohmann::json::exception &e) {
-      throw model::ModelError(source + ": not valid JSON (" + std::string(e.what()) + ")");
-    }
-    catch (const std::runtime_error &e) {
-      throw model::ModelError(source + ": " + e.what());
-    }
+    const std::string source = model::model_source(model_);
+    nlohmann::json j = model::read_model_json(model_);
     if (j.is_object()) {
       j.erase("fallback");
     }

@@ -158,6 +158,27 @@ RendererWalk walk_embree(const rdm::EmbreePly &geo, const Entry &e, float Rb, fl
   }
   return w;
 }
+
+/* A preset's ply as a renderer's walk meets it (walk_embree): both mirror images as Embree curves (256 segments
+ * per turn, 2 kLen long), alternating from walk to walk, with the tracer's envelope and the preset's lobe sampler. */
+struct RendererPly {
+  static constexpr double kLen = 40.0;
+  explicit RendererPly(const FiberPreset &preset)
+      : ply(make_ply(preset)), mirror(ply.params(), geometry::mirrored(ply.cross_section())), a(ply, -kLen, kLen, 256),
+        b(mirror, -kLen, kLen, 256), tracer(ply), Rb(tracer.bound_radius()), r(tracer.fiber_radius()),
+        sampler(preset.fiber_params())
+  {
+  }
+  RendererWalk walk(int k, const Entry &e, std::mt19937_64 &rng) const
+  {
+    return walk_embree((k & 1) ? b : a, e, Rb, r, kLen, sampler, rng);
+  }
+  geometry::Ply ply, mirror;
+  rdm::EmbreePly a, b;
+  rdm::PlyTracer tracer;
+  float Rb, r;
+  rdm::FiberLobeSampler sampler;
+};
 }  // namespace
 
 /* ------------------------------------------------------------------------------------------------ */
@@ -615,13 +636,7 @@ TEST(Gather, HemisphereEnergiesMatchARendererWalkThroughEmbreeCurves)
   const FiberPreset &preset = find_preset("cotton");
   const int n_walks = 200000;
   const rdm::RdmMaps maps = rdm::gather(preset, small_options(uint64_t(2 * 2) * n_walks, bins, false, true));
-  const geometry::Ply ply = make_ply(preset);
-  const double len = 40.0;
-  const geometry::Ply ply_mirror(ply.params(), geometry::mirrored(ply.cross_section()));
-  const rdm::EmbreePly ply_a(ply, -len, len, 256), ply_b(ply_mirror, -len, len, 256);
-  const rdm::PlyTracer tracer(ply);
-  const float Rb = tracer.bound_radius(), r = tracer.fiber_radius();
-  const rdm::FiberLobeSampler sampler(preset.fiber_params());
+  const RendererPly ply(preset);
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> U(0.0, 1.0);
   ZTest zt;
@@ -633,7 +648,7 @@ TEST(Gather, HemisphereEnergiesMatchARendererWalkThroughEmbreeCurves)
       for (int k = 0; k < n_walks; k++) {
         const Entry e = draw_entry(bins, ti, pi, [&] { return U(rng); });
         const ny::Vec3 ex = ny::make_vec3(1.0f, 0.0f, 0.0f);
-        const RendererWalk w = walk_embree((k & 1) ? ply_b : ply_a, e, Rb, r, len, sampler, rng);
+        const RendererWalk w = ply.walk(k, e, rng);
         lost += w.lost;
         if (!w.alive || w.events == 0) {
           continue; /* absorbed, or T (not in the R and M maps) */
@@ -678,19 +693,13 @@ TEST(Gather, AxialExitOffsetMatchesARendererWalk)
   const rdm::MapResolution bins{1, 2, 2, 2};
   const FiberPreset &preset = find_preset("fleece");
   const rdm::RdmMaps maps = rdm::gather(preset, small_options(400000, bins, false, false));
-  const geometry::Ply ply = make_ply(preset);
-  const double len = 40.0;
-  const geometry::Ply ply_mirror(ply.params(), geometry::mirrored(ply.cross_section()));
-  const rdm::EmbreePly ply_a(ply, -len, len, 256), ply_b(ply_mirror, -len, len, 256);
-  const rdm::PlyTracer tracer(ply);
-  const float Rb = tracer.bound_radius(), r = tracer.fiber_radius();
-  const rdm::FiberLobeSampler sampler(preset.fiber_params());
+  const RendererPly ply(preset);
   std::mt19937_64 rng(23);
   std::uniform_real_distribution<double> U(0.0, 1.0);
-  /* x where the line through o along d leaves the cylinder of radius Rb (in double, as a renderer's ray would). */
+  /* x where the line through o along d leaves the cylinder of radius ply.Rb (in double, as a renderer's ray would). */
   auto crossing_x = [&](ny::Vec3 o, ny::Vec3 d) {
     const double a2 = double(d.y) * d.y + double(d.z) * d.z, b = double(o.y) * d.y + double(o.z) * d.z;
-    const double c = double(o.y) * o.y + double(o.z) * o.z - double(Rb) * Rb;
+    const double c = double(o.y) * o.y + double(o.z) * o.z - double(ply.Rb) * ply.Rb;
     return a2 > 0.0 ? double(o.x) + std::max(0.0, (-b + std::sqrt(std::max(b * b - a2 * c, 0.0))) / a2) * d.x
                     : double(o.x);
   };
@@ -700,13 +709,13 @@ TEST(Gather, AxialExitOffsetMatchesARendererWalk)
   const int n_walks = 60000;
   for (int k = 0; k < n_walks; k++) {
     const Entry e = draw_entry(bins, 0, (k >> 1) & 1, [&] { return U(rng); });
-    const RendererWalk w = walk_embree((k & 1) ? ply_b : ply_a, e, Rb, r, len, sampler, rng);
+    const RendererWalk w = ply.walk(k, e, rng);
     lost += w.lost;
     const bool through = ny::dot(w.d, e.n) < 0.0f;
     if (!w.alive || w.events == 0) {
       continue; /* absorbed or T */
     }
-    const double s = std::abs(crossing_x(w.o, w.d) - crossing_x(e.n * Rb, w.d)) / double(tracer.ply_radius());
+    const double s = std::abs(crossing_x(w.o, w.d) - crossing_x(e.n * ply.Rb, w.d)) / double(ply.tracer.ply_radius());
     const double wt = (double(w.beta.r) + w.beta.g + w.beta.b) / 3.0;
     const double add[6] = {wt, wt * s, wt * s * s, wt * wt * s * s, wt * wt * s, wt * wt};
     for (int i = 0; i < 6; i++) {

@@ -13,7 +13,6 @@ Exits 1 with the reason otherwise."""
 from __future__ import annotations
 
 import json
-import math
 import os
 import sys
 import types
@@ -23,6 +22,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 import numpy as np  # noqa: E402
 
 import evaluate as ev  # noqa: E402
+from garment import crossed_plies  # noqa: E402
 from images import LUMINANCE, read_exr  # noqa: E402
 
 WIDTH, HEIGHT, SPP = 160, 80, 64
@@ -34,16 +34,9 @@ MIN_GAIN = 4.0
 
 
 def plies_file(path: str, angles: list[float]) -> str:
-    """Straight plies 48.7 ply radii long through the view's axis, the first at depth 0, each next 2 radii (one
-    diameter: touching) further, turned by `angles` degrees in the image plane."""
-    t = np.linspace(-24.35, 24.35, 400)
-    plies = []
-    for k, a in enumerate(angles):
-        c, s = math.cos(math.radians(a)), math.sin(math.radians(a))
-        p = np.stack([t * c, t * s, np.full_like(t, 2.0 * k)], axis=1)
-        plies.append([round(float(v), 5) for v in p.ravel()])
+    """Straight plies 48.7 ply radii long, each behind the one before and touching it (garment.crossed_plies)."""
     with open(path, "w") as f:
-        json.dump({"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": 48.7, "plies": plies}, f)
+        json.dump(crossed_plies(angles, 48.7), f)
     return path
 
 

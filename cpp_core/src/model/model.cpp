@@ -526,9 +526,11 @@ void save_model(const YarnModel &model, const std::string &path)
   }
 }
 
-YarnModel load_model(const std::string &path)
+std::string model_source(const std::string &path) { return "model file '" + path + "'"; }
+
+json read_model_json(const std::string &path)
 {
-  const std::string source = "model file '" + path + "'";
+  const std::string source = model_source(path);
   std::string text;
   try {
     text = read_file(path);
@@ -536,15 +538,15 @@ YarnModel load_model(const std::string &path)
   catch (const std::runtime_error &e) {
     throw ModelError(source + ": " + e.what());
   }
-  json j;
   try {
-    j = json::parse(text);
+    return json::parse(text);
   }
   catch (const json::exception &e) {
     throw ModelError(source + ": not valid JSON (" + std::string(e.what()) + ")");
   }
-  return model_from_json(j, source);
 }
+
+YarnModel load_model(const std::string &path) { return model_from_json(read_model_json(path), model_source(path)); }
 
 std::string builtin_model_path(const std::string &preset_name)
 {

@@ -1,15 +1,15 @@
 // SPDX-License-Identifier: Apache-2.0
 //
-// Where along the ply the light that an aggregated ply sends through itself leaves it (decisions D68).
+// Where along the ply the light scattered inside an aggregated ply leaves it (decisions D68).
 //
 // The aggregated BSDF is a far-field function: a renderer evaluates it at the hit point and continues the path
-// from there. Inside real fibers, light that goes through a ply also travels along it (cotton: half of it more
-// than a ply radius, a tenth more than six), so a part of a ply in another ply's shadow still glows with light
-// that entered where the ply is lit; a far-field BSDF leaves that part dark. The gather measures the offset
-// |x_exit - x_entry| along the axis of what leaves through the far side, energy-weighted, at the levels below
-// (rdm::GatherStats::axial_exit_M_through: the offset a renderer's ray from its hit point must be moved by to
-// leave where the walk did); a model carries those quantiles, and a renderer moves the origin of a path that a
-// neural yarn closure sends through its ply by an offset drawn from them, in ply radii along the curve.
+// from there. Inside real fibers, light also travels along the ply (cotton: half of what goes through more than a
+// ply radius, a tenth more than six), so a part of a ply in another ply's shadow still glows with light that
+// entered where the ply is lit; a far-field BSDF leaves that part dark. The gather measures, energy-weighted at
+// the levels below, how far along the axis the exits lie from where a renderer's ray from the entry point would
+// leave (rdm::GatherStats::axial_exit_through, axial_exit_reflected: through the far side, on the entry side); a
+// model carries those quantiles (model::NearField), and a renderer moves the origin of a path that leaves a neural
+// yarn closure's ply by an offset drawn from those of its side, in ply radii along the curve.
 //
 // The quantiles become knots of |offset| at the levels 0, the gather's six and 1 (the last extrapolated by
 // the step before it); between knots the inverse distribution is linear.

@@ -127,6 +127,10 @@ YarnModel model_from_json(const nlohmann::json &j, const std::string &source);
 
 void save_model(const YarnModel &model, const std::string &path);
 YarnModel load_model(const std::string &path);
+/* What load_model reads and how its messages name the file: the file's JSON, unchecked (ModelError if it cannot be
+ * read or parsed), for a verb that rewrites parts of a file as written; and "model file 'PATH'". */
+nlohmann::json read_model_json(const std::string &path);
+std::string model_source(const std::string &path);
 
 /* Shipped models: models/<name>.json under the source tree (NEURALYARN_MODELS_DIR overrides). Returns
  * the path; throws ModelError listing the search location if there is none. */
