@@ -38,7 +38,8 @@ with the scene's own model), and the baselines an artist would
 use instead, on the native method's geometry (`neuralyarn cycles-scene --list-baselines`: `chiang`, `huang`
 (Principled Hair), `sheen` (Principled BSDF)), each with the colour whose central-region mean under the
 uniform environment matches reference A's there (fitted per preset, DIR/baselines.json; decisions D23).
-Lights: the rigs of `neuralyarn cycles-scene --list-lights`.
+Lights: the rigs of `neuralyarn cycles-scene --list-lights`, or sun-DEG-normal / sun-DEG-axis (a distant light DEG
+degrees from the view, in the plane normal to the ply or toward its axis).
 
 Metrics against reference A (linear HDR images):
   mean_colour_error        per channel, mean colour / reference mean colour - 1, over the central region:
@@ -189,7 +190,8 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
     ap.add_argument("--methods", nargs="+",
                     help=f"methods ({', '.join(METHODS)}; default {', '.join(DEFAULT_METHODS)})")
     ap.add_argument("--presets", nargs="+", help=f"presets ({', '.join(PRESETS)}; default all)")
-    ap.add_argument("--lights", nargs="+", help=f"light rigs ({', '.join(rigs)}; default all)")
+    ap.add_argument("--lights", nargs="+", help=f"light rigs ({', '.join(rigs)}, or sun-DEG-normal / sun-DEG-axis: "
+                                                "a distant light DEG degrees from the view; default the rigs)")
     ap.add_argument("--yarn", action="append", default=[], metavar="NAME=PARAMS.json,MODEL.json",
                     help="a yarn beyond the presets: its fiber parameter file and model (repeatable; added to "
                          "--presets)")
@@ -222,6 +224,9 @@ def parse_args(argv: list[str], rigs: dict[str, str], baselines: list[str]) -> a
     a.methods = names(a.methods) or DEFAULT_METHODS
     a.presets = names(a.presets) or base["presets"]
     a.lights = names(a.lights) or base["lights"] or list(rigs)
+    for n in a.lights:
+        if n not in rigs and n.startswith("sun-"):
+            rigs.update(cli_table("--describe-light", n))  # sun-DEG-normal, sun-DEG-axis (one parser: the CLI's)
     a.yarns = {}
     for spec in a.yarn:
         name, _, files = spec.partition("=")
@@ -318,12 +323,12 @@ def run_cli(args: list[str]) -> str:
     return r.stdout
 
 
-def cli_table(flag: str) -> dict[str, str]:
-    """name -> description of `neuralyarn cycles-scene --list-lights` or `--list-baselines` (the one table of
-    each, cpp_core/src/scenes/cycles_xml.cpp)."""
-    r = subprocess.run([CLI, "cycles-scene", flag], capture_output=True, text=True)
+def cli_table(flag: str, *values: str) -> dict[str, str]:
+    """name -> description of `neuralyarn cycles-scene --list-lights`, `--list-baselines` (the one table of
+    each, cpp_core/src/scenes/ply_scene.cpp) or `--describe-light NAME` (a sun-DEG-normal / sun-DEG-axis)."""
+    r = subprocess.run([CLI, "cycles-scene", flag, *values], capture_output=True, text=True)
     if r.returncode != 0:
-        raise Usage(f"{CLI} cycles-scene {flag} failed: {r.stderr.strip()} (rebuild: scripts/setup.sh)")
+        raise Usage(f"neuralyarn cycles-scene {' '.join((flag, *values))} failed: {r.stderr.strip().splitlines()[0]}")
     table = {}
     for line in r.stdout.splitlines():
         name, _, desc = line.strip().partition(" ")

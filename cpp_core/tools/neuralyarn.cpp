@@ -427,6 +427,20 @@ struct SceneCommand {
           "Print the " + what + " (name, description; one a line) and exit");
     };
     list_flag("--list-lights", scenes::light_rigs(), "light rigs");
+    cmd->add_option_function<std::string>(
+        "--describe-light",
+        [](const std::string &name) {
+          scenes::LightRig rig;
+          try {
+            rig = scenes::find_light_rig(name);
+          }
+          catch (const std::runtime_error &e) {
+            throw CLI::ValidationError("--describe-light", e.what());
+          }
+          std::printf("%-12s %s\n", rig.name.c_str(), rig.description.c_str());
+          throw CLI::Success();
+        },
+        "Print one light rig (name, description), a listed one or sun-DEG-normal / sun-DEG-axis, and exit");
     cmd->add_option("--ply-rotation", opt.ply_rotation_deg,
                     "Explicit version: turn the fibers by this many degrees about the ply axis (another "
                     "orientation of the same cross-section; references average over several)")

@@ -103,6 +103,9 @@ def test_progress_and_cached_references(quick):
     (["--lights", "sun"], "evaluate: error: unknown light 'sun' (known: key-rim, environment, front, grazing, back, axis)"),
     (["--methods", "cycles-osl"], "evaluate: error: unknown method 'cycles-osl' (known: explicit, native, yarns, surface, osl, nodes, chiang, huang, sheen)"),
     (["--presets", "wool"], "evaluate: error: unknown preset 'wool' (known: fleece, silk, polyester, cotton, gabardine)"),
+    (["--lights", "grazing", "sun-190-axis"], "evaluate: error: neuralyarn cycles-scene --describe-light "
+     "sun-190-axis failed: --describe-light: unknown light rig 'sun-190-axis' (known: key-rim, environment, front, "
+     "grazing, back, axis, sun-DEG-normal, sun-DEG-axis with DEG in [0, 180])"),
 ])
 def test_unknown_name_exits_1_with_one_line(tmp_path, args, message):
     r = evaluate("--quick", *args, "--out", str(tmp_path / "never"))
