@@ -4,8 +4,9 @@ leaves it further along. Two touching cotton plies crossed at 84 degrees under t
 patched standalone Cycles with the shipped model and with the same model without its "near_field": where the
 front ply lies in the back ply's shadow, it must glow (the far field alone leaves it at 4 % of explicit fibers
 there; with the near field 84 %, docs/benchmarks.md "Light along the ply"). A lone ply must render pixel for
-pixel as without it (every ray that leaves a ply skips that ply's curve, so moving its origin along the ply
-changes nothing there), and no pixel may be non-finite or negative.
+pixel as without it (every ray that leaves a ply skips the piece of tube it starts on, cycles_patch 0006, and a
+straight ply has no other: moving the origin along it changes nothing), and no pixel may be non-finite or
+negative.
 
     .venv/bin/python tests/cycles/near_field.py OUT_DIR
 
