@@ -7,8 +7,9 @@ against explicit fibers, under one light, in scenes of several plies:
         [--preset cotton] [--light back] [--scenes crossed yarn yarn-1.3 yarn-2] [--spp 64] [--ref-spp 32]
 
 `crossed`: two straight plies crossed at 84 degrees, the back one touching the front one; `yarn`: the harness's
-yarn close-up (three plies twisted, touching); `yarn-S`: the same plies with their offsets from the yarn's axis
-times S (gaps between them); `lone`: one ply of the yarn alone. The reference is explicit fibers over four
+yarn close-up (three plies twisted, touching); `lone`: one ply of the yarn alone (`ply1`, `ply2`: the others);
+`yarn-S`, `lone-S`, `ply1-S`, `ply2-S`: the same with the plies' offsets from the yarn's axis times S (the sum of
+the three lone plies against the yarn: what the plies do to each other). The reference is explicit fibers over four
 orientations of the cross-section (--ref-spp each); its floor is one half of them against the other. Prints per
 scene the luminance error (R / G / B) over the whole frame and, for `crossed`, over the front ply where the back
 one shadows it; writes OUT/bench_near_field.json. A benchmark: prints, never a test.
@@ -38,11 +39,13 @@ def plies(scene: str) -> dict:
     if scene == "crossed":
         return crossed_plies([0.0, 84.0], YARN_LENGTH)
     d = straight_yarn_plies(YARN_LENGTH)
-    if scene == "lone":
+    name, _, spread = scene.partition("-")
+    if spread:
+        d["plies"] = [[round(v * (float(spread) if i % 3 else 1.0), 5) for i, v in enumerate(p)] for p in d["plies"]]
+    if name == "lone":
         d["plies"] = d["plies"][:1]
-    elif scene.startswith("yarn-"):
-        spread = float(scene.split("-", 1)[1])
-        d["plies"] = [[round(v * (spread if i % 3 else 1.0), 5) for i, v in enumerate(p)] for p in d["plies"]]
+    elif name.startswith("ply"):
+        d["plies"] = [d["plies"][int(name[3:])]]
     return d
 
 
@@ -75,8 +78,11 @@ def main() -> int:
     a = ap.parse_args()
     a.width, a.height = WIDTH, HEIGHT
     for s in a.scenes:
-        if s not in ("crossed", "yarn", "lone") and not (s.startswith("yarn-") and s[5:].replace(".", "", 1).isdigit()):
-            print(f"bench_near_field: unknown scene '{s}' (crossed, yarn, lone, yarn-S)", file=sys.stderr)
+        name, _, spread = s.partition("-")
+        if not (s == "crossed" or (name in ("yarn", "lone", "ply1", "ply2") and
+                                   (not spread or spread.replace(".", "", 1).isdigit()))):
+            print(f"bench_near_field: unknown scene '{s}' (crossed, yarn, lone, ply1, ply2, each with -S but crossed)",
+                  file=sys.stderr)
             return 1
     os.makedirs(a.out, exist_ok=True)
     shipped = os.path.join(ev.MODELS, f"{a.preset}.json")
