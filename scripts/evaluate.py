@@ -520,11 +520,11 @@ def written(scene: str) -> dict:
     return WRITTEN[scene]
 
 
-def render_image(a, scene_args: list[str], stem: str, spp: int) -> np.ndarray:
+def render_image(a, scene_args: list[str], stem: str, spp: int, finite: bool = True) -> np.ndarray:
     """`neuralyarn cycles-scene SCENE_ARGS` written to STEM.xml, rendered by the patched Cycles to STEM.exr (render():
-    its progress line, its errors as RenderFailed): the image's RGB."""
+    its progress line, its errors as RenderFailed, with `finite` non-finite pixels among them): the image's RGB."""
     cycles_scene([*scene_args, "--out", stem + ".xml"])
-    render(a, stem + ".xml", spp, stem + ".exr", f"{os.path.basename(stem)}, {spp} spp")
+    render(a, stem + ".xml", spp, stem + ".exr", f"{os.path.basename(stem)}, {spp} spp", finite=finite)
     return read_exr(stem + ".exr")[..., :3]
 
 

@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 
 import evaluate as ev  # noqa: E402
 from garment import crossed_plies  # noqa: E402
-from images import LUMINANCE, read_exr  # noqa: E402
+from images import LUMINANCE  # noqa: E402
 
 WIDTH, HEIGHT, SPP = 160, 80, 64
 #: The front ply over the back one at the camera's 12 ply radii (rows, columns of the 160 x 80 frame).
@@ -56,12 +56,9 @@ def main(out: str) -> int:
     for scene, angles in (("crossed", [0.0, 84.0]), ("lone", [0.0])):
         plies = plies_file(os.path.join(out, f"{scene}.json"), angles)
         for name, path in (("near", shipped), ("far", far)):
-            xml = os.path.join(out, f"{scene}_{name}.xml")
-            ev.cycles_scene(["--preset", "cotton", "--model", path, "--plies", plies, "--lights", "back",
-                             "--width", str(WIDTH), "--height", str(HEIGHT), "--seed", "1", "--out", xml])
-            exr = os.path.join(out, f"{scene}_{name}.exr")
-            ev.render(a, xml, SPP, exr, f"{scene}, {name} field", finite=False)
-            images[scene, name] = read_exr(exr)[..., :3]
+            images[scene, name] = ev.render_image(
+                a, ["--preset", "cotton", "--model", path, "--plies", plies, "--lights", "back", "--width", str(WIDTH),
+                    "--height", str(HEIGHT), "--seed", "1"], os.path.join(out, f"{scene}_{name}"), SPP, finite=False)
     for key, img in images.items():
         if not np.isfinite(img).all() or (img < 0).any():
             print(f"near_field: non-finite or negative pixels in {key}", file=sys.stderr)

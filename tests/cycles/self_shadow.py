@@ -24,7 +24,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 import numpy as np  # noqa: E402
 
 import evaluate as ev  # noqa: E402
-from images import LUMINANCE, read_exr  # noqa: E402
+from images import LUMINANCE  # noqa: E402
 
 WIDTH, HEIGHT, SPP = 160, 80, 16
 LENGTH, GAP = 48.7, 2.2  # ply radii: the legs' length, their axes' distance (the back leg behind the front one)
@@ -63,14 +63,10 @@ def main(out: str) -> int:
     a = types.SimpleNamespace(width=WIDTH, height=HEIGHT, threads=2, timeout=600.0)
     lum = {}
     for i, (name, curves) in enumerate(scenes.items()):
-        xml = os.path.join(out, f"scene{i}.xml")
-        ev.cycles_scene(["--preset", "fleece", "--model", os.path.join(ev.MODELS, "fleece.json"),
-                         "--plies", plies_file(os.path.join(out, f"plies{i}.json"), curves),
-                         "--lights", "sun-180-normal", "--width", str(WIDTH), "--height", str(HEIGHT),
-                         "--seed", "1", "--out", xml])
-        exr = os.path.join(out, f"scene{i}.exr")
-        ev.render(a, xml, SPP, exr, name, finite=False)
-        img = read_exr(exr)[..., :3]
+        img = ev.render_image(a, ["--preset", "fleece", "--model", os.path.join(ev.MODELS, "fleece.json"),
+                                  "--plies", plies_file(os.path.join(out, f"plies{i}.json"), curves),
+                                  "--lights", "sun-180-normal", "--width", str(WIDTH), "--height", str(HEIGHT),
+                                  "--seed", "1"], os.path.join(out, f"scene{i}"), SPP, finite=False)
         if not np.isfinite(img).all() or (img < 0).any():
             print(f"self_shadow: non-finite or negative pixels in {name}", file=sys.stderr)
             return 1

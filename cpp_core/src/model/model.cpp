@@ -224,7 +224,9 @@ NearField near_field_from(const json &j, const std::string &where)
     throw ModelError(where + "must be an object with an array 'axial_exit_through'");
   }
   NearField nf;
-  for (const char *key : {"axial_exit_through", "axial_exit_reflected"}) {
+  const std::pair<const char *, std::vector<float> *> sides[] = {{"axial_exit_through", &nf.through},
+                                                                  {"axial_exit_reflected", &nf.reflected}};
+  for (const auto &[key, quantiles] : sides) {
     if (!j.contains(key)) {
       continue;
     }
@@ -238,7 +240,7 @@ NearField near_field_from(const json &j, const std::string &where)
     if (const char *problem = ny::exit_quantiles_check(q.data(), int(q.size()))) {
       throw ModelError(where + "'" + key + "' " + problem);
     }
-    (std::string(key) == "axial_exit_through" ? nf.through : nf.reflected) = q;
+    *quantiles = q;
   }
   return nf;
 }
