@@ -6,13 +6,15 @@ against explicit fibers, under one light, in scenes of several plies:
     cd scripts && ../.venv/bin/python bench_near_field.py --out ../build/bench_near_field \\
         [--preset cotton] [--light back] [--scenes crossed yarn yarn-1.3 yarn-2] [--spp 64] [--ref-spp 32]
 
-`crossed`: two straight plies crossed at 84 degrees, the back one touching the front one; `yarn`: the harness's
+`crossed`: two straight plies crossed at 84 degrees, the back one touching the front one; `half`: two parallel
+straight plies, the back one 2.5 radii deeper and 1.4 higher, shadowing the upper half of the front one's width
+under the back light (decisions D70; also prints the front ply's shadowed half over its lit half); `yarn`: the harness's
 yarn close-up (three plies twisted, touching); `lone`: one ply of the yarn alone (`ply1`, `ply2`: the others);
 `yarn-S`, `lone-S`, `ply1-S`, `ply2-S`: the same with the plies' offsets from the yarn's axis times S (the sum of
 the three lone plies against the yarn: what the plies do to each other). The reference is explicit fibers over four
 orientations of the cross-section (--ref-spp each); its floor is one half of them against the other. Prints per
-scene the luminance error (R / G / B) over the whole frame and, for `crossed`, over the front ply where the back
-one shadows it; writes OUT/bench_near_field.json. A benchmark: prints, never a test.
+scene the luminance error (R / G / B) over the whole frame and, for `crossed` and `half`, over the front ply where
+the back one shadows it; writes OUT/bench_near_field.json. A benchmark: prints, never a test.
 """
 from __future__ import annotations
 
@@ -24,13 +26,15 @@ import sys
 import numpy as np
 
 import evaluate as ev
-from garment import crossed_plies, straight_yarn_plies
+from garment import crossed_plies, parallel_plies, straight_yarn_plies
 from images import LUMINANCE
 
 ROTATIONS = (0, 90, 180, 270)
 WIDTH, HEIGHT = 160, 80
 #: The front ply where the back one shadows it in `crossed` (rows, columns of the 160 x 80 frame, camera at 12).
 OVERLAP = (slice(35, 45), slice(74, 86))
+#: `half`: the front ply's upper (shadowed) and lower (lit) halves (tests/cycles/far_side_width.py).
+SHADOWED_HALF, LIT_HALF = (slice(34, 40), slice(20, 140)), (slice(41, 47), slice(20, 140))
 YARN_LENGTH = 48.7  # ply radii: the harness's yarn close-up at its default camera
 
 
@@ -38,6 +42,8 @@ def plies(scene: str) -> dict:
     """The scene's plies file content."""
     if scene == "crossed":
         return crossed_plies([0.0, 84.0], YARN_LENGTH)
+    if scene == "half":
+        return parallel_plies([(0.0, 0.0), (1.4, 2.5)], YARN_LENGTH)
     d = straight_yarn_plies(YARN_LENGTH)
     name, _, spread = scene.partition("-")
     if spread:
@@ -79,9 +85,9 @@ def main() -> int:
     a.width, a.height = WIDTH, HEIGHT
     for s in a.scenes:
         name, _, spread = s.partition("-")
-        if not (s == "crossed" or (name in ("yarn", "lone", "ply1", "ply2") and
+        if not (s in ("crossed", "half") or (name in ("yarn", "lone", "ply1", "ply2") and
                                    (not spread or spread.replace(".", "", 1).isdigit()))):
-            print(f"bench_near_field: unknown scene '{s}' (crossed, yarn, lone, ply1, ply2, each with -S but crossed)",
+            print(f"bench_near_field: unknown scene '{s}' (crossed, half, yarn, lone, ply1, ply2, each with -S but crossed and half)",
                   file=sys.stderr)
             return 1
     os.makedirs(a.out, exist_ok=True)
@@ -107,11 +113,18 @@ def main() -> int:
         ref = sum(parts) / len(parts)
         floor = error((parts[0] + parts[1]) / 2, (parts[2] + parts[3]) / 2)
         row = {"scene": scene, "floor": floor}
+        halves = {"explicit": ref}
         for name, m in (("far", far), ("near", shipped)):
             img = render(a, [*common, "--model", m, "--seed", "1"], f"native_{scene}_{name}", a.spp)
             row[name] = error(img, ref)
-            if scene == "crossed":
-                row[name + "_shadowed"] = error(img, ref, OVERLAP)
+            if scene in ("crossed", "half"):
+                row[name + "_shadowed"] = error(img, ref, OVERLAP if scene == "crossed" else SHADOWED_HALF)
+            halves[name] = img
+        if scene == "half":
+            row["shadowed_over_lit"] = {k: float((v[SHADOWED_HALF] @ LUMINANCE).mean() / (v[LIT_HALF] @ LUMINANCE).mean())
+                                        for k, v in halves.items()}
+            print("half: the front ply's shadowed half over its lit half: " +
+                  ", ".join(f"{k} {v:.2f}" for k, v in row["shadowed_over_lit"].items()), flush=True)
         rows.append(row)
         shadowed = [fmt(row[k]) if k in row else "" for k in ("far_shadowed", "near_shadowed")]
         print(f"| {scene} | {fmt(row['far'])} | {fmt(row['near'])} | {shadowed[0]} | {shadowed[1]} | "

@@ -148,6 +148,15 @@ def crossed_plies(angles: list[float], length: float) -> dict:
     return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": length, "plies": plies}
 
 
+def parallel_plies(offsets: list[tuple[float, float]], length: float) -> dict:
+    """Straight plies `length` ply radii long along x (ply radius 1), each at its (height y, depth z) offset: one ply
+    shadowing part of another's width (decisions D70; tests/cycles/far_side_width.py, scripts/bench_near_field.py)."""
+    t = np.linspace(-0.5 * length, 0.5 * length, 400)
+    plies = [[round(float(v), 5) for v in np.stack([t, np.full_like(t, y), np.full_like(t, z)], axis=1).ravel()]
+             for y, z in offsets]
+    return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": length, "plies": plies}
+
+
 #: The patches' yarns (yarn radius 0.5 in Crane's units): examples/make_examples.py's and the harness's scenes
 #: `knit` and `twill`.
 PATCHES = {"knit": lambda: geometry.plain_knit(4, 4, samples_per_loop=48),
