@@ -33,7 +33,7 @@ ROTATIONS = (0, 90, 180, 270)
 WIDTH, HEIGHT = 160, 80
 #: The front ply where the back one shadows it in `crossed` (rows, columns of the 160 x 80 frame, camera at 12).
 OVERLAP = (slice(35, 45), slice(74, 86))
-#: `half`: the front ply's upper (shadowed) and lower (lit) halves (tests/cycles/far_side_width.py).
+#: `half`: the front ply's upper (shadowed) and lower (lit) halves (rows 34 .. 46 at the camera's 12 ply radii).
 SHADOWED_HALF, LIT_HALF = (slice(34, 40), slice(20, 140)), (slice(41, 47), slice(20, 140))
 YARN_LENGTH = 48.7  # ply radii: the harness's yarn close-up at its default camera
 

@@ -150,7 +150,7 @@ def crossed_plies(angles: list[float], length: float) -> dict:
 
 def parallel_plies(offsets: list[tuple[float, float]], length: float) -> dict:
     """Straight plies `length` ply radii long along x (ply radius 1), each at its (height y, depth z) offset: one ply
-    shadowing part of another's width (decisions D70; tests/cycles/far_side_width.py, scripts/bench_near_field.py)."""
+    shadowing part of another's width (decisions D70; scripts/bench_near_field.py `half`)."""
     t = np.linspace(-0.5 * length, 0.5 * length, 400)
     plies = [[round(float(v), 5) for v in np.stack([t, np.full_like(t, y), np.full_like(t, z)], axis=1).ravel()]
              for y, z in offsets]
