@@ -86,6 +86,7 @@ import functools
 import tempfile
 import time
 import types
+from collections.abc import Callable
 
 import numpy as np
 
@@ -520,10 +521,17 @@ def written(scene: str) -> dict:
     return WRITTEN[scene]
 
 
-def render_image(a, scene_args: list[str], stem: str, spp: int, finite: bool = True) -> np.ndarray:
-    """`neuralyarn cycles-scene SCENE_ARGS` written to STEM.xml, rendered by the patched Cycles to STEM.exr (render():
-    its progress line, its errors as RenderFailed, with `finite` non-finite pixels among them): the image's RGB."""
+def render_image(a, scene_args: list[str], stem: str, spp: int, finite: bool = True,
+                 edit: Callable[[str], str] | None = None) -> np.ndarray:
+    """`neuralyarn cycles-scene SCENE_ARGS` written to STEM.xml (its text passed through `edit`, a test's fixture, if
+    given), rendered by the patched Cycles to STEM.exr (render(): its progress line, its errors as RenderFailed, with
+    `finite` non-finite pixels among them): the image's RGB."""
     cycles_scene([*scene_args, "--out", stem + ".xml"])
+    if edit is not None:
+        with open(stem + ".xml") as f:
+            text = edit(f.read())
+        with open(stem + ".xml", "w") as f:
+            f.write(text)
     render(a, stem + ".xml", spp, stem + ".exr", f"{os.path.basename(stem)}, {spp} spp", finite=finite)
     return read_exr(stem + ".exr")[..., :3]
 

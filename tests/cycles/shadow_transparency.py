@@ -24,7 +24,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 import numpy as np  # noqa: E402
 
 import evaluate as ev  # noqa: E402
-from images import LUMINANCE, read_exr  # noqa: E402
+from images import LUMINANCE  # noqa: E402
 
 WIDTH, HEIGHT, SPP = 160, 80, 64
 ROTATIONS = (0, 90, 180, 270)
@@ -47,19 +47,14 @@ MIN_SHARE = 0.8
 
 def render(a, out: str, name: str, args: list[str], spp: int, shader=None) -> np.ndarray:
     """`cycles-scene ARGS` with the floor added (and the ply's shader swapped for `shader`), rendered: luminance."""
-    xml = os.path.join(out, name + ".xml")
-    ev.cycles_scene([*args, "--out", xml])
-    with open(xml) as f:
-        text = f.read()
-    if shader is not None:
-        start = text.index('<shader name="yarn">')
-        end = text.index("</shader>", start) + len("</shader>")
-        text = text[:start] + '<shader name="yarn">\n' + shader + "\n</shader>" + text[end:]
-    with open(xml, "w") as f:
-        f.write(text.replace("</cycles>", FLOOR + "</cycles>"))
-    exr = os.path.join(out, name + ".exr")
-    ev.render(a, xml, spp, exr, name, finite=False)
-    img = read_exr(exr)[..., :3]
+    def fixture(text: str) -> str:
+        if shader is not None:
+            start = text.index('<shader name="yarn">')
+            end = text.index("</shader>", start) + len("</shader>")
+            text = text[:start] + '<shader name="yarn">\n' + shader + "\n</shader>" + text[end:]
+        return text.replace("</cycles>", FLOOR + "</cycles>")
+
+    img = ev.render_image(a, args, os.path.join(out, name), spp, finite=False, edit=fixture)
     if not np.isfinite(img).all() or (img < 0).any():
         raise ev.RenderFailed(f"{name}: non-finite or negative pixels")
     return img @ LUMINANCE
