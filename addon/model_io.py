@@ -154,29 +154,54 @@ def _refuse_constant(name: str):
     raise ValueError(f"{name} is not a number JSON allows")
 
 
-#: A model's near field (decisions D68): the quantiles of how far along the ply scattered light travels before it
-#: leaves (through the far side, and on the side it entered), at the C++ core's levels (kernel/exit_placement.h, whose exit_quantiles_check this mirrors: the patched
-#: Cycles refuses, and renders in magenta, what this refuses).
-NEAR_FIELD_QUANTILES = 6
+#: A model's near field (decisions D68, D72): per band of |cos| between the light and the ply's axis, the signed
+#: quantiles of how far along the ply scattered light travels before it leaves (through the far side, and on the
+#: side it entered), at the C++ core's levels (kernel/exit_placement.h, whose exit_side_from_json this mirrors: the
+#: patched Cycles refuses, and renders in magenta, what this refuses). Models from before D72 hold six unsigned
+#: quantiles pooled over the bands ('axial_exit_through', 'axial_exit_reflected'), which the core converts.
+NEAR_FIELD_BANDS = 5
+NEAR_FIELD_QUANTILES = 9
+_NEAR_FIELD_LEGACY_QUANTILES = 6
 _MAX_EXIT_OFFSET = 1000.0
 
 
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _band_problem(q) -> str | None:
+    if not isinstance(q, list) or len(q) != NEAR_FIELD_QUANTILES:
+        return "must hold nine quantiles per band (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)"
+    if not all(_finite(v) and -_MAX_EXIT_OFFSET <= v <= _MAX_EXIT_OFFSET for v in q):
+        return f"holds a value that is not a finite number in [-{_MAX_EXIT_OFFSET:g}, {_MAX_EXIT_OFFSET:g}] ply radii"
+    if any(b < a for a, b in zip(q, q[1:])):
+        return "decreases: quantiles at higher levels must not be smaller"
+    return None
+
+
 def near_field_problem(near_field) -> str | None:
-    """What is wrong with a model's "near_field" object, or None: 'axial_exit_through' required,
-    'axial_exit_reflected' optional (files from before it was measured)."""
-    if not isinstance(near_field, dict) or "axial_exit_through" not in near_field:
-        return f"must be an object whose 'axial_exit_through' holds {NEAR_FIELD_QUANTILES} quantiles"
-    for key in ("axial_exit_through", "axial_exit_reflected"):
-        if key not in near_field:
-            continue
-        q = near_field[key]
-        if not isinstance(q, list) or len(q) != NEAR_FIELD_QUANTILES:
-            return f"'{key}' must hold {NEAR_FIELD_QUANTILES} quantiles"
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                   and 0.0 <= v <= _MAX_EXIT_OFFSET for v in q):
-            return f"'{key}' holds a value that is not a finite number in [0, {_MAX_EXIT_OFFSET:g}]"
-        if any(b < a for a, b in zip(q, q[1:])):
-            return f"'{key}' decreases: quantiles at higher levels must not be smaller"
+    """What is wrong with a model's "near_field" object, or None: each side its 'through_bands' /
+    'reflected_bands', else the pre-D72 'axial_exit_through' / 'axial_exit_reflected'; the far side required."""
+    if not isinstance(near_field, dict):
+        return "must be an object"
+    for side in ("through", "reflected"):
+        key, legacy = f"{side}_bands", f"axial_exit_{side}"
+        if key in near_field:
+            bands = near_field[key]
+            if not isinstance(bands, list) or len(bands) != NEAR_FIELD_BANDS:
+                return f"'{key}' must hold five bands (of |cos| between the light and the ply's axis: 0-0.2 ... 0.8-1)"
+            for q in bands:
+                if (problem := _band_problem(q)) is not None:
+                    return f"'{key}' {problem}"
+        elif legacy in near_field:
+            q = near_field[legacy]
+            if not (isinstance(q, list) and len(q) == _NEAR_FIELD_LEGACY_QUANTILES
+                    and all(_finite(v) and 0.0 <= v <= _MAX_EXIT_OFFSET for v in q)
+                    and all(b >= a for a, b in zip(q, q[1:]))):
+                return (f"'{legacy}' must hold six non-decreasing quantiles in [0, 1000] ply radii (at 25, 50, 75, "
+                        "90, 95 and 99 %)")
+        elif side == "through":
+            return "must hold 'through_bands' (or a model's from before D72: 'axial_exit_through')"
     return None
 
 

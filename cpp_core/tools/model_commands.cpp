@@ -344,7 +344,7 @@ class Commands : public ModelCommands {
         "near-field", "Set a model's near field (how far along the ply the light it sends through the ply travels before "
                       "it leaves; docs/decisions.md D68) from maps of the same ply or yarn; nothing else changes");
     near_field_->add_option("model", model_, "Model file (.json)")->required();
-    near_field_->add_option("--maps", maps_, "Map file (.nyrdm) gathered since D68 (it records the exits' offsets)")
+    near_field_->add_option("--maps", maps_, "Map file (.nyrdm) gathered since D72 (it records the exits' signed offsets per band)")
         ->required();
     near_field_->add_option("--out", out_, "Model file to write (default: replace the input)");
 
@@ -483,7 +483,7 @@ class Commands : public ModelCommands {
     }
     model::fit_model_proxy(&m, maps, topt_.fit);
     if (const model::NearField nf = model::near_field_of(maps); !nf.empty()) {
-      m.near_field = nf; /* maps from before D68 leave the model's near field as it was */
+      m.near_field = nf; /* maps from before D72 leave the model's near field as it was */
     }
     if (topt_.r_free_path >= 0.0) {
       m.r_free_path = topt_.r_free_path;
@@ -736,8 +736,8 @@ class Commands : public ModelCommands {
     require_same_preset(m, maps);
     const model::NearField nf = model::near_field_of(maps);
     if (nf.empty()) {
-      throw std::runtime_error("'" + maps_ + "' records no exit offsets (gathered before decisions D68: gather "
-                               "it again)");
+      throw std::runtime_error("'" + maps_ + "' records no signed exit offsets per band (gathered before "
+                               "decisions D72: gather it again)");
     }
     const std::string out = out_.empty() ? model_ : out_;
     check_writable(out);
@@ -746,18 +746,17 @@ class Commands : public ModelCommands {
     j["code_version"] = std::string(kVersion) + "+" + kGitRevision;
     model::model_from_json(j, source); /* loads as it will be read before it replaces anything */
     write_file_atomically(out, j.dump(1) + "\n", "");
-    auto line = [](const std::vector<float> &q) {
-      std::string t;
-      for (float v : q) {
-        char b[32];
-        std::snprintf(b, sizeof(b), "%s%.3g", t.empty() ? "" : " ", double(v));
-        t += b;
+    std::printf("near field: exits' axial offset quantiles (1 5 10 25 50 75 90 95 99 %%, ply radii, positive the "
+                "way the light travelled), per band of |cos(light, axis)|:\n");
+    for (const auto &[side, q] : {std::pair{"far side", &nf.through}, std::pair{"entry side", &nf.reflected}}) {
+      for (size_t b = 0; b * ny::kExitQuantiles < q->size(); b++) {
+        std::printf("  %-10s %.1f-%.1f:", side, double(b) / ny::kExitBands, double(b + 1) / ny::kExitBands);
+        for (int k = 0; k < ny::kExitQuantiles; k++) {
+          std::printf(" %+.3g", double((*q)[b * ny::kExitQuantiles + size_t(k)]));
+        }
+        std::printf("\n");
       }
-      return t;
-    };
-    std::printf("near field: exits' axial offset quantiles (25 50 75 90 95 99 %%, ply radii) through the far side %s; "
-                "on the entry side %s\n",
-                line(nf.through).c_str(), line(nf.reflected).c_str());
+    }
     std::printf("wrote %s\n", out.c_str());
     return 0;
   }

@@ -138,18 +138,18 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
     std::snprintf(b, sizeof(b), "%.2f", v);
     return std::string(b);
   };
-  auto levels = [&](const std::vector<double> &q) {
+  /* Each band's mean and median (the quantile at 50 %, ny::exit_knot_level(5)). */
+  auto bands = [&](const std::vector<double> &q, const std::vector<double> &mean) {
     std::string t;
-    for (size_t k = 0; k < q.size(); k++) {
-      t += std::string(k ? ", " : "") + std::to_string(int(std::lround(100.0 * double(ny::exit_knot_level(int(k) + 1))))) +
-           "% " + buf(q[k]);
+    for (size_t b = 0; b < mean.size() && (b + 1) * ny::kExitQuantiles <= q.size(); b++) {
+      t += std::string(b ? ", " : "") + buf(mean[b]) + "/" + buf(q[b * ny::kExitQuantiles + 4]);
     }
     return t;
   };
-  std::printf("exit along the axis (envelope radii, energy-weighted)  through the far side: mean %.2f: %s; on the "
-              "entry side: mean %.2f: %s\n",
-              s.mean_axial_exit_through, levels(s.axial_exit_through).c_str(), s.mean_axial_exit_reflected,
-              levels(s.axial_exit_reflected).c_str());
+  std::printf("exit along the axis (envelope radii, energy-weighted, the way the light travelled; mean/median per band "
+              "of |cos(w_i, axis)| 0-0.2 ... 0.8-1)  through the far side: %s; on the entry side: %s\n",
+              bands(s.axial_exit_through, s.mean_axial_exit_through).c_str(),
+              bands(s.axial_exit_reflected, s.mean_axial_exit_reflected).c_str());
   if (s.invalid_weights) {
     std::printf("WARNING: %llu paths had invalid weights and were dropped\n", (unsigned long long)s.invalid_weights);
   }

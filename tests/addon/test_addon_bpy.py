@@ -920,8 +920,13 @@ def _corruptions():
     def swap_offsets(f):
         f[14], f[15] = f[15], f[14]
 
-    def near_field(q):
-        return lambda data: json.dumps(dict(data, near_field=dict(data["near_field"], axial_exit_through=q)))
+    def near_field(band, key="through_bands"):
+        """The model's near field with its last band of `key` replaced."""
+        def apply(data):
+            nf = dict(data["near_field"])
+            nf[key] = nf[key][:-1] + [band]
+            return json.dumps(dict(data, near_field=nf))
+        return apply
 
     def stale_tables(data):
         data["fallback"]["kernel_flat_fnv1a64"] = "0123456789abcdef"
@@ -952,11 +957,15 @@ def _corruptions():
         ("stale fallback tables", stale_tables),
         ("no fallback bins", lambda data: _edit(["fallback", "theta_bins"], 0)(data)),
         ("1025 fallback bins", lambda data: _edit(["fallback", "phi_bins"], 1025)(data)),
-        ("a near field of five quantiles", near_field([0.1, 0.2, 0.3, 0.4, 0.5])),
-        ("a decreasing near field", near_field([0.1, 0.2, 0.3, 0.4, 0.5, 0.45])),
-        ("a negative near field", near_field([-0.1, 0.2, 0.3, 0.4, 0.5, 0.6])),
-        ("an entry-side near field of five quantiles", lambda data: json.dumps(dict(data, near_field=dict(
-            data["near_field"], axial_exit_reflected=[0.1, 0.2, 0.3, 0.4, 0.5])))),
+        ("a near field band of eight quantiles", near_field([-0.1, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7])),
+        ("a decreasing near field band", near_field([-0.1, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.65])),
+        ("a near field band beyond 1000 radii", near_field([-2000.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8])),
+        ("an entry-side near field band of eight quantiles",
+         near_field([-0.1, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7], key="reflected_bands")),
+        ("a near field of four bands", lambda data: json.dumps(dict(data, near_field=dict(
+            data["near_field"], through_bands=data["near_field"]["through_bands"][:4])))),
+        ("a pre-D72 near field decreasing", lambda data: json.dumps(dict(data, near_field={
+            "axial_exit_through": [0.1, 0.2, 0.3, 0.4, 0.5, 0.45]}))),
     ]
 
 
@@ -1107,12 +1116,18 @@ _REJECTIONS = [
     ("R network of two outputs", lambda data: (_two_output_r(data["kernel_flat"]), json.dumps(data))[1],
      "'kernel_flat' has a malformed R network \\(3 -> 1 or 3 -> 3, exp head\\)"),
     ("near field not an object", _edit(["near_field"], [0.1]), "'near_field' must be an object"),
-    ("entry-side near field decreasing", _edit(["near_field", "axial_exit_reflected"], [0.1, 0.2, 0.3, 0.4, 0.5, 0.45]),
-     "'near_field' 'axial_exit_reflected' decreases"),
-    ("near field out of range", _edit(["near_field", "axial_exit_through"], [0.1, 0.2, 0.3, 0.4, 0.5, 2000.0]),
-     "'near_field' 'axial_exit_through' holds a value that is not a finite number"),
-    ("near field decreasing", _edit(["near_field", "axial_exit_through"], [0.1, 0.2, 0.3, 0.4, 0.5, 0.45]),
-     "'near_field' 'axial_exit_through' decreases"),
+    ("entry-side near field decreasing",
+     _edit(["near_field", "reflected_bands"], [[0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.45]] * 5),
+     "'near_field' 'reflected_bands' decreases"),
+    ("near field out of range",
+     _edit(["near_field", "through_bands"], [[0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 2000.0]] * 5),
+     "'near_field' 'through_bands' holds a value that is not a finite number"),
+    ("near field of three bands", _edit(["near_field", "through_bands"], [[0.0] * 9] * 3),
+     "'near_field' 'through_bands' must hold five bands"),
+    ("near field without its far side", _edit(["near_field", "through_bands"], None),
+     "'near_field' must hold 'through_bands'"),
+    ("pre-D72 near field decreasing", _edit(["near_field"], {"axial_exit_through": [0.1, 0.2, 0.3, 0.4, 0.5, 0.45]}),
+     "'near_field' 'axial_exit_through' must hold six non-decreasing quantiles"),
 ]
 
 

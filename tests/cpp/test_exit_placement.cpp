@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 //
-// The near field of a model (decisions D68): the kernel's offsets drawn from the gather's quantiles
-// (kernel/exit_placement.h), and the model file's "near_field" (model/model.h).
+// The near field of a model (decisions D68, D72): the kernel's offsets drawn from the gather's signed quantiles per
+// band of the light's direction (kernel/exit_placement.h), and the model file's "near_field" (model/model.h).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -17,69 +17,129 @@ using namespace neuralyarn;
 using neuralyarn::testing::synthetic_model;
 
 namespace {
-/* Cotton's quantiles as the gather measured them (ply radii, 25 ... 99 %). */
-const std::vector<float> kCotton = {0.18f, 0.94f, 2.8f, 5.85f, 8.6f, 17.1f};
+/* Cotton's far side as the gather measured it (ply radii, 1 ... 99 %), light across the axis and along it. */
+const std::vector<float> kAcross = {-7.51f, -3.11f, -1.63f, -0.17f, 0.05f, 0.77f, 2.41f, 3.97f, 8.37f};
+const std::vector<float> kAlong = {-2.53f, -0.09f, 0.11f, 0.63f, 2.35f, 5.53f, 10.33f, 14.39f, 25.57f};
+/* Five bands from across to along the axis: each band's quantiles the two's mix. */
+std::vector<float> side_quantiles()
+{
+  std::vector<float> q;
+  for (int b = 0; b < ny::kExitBands; b++) {
+    const float w = float(b) / float(ny::kExitBands - 1);
+    for (int k = 0; k < ny::kExitQuantiles; k++) {
+      q.push_back(kAcross[size_t(k)] + w * (kAlong[size_t(k)] - kAcross[size_t(k)]));
+    }
+  }
+  return q;
+}
+/* A pre-D72 model's |offset| quantiles (25 ... 99 %). */
+const std::vector<float> kLegacy = {0.18f, 0.94f, 2.8f, 5.85f, 8.6f, 17.1f};
 }  // namespace
 
-/* The drawn offsets' distribution is the quantiles': at each level its share of |offset| below the quantile,
- * signs even. Stratified u (10^5 strata): the empirical CDF at a knot is exact up to one stratum per segment. */
+/* A band's drawn offsets follow its quantiles: stratified u (10^5 strata), the empirical CDF at each quantile is its
+ * level up to one stratum per segment; the ends stay within the extrapolated knots. */
 TEST(ExitPlacement, OffsetsFollowTheQuantiles)
 {
   float knots[ny::kExitKnots];
-  ny::exit_knots(kCotton.data(), knots);
-  EXPECT_EQ(knots[0], 0.0f);
-  EXPECT_FLOAT_EQ(knots[ny::kExitKnots - 1], 17.1f + (17.1f - 8.6f));
+  ny::exit_knots(kAlong.data(), knots);
+  EXPECT_FLOAT_EQ(knots[0], -2.53f - (-0.09f + 2.53f));
+  EXPECT_FLOAT_EQ(knots[ny::kExitKnots - 1], 25.57f + (25.57f - 14.39f));
   const int n = 100000;
   std::vector<int> below(ny::kExitQuantiles, 0);
-  int negative = 0;
-  float largest = 0.0f;
   for (int i = 0; i < n; i++) {
-    const float s = ny::exit_sample_offset(knots, (float(i) + 0.5f) / float(n));
-    negative += s < 0.0f;
-    largest = std::max(largest, std::abs(s));
+    const float s = ny::exit_band_offset(knots, (float(i) + 0.5f) / float(n));
+    EXPECT_GE(s, knots[0]);
+    EXPECT_LE(s, knots[ny::kExitKnots - 1]);
     for (int k = 0; k < ny::kExitQuantiles; k++) {
-      below[size_t(k)] += std::abs(s) <= kCotton[size_t(k)];
+      below[size_t(k)] += s <= kAlong[size_t(k)];
     }
   }
-  EXPECT_EQ(negative, n / 2);
-  EXPECT_LE(largest, knots[ny::kExitKnots - 1]);
   for (int k = 0; k < ny::kExitQuantiles; k++) {
     EXPECT_NEAR(double(below[size_t(k)]) / n, double(ny::exit_knot_level(k + 1)), 3.0 / n) << "level " << k;
   }
-  /* The median of |offset| sits at the 50 % quantile, between the knots' linear pieces. */
-  EXPECT_NEAR(std::abs(ny::exit_sample_offset(knots, 0.75f)), 0.94f, 1e-6f);
-  EXPECT_NEAR(std::abs(ny::exit_sample_offset(knots, 0.25f)), 0.94f, 1e-6f);
-  /* u at the ends of [0, 1) stays finite and bounded. */
-  EXPECT_EQ(ny::exit_sample_offset(knots, 0.5f), 0.0f);
-  EXPECT_LE(std::abs(ny::exit_sample_offset(knots, std::nextafter(1.0f, 0.0f))), knots[ny::kExitKnots - 1]);
+  EXPECT_FLOAT_EQ(ny::exit_band_offset(knots, 0.5f), 2.35f);
+  EXPECT_FLOAT_EQ(ny::exit_band_offset(knots, 0.0f), knots[0]);
+  EXPECT_FLOAT_EQ(ny::exit_band_offset(knots, 1.0f), knots[ny::kExitKnots - 1]);
+}
+
+/* The offset follows the direction: a band's own quantiles at its centre, linear between two centres, the end bands
+ * beyond theirs, and turned toward where the path goes along the axis (the sign of its cosine). */
+TEST(ExitPlacement, OffsetsFollowTheDirection)
+{
+  const std::vector<float> q = side_quantiles();
+  float knots[ny::kExitSideSize];
+  ny::exit_side_knots(q.data(), knots);
+  for (const float u : {0.003f, 0.2f, 0.5f, 0.77f, 0.999f}) {
+    for (int b = 0; b < ny::kExitBands; b++) {
+      const float centre = (float(b) + 0.5f) / float(ny::kExitBands);
+      const float own = ny::exit_band_offset(knots + b * ny::kExitKnots, u);
+      EXPECT_NEAR(ny::exit_sample_offset(knots, centre, u), own, 1e-4f) << "band " << b << " u " << u;
+      EXPECT_NEAR(ny::exit_sample_offset(knots, -centre, u), -own, 1e-4f) << "band " << b << " u " << u;
+      if (b + 1 < ny::kExitBands) {
+        const float next = ny::exit_band_offset(knots + (b + 1) * ny::kExitKnots, u);
+        EXPECT_NEAR(ny::exit_sample_offset(knots, centre + 0.5f / float(ny::kExitBands), u), 0.5f * (own + next),
+                    1e-4f);
+      }
+    }
+    EXPECT_NEAR(ny::exit_sample_offset(knots, 0.0f, u), ny::exit_band_offset(knots, u), 1e-4f);
+    EXPECT_NEAR(ny::exit_sample_offset(knots, 1.0f, u),
+                ny::exit_band_offset(knots + (ny::kExitBands - 1) * ny::kExitKnots, u), 1e-4f);
+  }
+  /* Light along the axis: most paths start toward the light (cotton's far side: 95 % positive). */
+  int toward = 0;
+  const int n = 1000;
+  for (int i = 0; i < n; i++) {
+    toward += ny::exit_sample_offset(knots, -0.95f, (float(i) + 0.5f) / float(n)) < 0.0f;
+  }
+  EXPECT_GT(toward, 900);
 }
 
 TEST(ExitPlacement, QuantileCheckNamesWhatIsWrong)
 {
-  EXPECT_EQ(ny::exit_quantiles_check(kCotton.data(), 6), nullptr);
-  std::vector<float> q = kCotton;
-  EXPECT_NE(ny::exit_quantiles_check(q.data(), 5), nullptr);
+  EXPECT_EQ(ny::exit_quantiles_check(kAlong.data(), 9), nullptr);
+  EXPECT_EQ(ny::exit_quantiles_check(kAcross.data(), 9), nullptr); /* negative offsets are offsets */
+  std::vector<float> q = kAlong;
+  EXPECT_NE(ny::exit_quantiles_check(q.data(), 8), nullptr);
   q[2] = std::numeric_limits<float>::quiet_NaN();
-  EXPECT_NE(ny::exit_quantiles_check(q.data(), 6), nullptr);
-  q = kCotton;
-  q[3] = 0.5f; /* below the 75 % one */
-  EXPECT_NE(ny::exit_quantiles_check(q.data(), 6), nullptr);
-  q = kCotton;
-  q[0] = -0.1f;
-  EXPECT_NE(ny::exit_quantiles_check(q.data(), 6), nullptr);
-  q = kCotton;
-  q[5] = 2000.0f;
-  EXPECT_NE(ny::exit_quantiles_check(q.data(), 6), nullptr);
+  EXPECT_NE(ny::exit_quantiles_check(q.data(), 9), nullptr);
+  q = kAlong;
+  q[3] = 0.0f; /* below the 10 % one */
+  EXPECT_NE(ny::exit_quantiles_check(q.data(), 9), nullptr);
+  q = kAlong;
+  q[8] = 2000.0f;
+  EXPECT_NE(ny::exit_quantiles_check(q.data(), 9), nullptr);
+  q = kAlong;
+  q[0] = -2000.0f;
+  EXPECT_NE(ny::exit_quantiles_check(q.data(), 9), nullptr);
+}
+
+/* A pre-D72 model's unsigned quantiles become a symmetric signed distribution with the same |offset| at the levels
+ * both describe (50 % and 90 % of |offset|: the signed 75 % and 95 %). */
+TEST(ExitPlacement, ModelsFromBeforeD72AreConverted)
+{
+  float q[ny::kExitQuantiles];
+  ny::exit_quantiles_from_magnitudes(kLegacy.data(), q);
+  EXPECT_EQ(ny::exit_quantiles_check(q, ny::kExitQuantiles), nullptr);
+  for (int k = 0; k < ny::kExitQuantiles; k++) {
+    EXPECT_FLOAT_EQ(q[k], -q[ny::kExitQuantiles - 1 - k]) << k;
+  }
+  EXPECT_EQ(q[4], 0.0f);
+  EXPECT_FLOAT_EQ(q[5], 0.94f);
+  EXPECT_FLOAT_EQ(q[7], 5.85f);
 }
 
 /* The model file carries them outside its kernel array (which the fallback tables name): written, read back
  * unchanged, the array the same with or without; bad values are refused with the key's name; the entry side's are
- * optional (files from before they were measured). */
+ * optional (files from before they were measured); a pre-D72 file is read converted. */
 TEST(ExitPlacement, ModelFileRoundTripAndRejection)
 {
   model::YarnModel m = synthetic_model("cotton", 7);
   const std::vector<float> flat = m.kernel_flat();
-  m.near_field = {kCotton, {0.01f, 0.05f, 0.2f, 0.9f, 2.0f, 8.0f}};
+  std::vector<float> reflected = side_quantiles();
+  for (float &v : reflected) {
+    v *= 0.25f;
+  }
+  m.near_field = {side_quantiles(), reflected};
   EXPECT_EQ(m.kernel_flat(), flat);
   const nlohmann::json j = model::model_to_json(m);
   ASSERT_TRUE(j.contains("near_field"));
@@ -88,11 +148,28 @@ TEST(ExitPlacement, ModelFileRoundTripAndRejection)
   without.erase("near_field");
   EXPECT_TRUE(model::model_from_json(without, "t").near_field.empty());
   nlohmann::json through_only = j;
-  through_only["near_field"].erase("axial_exit_reflected");
-  EXPECT_TRUE((model::model_from_json(through_only, "t").near_field == model::NearField{kCotton, {}}));
-  for (const char *key : {"axial_exit_through", "axial_exit_reflected"}) {
-    for (const auto &bad : {nlohmann::json({0.1, 0.2}), nlohmann::json({0.1, 0.2, 0.3, 0.2, 0.5, 0.6}),
-                            nlohmann::json({0.1, 0.2, 0.3, "x", 0.5, 0.6}), nlohmann::json("cotton")}) {
+  through_only["near_field"].erase("reflected_bands");
+  EXPECT_TRUE((model::model_from_json(through_only, "t").near_field == model::NearField{side_quantiles(), {}}));
+  nlohmann::json legacy = j;
+  legacy["near_field"] = {{"axial_exit_through", kLegacy}};
+  const model::NearField converted = model::model_from_json(legacy, "t").near_field;
+  ASSERT_EQ(converted.through.size(), size_t(ny::kExitBands * ny::kExitQuantiles));
+  float q[ny::kExitQuantiles];
+  ny::exit_quantiles_from_magnitudes(kLegacy.data(), q);
+  for (int b = 0; b < ny::kExitBands; b++) {
+    EXPECT_EQ(std::vector<float>(converted.through.begin() + b * 9, converted.through.begin() + b * 9 + 9),
+              std::vector<float>(q, q + 9));
+  }
+  EXPECT_TRUE(converted.reflected.empty());
+  const nlohmann::json band = std::vector<float>(kAlong);
+  for (const char *key : {"through_bands", "reflected_bands"}) {
+    nlohmann::json decreasing = band;
+    decreasing[3] = -1.0;
+    nlohmann::json text = band;
+    text[2] = "x";
+    for (const auto &bad : {nlohmann::json::array({band, band}), nlohmann::json::array({band, band, band, band, decreasing}),
+                            nlohmann::json::array({band, text, band, band, band}),
+                            nlohmann::json::array({band, band, band, band, {0.1, 0.2}}), nlohmann::json("cotton")}) {
       nlohmann::json k = j;
       k["near_field"][key] = bad;
       try {
@@ -104,16 +181,23 @@ TEST(ExitPlacement, ModelFileRoundTripAndRejection)
       }
     }
   }
+  nlohmann::json none = j;
+  none["near_field"] = nlohmann::json::object({{"reflected_bands", j["near_field"]["reflected_bands"]}});
+  EXPECT_THROW(model::model_from_json(none, "t"), model::ModelError);
 }
 
-/* A bake takes them from its maps' gather statistics; maps from before D68 give none. */
+/* A bake takes them from its maps' gather statistics; maps from before D72 give none. */
 TEST(ExitPlacement, TakenFromTheMapsStatistics)
 {
   rdm::RdmMaps maps;
   EXPECT_TRUE(model::near_field_of(maps).empty());
-  maps.stats.axial_exit_through = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6};
-  maps.stats.axial_exit_reflected = {0.01, 0.02, 0.03, 0.04, 0.05, 0.06};
+  const std::vector<float> q = side_quantiles();
+  maps.stats.axial_exit_through.assign(q.begin(), q.end());
+  maps.stats.axial_exit_reflected.assign(q.begin(), q.end());
+  maps.stats.axial_exit_reflected[0] = -9.0;
   const model::NearField nf = model::near_field_of(maps);
-  EXPECT_EQ(nf.through, std::vector<float>({0.1f, 0.2f, 0.3f, 0.4f, 0.5f, 0.6f}));
-  EXPECT_EQ(nf.reflected, std::vector<float>({0.01f, 0.02f, 0.03f, 0.04f, 0.05f, 0.06f}));
+  EXPECT_EQ(nf.through, q);
+  EXPECT_EQ(nf.reflected[0], -9.0f);
+  maps.stats.axial_exit_through = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6}; /* D68's pooled form */
+  EXPECT_TRUE(model::near_field_of(maps).empty());
 }

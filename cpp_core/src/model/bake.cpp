@@ -292,7 +292,8 @@ void select_m_candidate(YarnModel *model, const rdm::RdmMaps &maps, const TrainM
 NearField near_field_of(const rdm::RdmMaps &maps)
 {
   auto quantiles = [](const std::vector<double> &q) {
-    return q.size() == size_t(ny::kExitQuantiles) ? std::vector<float>(q.begin(), q.end()) : std::vector<float>();
+    return q.size() == size_t(ny::kExitBands) * ny::kExitQuantiles ? std::vector<float>(q.begin(), q.end())
+                                                                    : std::vector<float>();
   };
   NearField nf{quantiles(maps.stats.axial_exit_through), quantiles(maps.stats.axial_exit_reflected)};
   return nf.through.empty() ? NearField() : nf;

@@ -216,31 +216,26 @@ RShapeTable r_shape_from(const json &j, const std::vector<float> &flat, const st
   }
   return t;
 }
-/* A model file's "near_field": its quantiles, checked (kernel/exit_placement.h); 'axial_exit_through' is required,
- * 'axial_exit_reflected' (added since) optional. */
+/* A model file's "near_field": each side's signed quantiles per band, checked (kernel/exit_placement.h, which reads
+ * the file's keys for Cycles' host too); the far side's are required, the entry side's optional. A model from
+ * before D72 (unsigned, pooled) is converted. */
 NearField near_field_from(const json &j, const std::string &where)
 {
-  if (!j.is_object() || !j.contains("axial_exit_through")) {
-    throw ModelError(where + "must be an object with an array 'axial_exit_through'");
+  if (!j.is_object()) {
+    throw ModelError(where + "must be an object");
   }
   NearField nf;
-  const std::pair<const char *, std::vector<float> *> sides[] = {{"axial_exit_through", &nf.through},
-                                                                  {"axial_exit_reflected", &nf.reflected}};
-  for (const auto &[key, quantiles] : sides) {
-    if (!j.contains(key)) {
-      continue;
-    }
-    if (!j[key].is_array()) {
-      throw ModelError(where + "'" + key + "' must be an array");
-    }
-    std::vector<float> q;
-    for (const json &v : j[key]) {
-      q.push_back(v.is_number() ? v.get<float>() : std::numeric_limits<float>::quiet_NaN());
-    }
-    if (const char *problem = ny::exit_quantiles_check(q.data(), int(q.size()))) {
+  for (const bool through : {true, false}) {
+    std::vector<float> q(size_t(ny::kExitBands) * ny::kExitQuantiles);
+    const char *key = nullptr, *problem = nullptr;
+    const int got = ny::exit_side_from_json(j, through, q.data(), &key, &problem);
+    if (got < 0) {
       throw ModelError(where + "'" + key + "' " + problem);
     }
-    *quantiles = q;
+    if (got == 0 && through) {
+      throw ModelError(where + "must hold 'through_bands' (or a model's from before D72: 'axial_exit_through')");
+    }
+    (through ? nf.through : nf.reflected) = got > 0 ? q : std::vector<float>();
   }
   return nf;
 }
@@ -305,13 +300,22 @@ json near_field_to_json(const NearField &near_field)
   for (int k = 1; k <= ny::kExitQuantiles; k++) {
     levels.push_back(std::round(1000.0 * double(ny::exit_knot_level(k))) / 1000.0);
   }
-  json j = {{"axial_exit_through", near_field.through},
+  auto bands = [](const std::vector<float> &q) {
+    json a = json::array();
+    for (int b = 0; b < ny::kExitBands; b++) {
+      a.push_back(std::vector<float>(q.begin() + b * ny::kExitQuantiles, q.begin() + (b + 1) * ny::kExitQuantiles));
+    }
+    return a;
+  };
+  json j = {{"through_bands", bands(near_field.through)},
             {"levels", levels},
             {"about", "energy-weighted quantiles of how far along the ply (ply radii) scattered light leaves from "
-                      "where a ray from its entry point would: through the far side, and on the side it entered "
-                      "(the gather's walks; docs/decisions.md D68)"}};
+                      "where a ray from its entry point would, positive the way the light travelled along the ply, "
+                      "per band of |cos| between the light's direction and the ply's axis (0-0.2, ..., 0.8-1): "
+                      "through the far side, and on the side it entered (the gather's walks; docs/decisions.md D68, "
+                      "D72)"}};
   if (!near_field.reflected.empty()) {
-    j["axial_exit_reflected"] = near_field.reflected;
+    j["reflected_bands"] = bands(near_field.reflected);
   }
   return j;
 }

@@ -39,6 +39,11 @@ constexpr float kMaxWeight = 1024.0f;
 constexpr int kEventBins = 4096;
 constexpr double kDisplacementBin = 0.02; /* ply radii */
 constexpr int kDisplacementBins = 10000;   /* up to 200 R */
+/* The signed axial offsets' histogram per side and band (decisions D72): bins of kDisplacementBin over
+ * +-kAxialHalf * kDisplacementBin ply radii, the ends taking what lies beyond. */
+constexpr int kAxialHalf = 5000;
+constexpr int kAxialBins = 2 * kAxialHalf;
+size_t axial_index(int side, int band, int bin) { return (size_t(side) * ny::kExitBands + size_t(band)) * kAxialBins + size_t(bin); }
 
 /* SplitMix64 (Steele, Lea & Flood 2014): one independent stream per path, seeded from (seed, path). */
 struct PathRng {
@@ -89,7 +94,8 @@ struct LocalStats {
   std::vector<MapRecord> records;
   std::vector<uint64_t> events;
   std::vector<uint64_t> displacement, displacement_M;
-  std::vector<uint64_t> axial[2]; /* exit energy (fixed point) per |axial offset| bin: [0] entry side, [1] far side */
+  /* (axial_index, exit energy fixed point) of each scattered exit: [side 0 entry, 1 far][band][signed offset bin] */
+  std::vector<std::pair<uint32_t, uint64_t>> axial;
   uint64_t energy[3][3] = {}; /* [T/R/M][rgb] fixed */
   uint64_t absorbed[3] = {}, lost[3] = {};
   double balance[3] = {}, balance_sq[3] = {}; /* per chunk in double: summed in chunk order below */
@@ -100,7 +106,7 @@ struct LocalStats {
 
 struct SharedStats {
   std::vector<uint64_t> events, displacement, displacement_M;
-  std::vector<uint64_t> axial[2];
+  std::vector<uint64_t> axial; /* axial_index */
   uint64_t energy[3][3] = {}, absorbed[3] = {}, lost[3] = {};
   std::vector<double> balance, balance_sq; /* [chunk][rgb]: combined in chunk order, so deterministic */
   uint64_t paths[3] = {}, terminated = 0, truncated = 0, events_total = 0, slab_crossings = 0,
@@ -120,8 +126,9 @@ void merge(SharedStats &s, const LocalStats &l, uint64_t chunk)
   for (size_t i = 0; i < l.displacement.size(); i++) {
     atomic_add(&s.displacement[i], l.displacement[i]);
     atomic_add(&s.displacement_M[i], l.displacement_M[i]);
-    atomic_add(&s.axial[0][i], l.axial[0][i]);
-    atomic_add(&s.axial[1][i], l.axial[1][i]);
+  }
+  for (const auto &[i, w] : l.axial) {
+    atomic_add(&s.axial[i], w);
   }
   for (int k = 0; k < 3; k++) {
     for (int c = 0; c < 3; c++) {
@@ -190,6 +197,7 @@ Vec3 world_dir(const FiberMedium &, const SlabRay &r) { return r.d; }
  * and the entry point. */
 struct Entry {
   size_t in_bin = 0;
+  float wi_axial = 0.0f; /* w_i's cosine with the axis (x) */
   Vec3 n, ex, ey, point;
 };
 
@@ -227,6 +235,7 @@ Entry enter(const Medium &tracer, const MapResolution &b, const std::vector<doub
   e.ex = make_vec3(1.0f, 0.0f, 0.0f);
   e.point = e.n * tracer.bound_radius() + e.ex * x_entry;
   const Vec3 wi = e.ex * wi_local.x + e.ey * wi_local.y + e.n * wi_local.z;
+  e.wi_axial = wi.x;
   ray->o = e.point;
   ray->d = -wi;
   ray->slab = 0;
@@ -391,10 +400,14 @@ void score(const Medium &tracer, const GatherOptions &opt, const Entry &e, const
     ls.disp_sum_M += disp_fx;
     ls.disp_count_M++;
   }
-  const double axial = std::abs(axial_exit_offset(p_w, d_w, e.point, double(tracer.bound_radius()))) /
+  /* Signed: positive the way the light travelled along the axis (-w_i's), banded by |cos(w_i, axis)| (D72). */
+  const double travel = e.wi_axial > 0.0f ? -1.0 : 1.0;
+  const double axial = travel * axial_exit_offset(p_w, d_w, e.point, double(tracer.bound_radius())) /
                        double(envelope_radius(tracer));
-  const size_t abin = size_t(std::min(axial / kDisplacementBin, double(kDisplacementBins - 1)));
-  ls.axial[wo.z < 0.0f ? 1 : 0][abin] += to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f));
+  const int band = std::min(ny::kExitBands - 1, int(std::abs(e.wi_axial) * float(ny::kExitBands)));
+  const int abin = int(std::clamp(std::floor(axial / kDisplacementBin) + kAxialHalf, 0.0, double(kAxialBins - 1)));
+  ls.axial.emplace_back(uint32_t(axial_index(wo.z < 0.0f ? 1 : 0, band, abin)),
+                        to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f)));
   int to, po;
   outgoing_bin(b, wo.x, wo.y, wo.z, &to, &po);
   const size_t idx = (in_bin * b.outgoing() + size_t(to) * size_t(b.phi_o) + size_t(po)) * 3;
@@ -696,8 +709,7 @@ double accumulate(const FiberPreset &preset, const GatherOptions &opt, const Geo
   shared.events.assign(kEventBins, 0);
   shared.displacement.assign(kDisplacementBins, 0);
   shared.displacement_M.assign(kDisplacementBins, 0);
-  shared.axial[0].assign(kDisplacementBins, 0);
-  shared.axial[1].assign(kDisplacementBins, 0);
+  shared.axial.assign(2 * size_t(ny::kExitBands) * kAxialBins, 0);
 
   const uint64_t n_chunks = (opt.paths + kChunk - 1) / kChunk;
   std::atomic<uint64_t> done{0};
@@ -709,10 +721,9 @@ double accumulate(const FiberPreset &preset, const GatherOptions &opt, const Geo
       ls.events.assign(kEventBins, 0);
       ls.displacement.assign(kDisplacementBins, 0);
       ls.displacement_M.assign(kDisplacementBins, 0);
-      ls.axial[0].assign(kDisplacementBins, 0);
-      ls.axial[1].assign(kDisplacementBins, 0);
       const uint64_t k0 = chunk * kChunk, k1 = std::min(opt.paths, k0 + kChunk);
       ls.records.reserve(k1 - k0);
+      ls.axial.reserve(k1 - k0);
       for (uint64_t k = k0; k < k1; k++) {
         if (!geo.plies.empty()) {
           /* Every cross-section gets the same paths per incident bin, each with its mirror image. */
@@ -832,31 +843,36 @@ void finalize(const Accumulators &acc, const GatherOptions &opt, tbb::task_arena
   maps.symmetrized = opt.symmetrize;
 }
 
-/* A weighted histogram of |axial offset| (bins of kDisplacementBin) -> its quantiles at ny::exit_knot_level(1 .. ny::kExitQuantiles), linear
- * within a bin, and its mean (bin centres); both empty or 0 without weight. */
-void axial_summary(const std::vector<uint64_t> &hist, std::vector<double> &quantiles, double &mean)
+/* One side's signed axial offset histograms (kExitBands of kAxialBins, from `hist`) -> per band its quantiles at
+ * ny::exit_knot_level(1 .. ny::kExitQuantiles), linear within a bin, band after band, and its mean (bin centres);
+ * a band without weight gets zeros (no offset). */
+void axial_summary(const uint64_t *hist, std::vector<double> &quantiles, std::vector<double> &means)
 {
-  double total = 0.0, moment = 0.0;
-  for (size_t i = 0; i < hist.size(); i++) {
-    total += double(hist[i]);
-    moment += double(hist[i]) * (double(i) + 0.5) * kDisplacementBin;
-  }
   quantiles.clear();
-  mean = total > 0.0 ? moment / total : 0.0;
-  if (!(total > 0.0)) {
-    return;
-  }
-  double cum = 0.0;
-  size_t i = 0;
-  for (int k = 1; k <= ny::kExitQuantiles; k++) {
-    const double level = double(ny::exit_knot_level(k));
-    const double target = level * total;
-    while (i + 1 < hist.size() && cum + double(hist[i]) < target) {
-      cum += double(hist[i]);
-      i++;
+  means.clear();
+  for (int band = 0; band < ny::kExitBands; band++) {
+    const uint64_t *h = hist + size_t(band) * kAxialBins;
+    double total = 0.0, moment = 0.0;
+    for (int i = 0; i < kAxialBins; i++) {
+      total += double(h[i]);
+      moment += double(h[i]) * (double(i - kAxialHalf) + 0.5) * kDisplacementBin;
     }
-    const double in_bin = hist[i] ? std::clamp((target - cum) / double(hist[i]), 0.0, 1.0) : 0.0;
-    quantiles.push_back((double(i) + in_bin) * kDisplacementBin);
+    means.push_back(total > 0.0 ? moment / total : 0.0);
+    double cum = 0.0;
+    int i = 0;
+    for (int k = 1; k <= ny::kExitQuantiles; k++) {
+      if (!(total > 0.0)) {
+        quantiles.push_back(0.0);
+        continue;
+      }
+      const double target = double(ny::exit_knot_level(k)) * total;
+      while (i + 1 < kAxialBins && cum + double(h[i]) < target) {
+        cum += double(h[i]);
+        i++;
+      }
+      const double in_bin = h[i] ? std::clamp((target - cum) / double(h[i]), 0.0, 1.0) : 0.0;
+      quantiles.push_back((double(i - kAxialHalf) + in_bin) * kDisplacementBin);
+    }
   }
 }
 
@@ -899,8 +915,8 @@ void summarize(const SharedStats &shared, const GatherOptions &opt, GatherStats 
   st.mean_displacement_M = shared.disp_count_M ? double(shared.disp_sum_M) * 1e-6 / double(shared.disp_count_M) : 0.0;
   st.p95_displacement = percentile(shared.displacement, 0.95, kDisplacementBin);
   st.p95_displacement_M = percentile(shared.displacement_M, 0.95, kDisplacementBin);
-  axial_summary(shared.axial[0], st.axial_exit_reflected, st.mean_axial_exit_reflected);
-  axial_summary(shared.axial[1], st.axial_exit_through, st.mean_axial_exit_through);
+  axial_summary(shared.axial.data() + axial_index(0, 0, 0), st.axial_exit_reflected, st.mean_axial_exit_reflected);
+  axial_summary(shared.axial.data() + axial_index(1, 0, 0), st.axial_exit_through, st.mean_axial_exit_through);
 }
 
 RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &opt,

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "neuralyarn/io.h"
+#include "neuralyarn/kernel/exit_placement.h"
 #include "neuralyarn/version.h"
 
 namespace neuralyarn::rdm {
@@ -111,10 +112,11 @@ json stats_json(const GatherStats &s)
   j["p95_displacement_R"] = s.p95_displacement;
   j["mean_displacement_M_R"] = s.mean_displacement_M;
   j["p95_displacement_M_R"] = s.p95_displacement_M;
-  j["axial_exit_reflected_R"] = s.axial_exit_reflected;
-  j["axial_exit_through_R"] = s.axial_exit_through;
-  j["mean_axial_exit_reflected_R"] = s.mean_axial_exit_reflected;
-  j["mean_axial_exit_through_R"] = s.mean_axial_exit_through;
+  /* Signed, per band of |cos(w_i, axis)| (D72); the unsigned pooled keys without "_bands" were D68's. */
+  j["axial_exit_reflected_bands_R"] = s.axial_exit_reflected;
+  j["axial_exit_through_bands_R"] = s.axial_exit_through;
+  j["mean_axial_exit_reflected_bands_R"] = s.mean_axial_exit_reflected;
+  j["mean_axial_exit_through_bands_R"] = s.mean_axial_exit_through;
   /* The path-length distribution, trimmed after its last non-empty bin. */
   size_t last = 0;
   for (size_t i = 0; i < s.events_histogram.size(); i++) {
@@ -300,12 +302,18 @@ void read_summary(const json &s, GatherStats &st)
   st.p95_displacement = s.at("p95_displacement_R").get<double>();
   st.mean_displacement_M = s.at("mean_displacement_M_R").get<double>();
   st.p95_displacement_M = s.at("p95_displacement_M_R").get<double>();
-  /* Measured since D68: older files have none. */
-  if (s.contains("axial_exit_through_R")) {
-    st.axial_exit_reflected = s.at("axial_exit_reflected_R").get<std::vector<double>>();
-    st.axial_exit_through = s.at("axial_exit_through_R").get<std::vector<double>>();
-    st.mean_axial_exit_reflected = s.at("mean_axial_exit_reflected_R").get<double>();
-    st.mean_axial_exit_through = s.at("mean_axial_exit_through_R").get<double>();
+  /* Measured so since D72: older files have none (D68's were pooled and unsigned: not what a model needs now). */
+  if (s.contains("axial_exit_through_bands_R")) {
+    st.axial_exit_reflected = s.at("axial_exit_reflected_bands_R").get<std::vector<double>>();
+    st.axial_exit_through = s.at("axial_exit_through_bands_R").get<std::vector<double>>();
+    st.mean_axial_exit_reflected = s.at("mean_axial_exit_reflected_bands_R").get<std::vector<double>>();
+    st.mean_axial_exit_through = s.at("mean_axial_exit_through_bands_R").get<std::vector<double>>();
+    const size_t nq = size_t(ny::kExitBands) * ny::kExitQuantiles;
+    if (st.axial_exit_reflected.size() != nq || st.axial_exit_through.size() != nq ||
+        st.mean_axial_exit_reflected.size() != size_t(ny::kExitBands) ||
+        st.mean_axial_exit_through.size() != size_t(ny::kExitBands)) {
+      throw std::runtime_error("the axial exit offsets must hold 5 bands of 9 quantiles and 5 means per side");
+    }
   }
 }
 

@@ -1,48 +1,56 @@
 // SPDX-License-Identifier: Apache-2.0
 //
-// Where along the ply the light scattered inside an aggregated ply leaves it (decisions D68).
+// Where along the ply the light scattered inside an aggregated ply leaves it (decisions D68, D72).
 //
 // The aggregated BSDF is a far-field function: a renderer evaluates it at the hit point and continues the path
 // from there. Inside real fibers, light also travels along the ply (cotton: half of what goes through more than a
 // ply radius, a tenth more than six), so a part of a ply in another ply's shadow still glows with light that
 // entered where the ply is lit; a far-field BSDF leaves that part dark. The gather measures, energy-weighted at
 // the levels below, how far along the axis the exits lie from where a renderer's ray from the entry point would
-// leave (rdm::GatherStats::axial_exit_through, axial_exit_reflected: through the far side, on the entry side); a
-// model carries those quantiles (model::NearField), and a renderer moves the origin of a path that leaves a neural
-// yarn closure's ply by an offset drawn from those of its side, in ply radii along the curve.
+// leave (rdm::GatherStats::axial_exit_through, axial_exit_reflected: through the far side, on the entry side),
+// signed (positive: further the way the light travelled along the axis; fibers scatter light on cones about
+// their axes, so it keeps going the way it came) and per band of the light's direction cosine with the ply's
+// axis (light along the axis travels far along it, light across it hardly, and both ways). A model carries
+// those quantiles (model::NearField), and a renderer moves the origin of a path that leaves a neural yarn
+// closure's ply by an offset drawn from those of its side and its direction, in ply radii along the curve,
+// toward where the path goes: there the light it stands for came in.
 //
-// The quantiles become knots of |offset| at the levels 0, the gather's six and 1 (the last extrapolated by
-// the step before it); between knots the inverse distribution is linear.
+// The quantiles become knots at the levels 0, the gather's nine and 1 (the ends extrapolated by the step next to
+// them); between knots the inverse distribution is linear, and between the bands' centres the offsets are.
 #pragma once
 
 #include "platform.h"
 
 namespace ny {
 
-/* The gather's quantile levels (rdm::GatherStats), and the knots': 0, those six, 1. */
-constexpr int kExitQuantiles = 6;
+/* Bands of |cos| between the light's direction and the ply's axis, of equal width; the gather's quantile levels
+ * (rdm::GatherStats) per band, and the knots': 0, those nine, 1. */
+constexpr int kExitBands = 5;
+constexpr int kExitQuantiles = 9;
 constexpr int kExitKnots = kExitQuantiles + 2;
+/* The knots of one side: kExitKnots per band, band after band. */
+constexpr int kExitSideSize = kExitBands * kExitKnots;
 /* Knot k's level (a function, not a table: device code reads no namespace-scope arrays). */
 NY_KERNEL_FN float exit_knot_level(int k)
 {
-  return k <= 0 ? 0.0f : k == 1 ? 0.25f : k == 2 ? 0.5f : k == 3 ? 0.75f : k == 4 ? 0.9f : k == 5 ? 0.95f :
-                                                                                                  k == 6 ? 0.99f :
-                                                                                                           1.0f;
+  return k <= 0 ? 0.0f : k == 1 ? 0.01f : k == 2 ? 0.05f : k == 3 ? 0.1f : k == 4 ? 0.25f : k == 5 ? 0.5f :
+         k == 6 ? 0.75f : k == 7 ? 0.9f : k == 8 ? 0.95f : k == 9 ? 0.99f : 1.0f;
 }
-/* Largest quantile a model may carry (ply radii). */
+/* Largest |quantile| a model may carry (ply radii). */
 constexpr float kExitMaxOffset = 1000.0f;
+static_assert(kExitBands >= 2, "exit_sample_offset interpolates between two bands");
 
 #ifndef NY_KERNEL_DEVICE
-/* Checks a model's quantiles (kExitQuantiles of them, ply radii): finite, in [0, kExitMaxOffset], non-decreasing.
- * Returns null if they are fine, else what is wrong. */
+/* Checks one band's quantiles (kExitQuantiles of them, signed ply radii): finite, within kExitMaxOffset,
+ * non-decreasing. Returns null if they are fine, else what is wrong. */
 inline const char *exit_quantiles_check(const float *q, int n)
 {
   if (n != kExitQuantiles) {
-    return "must hold six quantiles (at 25, 50, 75, 90, 95 and 99 %)";
+    return "must hold nine quantiles per band (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)";
   }
   for (int k = 0; k < n; k++) {
-    if (!(q[k] >= 0.0f && q[k] <= kExitMaxOffset)) {
-      return "holds a value that is not a finite number in [0, 1000] ply radii";
+    if (!(q[k] >= -kExitMaxOffset && q[k] <= kExitMaxOffset)) {
+      return "holds a value that is not a finite number in [-1000, 1000] ply radii";
     }
     if (k > 0 && !(q[k] >= q[k - 1])) {
       return "decreases: quantiles at higher levels must not be smaller";
@@ -51,34 +59,146 @@ inline const char *exit_quantiles_check(const float *q, int n)
   return nullptr;
 }
 
-/* The knots (kExitKnots floats) of checked quantiles: 0, the quantiles, and the last one stepped on by the
- * difference before it (the 99 % to 100 % share spread as the 95 % to 99 % one is, so no offset is unbounded). */
+/* The knots (kExitKnots floats) of one band's checked quantiles: the first and the last stepped out by the
+ * difference next to them (the 0-1 % and 99-100 % shares spread as the 1-5 % and 95-99 % ones are, so no
+ * offset is unbounded). */
 inline void exit_knots(const float *q, float *knots)
 {
-  knots[0] = 0.0f;
   for (int k = 0; k < kExitQuantiles; k++) {
     knots[k + 1] = q[k];
   }
+  knots[0] = q[0] - (q[1] - q[0]);
   knots[kExitKnots - 1] = q[kExitQuantiles - 1] + (q[kExitQuantiles - 1] - q[kExitQuantiles - 2]);
+}
+
+/* A side's knots (kExitSideSize floats) from its checked quantiles (kExitBands x kExitQuantiles). */
+inline void exit_side_knots(const float *q, float *knots)
+{
+  for (int b = 0; b < kExitBands; b++) {
+    exit_knots(q + b * kExitQuantiles, knots + b * kExitKnots);
+  }
+}
+
+/* Models from before D72 carry six quantiles of |offset| (at 25, 50, 75, 90, 95 and 99 %), pooled over every
+ * incidence: the signed quantiles of the same offsets taken either way with equal chance, for every band. */
+constexpr int kExitLegacyQuantiles = 6;
+inline void exit_quantiles_from_magnitudes(const float *m, float *q)
+{
+  /* |offset| at level l: linear between (0, 0) and the six quantiles. */
+  auto magnitude = [&](float l) {
+    const float levels[kExitLegacyQuantiles + 1] = {0.0f, 0.25f, 0.5f, 0.75f, 0.9f, 0.95f, 0.99f};
+    float prev = 0.0f;
+    for (int k = 1; k <= kExitLegacyQuantiles; k++) {
+      if (l <= levels[k]) {
+        return prev + (m[k - 1] - prev) * ((l - levels[k - 1]) / (levels[k] - levels[k - 1]));
+      }
+      prev = m[k - 1];
+    }
+    return m[kExitLegacyQuantiles - 1];
+  };
+  /* The levels are symmetric about the median (exit_knot_level): the upper half, mirrored. */
+  for (int k = kExitQuantiles / 2; k < kExitQuantiles; k++) {
+    q[k] = magnitude(2.0f * exit_knot_level(k + 1) - 1.0f);
+    q[kExitQuantiles - 1 - k] = -q[k];
+  }
+}
+
+/* One side's quantiles (kExitBands x kExitQuantiles floats, band after band) from a model file's "near_field"
+ * object, any JSON type with nlohmann::json's interface (the model reader's and Cycles' host's): its
+ * "through_bands" or "reflected_bands" (`through` picks), else the pre-D72 "axial_exit_through" or
+ * "axial_exit_reflected", converted for every band. Returns 1 when read, 0 when the side is absent, -1 when it
+ * is malformed, with *key the key read and *problem what is wrong with it. */
+template<class Json>
+int exit_side_from_json(const Json &near_field, bool through, float *q, const char **key, const char **problem)
+{
+  const char *bands_key = through ? "through_bands" : "reflected_bands";
+  const char *legacy_key = through ? "axial_exit_through" : "axial_exit_reflected";
+  *problem = nullptr;
+  /* Up to `n` numbers of an array (one more, if there are more: the check then names the count). */
+  auto numbers = [](const Json &a, float *out, int n) {
+    int m = 0;
+    if (a.is_array()) {
+      for (const Json &v : a) {
+        if (m > n) {
+          break;
+        }
+        out[m++] = v.is_number() ? v.template get<float>() : NY_INFINITY;
+      }
+    }
+    return m;
+  };
+  float band[kExitQuantiles + 1];
+  if (near_field.contains(bands_key)) {
+    *key = bands_key;
+    const Json &a = near_field[bands_key];
+    if (!a.is_array() || int(a.size()) != kExitBands) {
+      *problem = "must hold five bands (of |cos| between the light and the ply's axis: 0-0.2 ... 0.8-1)";
+      return -1;
+    }
+    for (int b = 0; b < kExitBands; b++) {
+      const int n = numbers(a[size_t(b)], band, kExitQuantiles);
+      if ((*problem = exit_quantiles_check(band, n)) != nullptr) {
+        return -1;
+      }
+      for (int k = 0; k < kExitQuantiles; k++) {
+        q[b * kExitQuantiles + k] = band[k];
+      }
+    }
+    return 1;
+  }
+  if (!near_field.contains(legacy_key)) {
+    return 0;
+  }
+  *key = legacy_key;
+  float m[kExitLegacyQuantiles + 1];
+  const int n = numbers(near_field[legacy_key], m, kExitLegacyQuantiles);
+  bool ok = n == kExitLegacyQuantiles;
+  for (int k = 0; ok && k < n; k++) {
+    ok = m[k] >= 0.0f && m[k] <= kExitMaxOffset && (k == 0 || m[k] >= m[k - 1]);
+  }
+  if (!ok) {
+    *problem = "must hold six non-decreasing quantiles in [0, 1000] ply radii (at 25, 50, 75, 90, 95 and 99 %)";
+    return -1;
+  }
+  exit_quantiles_from_magnitudes(m, band);
+  for (int b = 0; b < kExitBands; b++) {
+    for (int k = 0; k < kExitQuantiles; k++) {
+      q[b * kExitQuantiles + k] = band[k];
+    }
+  }
+  return 1;
 }
 #endif
 
-/* A signed offset (ply radii) for u in [0, 1): its sign from u < 1/2 (the walk is symmetric along the axis), its
- * magnitude from the inverse distribution through `knots` at the remapped u. */
-NY_KERNEL_FN float exit_sample_offset(NY_GLOBAL const float *knots, float u)
+/* One band's offset at level u in [0, 1]: the inverse distribution through its knots. */
+NY_KERNEL_FN float exit_band_offset(NY_GLOBAL const float *knots, float u)
 {
-  const float sign = u < 0.5f ? -1.0f : 1.0f;
-  float v = u < 0.5f ? 2.0f * u : 2.0f * u - 1.0f;
-  v = v < 0.0f ? 0.0f : (v > 1.0f ? 1.0f : v);
-  float magnitude = knots[kExitKnots - 1];
   for (int k = 1; k < kExitKnots; k++) {
     const float l0 = exit_knot_level(k - 1), l1 = exit_knot_level(k);
-    if (v < l1) {
-      magnitude = knots[k - 1] + (knots[k] - knots[k - 1]) * ((v - l0) / (l1 - l0));
-      break;
+    if (u < l1) {
+      return knots[k - 1] + (knots[k] - knots[k - 1]) * ((u - l0) / (l1 - l0));
     }
   }
-  return sign * magnitude;
+  return knots[kExitKnots - 1];
+}
+
+/* An offset along the ply's axis (ply radii, positive along `cos_axis`'s axis direction) for a path that leaves
+ * the ply in a direction at `cos_axis` to that axis, at level u in [0, 1): the side's bands (`knots`,
+ * kExitSideSize floats) at |cos_axis|, linear between the two nearest band centres, turned toward where the path
+ * goes along the axis (where the light it stands for came from). */
+NY_KERNEL_FN float exit_sample_offset(NY_GLOBAL const float *knots, float cos_axis, float u)
+{
+  u = u < 0.0f ? 0.0f : (u > 1.0f ? 1.0f : u);
+  const float a = cos_axis < 0.0f ? -cos_axis : cos_axis;
+  float x = a * float(kExitBands) - 0.5f;
+  x = x < 0.0f ? 0.0f : (x > float(kExitBands - 1) ? float(kExitBands - 1) : x);
+  int b = int(x);
+  b = b > kExitBands - 2 ? kExitBands - 2 : b;
+  const float w = x - float(b);
+  const float s0 = exit_band_offset(knots + b * kExitKnots, u);
+  const float s1 = exit_band_offset(knots + (b + 1) * kExitKnots, u);
+  const float s = s0 + (s1 - s0) * w;
+  return cos_axis < 0.0f ? -s : s;
 }
 
 }  // namespace ny

@@ -68,9 +68,10 @@ struct RShapeTable {
   int stride() const { return azimuth_bins + 3; }
 };
 
-/* How far along the ply scattered light travels before it leaves (decisions D68, kernel/exit_placement.h): the
- * gather's quantiles of the exit's axial offset (rdm::GatherStats::axial_exit_through, axial_exit_reflected), ply
- * radii, for the light that leaves through the far side and for the light that leaves on the side it entered. A
+/* How far along the ply scattered light travels before it leaves (decisions D68, D72, kernel/exit_placement.h): the
+ * gather's signed quantiles of the exit's axial offset per band of the light's direction (rdm::GatherStats::
+ * axial_exit_through, axial_exit_reflected: ny::kExitBands x ny::kExitQuantiles), ply radii, for the light that
+ * leaves through the far side and for the light that leaves on the side it entered. A
  * renderer moves the origin of such a path by an offset drawn from them. Not in the kernel array (the fallback
  * tables name that array): the model file's "near_field". Empty: those paths leave from the hit point, as models
  * before it rendered. */

@@ -87,14 +87,16 @@ struct GatherStats {
   double mean_displacement = 0.0, p95_displacement = 0.0;
   double mean_displacement_M = 0.0, p95_displacement_M = 0.0;
   /* How far along the ply (yarn) axis scattered light travels inside before it leaves: the offset of its exit along
-   * the axis (ply radii) from where a ray from the entry point along the exit direction would leave, weighted by the
-   * exit energy (mean of RGB), at the levels ny::exit_knot_level(1 .. ny::kExitQuantiles): over the exits on the
-   * entry side (R and M, w_o.z > 0 in the entry frame) and over those through the far side; with their means. A
-   * far-field BSDF puts every exit at its entry point, so light that enters a lit part of a ply and leaves in a
-   * shadowed part is what it cannot render (decisions D68; kernel/exit_placement.h). Empty for maps written before
-   * these were measured. */
+   * the axis (ply radii) from where a ray from the entry point along the exit direction would leave, signed
+   * (positive the way the light travelled along the axis, -w_i's) and weighted by the exit energy (mean of RGB),
+   * per band of |cos(w_i, axis)| (ny::kExitBands of equal width), at the levels ny::exit_knot_level(1 ..
+   * ny::kExitQuantiles), band after band: over the exits on the entry side (R and M, w_o.z > 0 in the entry frame)
+   * and over those through the far side; with each band's mean. A far-field BSDF puts every exit at its entry
+   * point, so light that enters a lit part of a ply and leaves in a shadowed part is what it cannot render
+   * (decisions D68, D72; kernel/exit_placement.h). Empty for maps written before D72 (whose offsets were pooled
+   * over the incidences and unsigned). */
   std::vector<double> axial_exit_reflected, axial_exit_through;
-  double mean_axial_exit_reflected = 0.0, mean_axial_exit_through = 0.0;
+  std::vector<double> mean_axial_exit_reflected, mean_axial_exit_through;
   double paths_per_second() const { return seconds > 0.0 ? double(paths) / seconds : 0.0; }
 };
 
