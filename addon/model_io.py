@@ -172,10 +172,11 @@ def _finite(v) -> bool:
 def _band_problem(q) -> str | None:
     if not isinstance(q, list) or len(q) != NEAR_FIELD_QUANTILES:
         return "must hold nine quantiles per band (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)"
-    if not all(_finite(v) and -_MAX_EXIT_OFFSET <= v <= _MAX_EXIT_OFFSET for v in q):
-        return f"holds a value that is not a finite number in [-{_MAX_EXIT_OFFSET:g}, {_MAX_EXIT_OFFSET:g}] ply radii"
-    if any(b < a for a, b in zip(q, q[1:])):
-        return "decreases: quantiles at higher levels must not be smaller"
+    for k, v in enumerate(q):  # value by value, as the core's check: the first fault names the message
+        if not (_finite(v) and -_MAX_EXIT_OFFSET <= v <= _MAX_EXIT_OFFSET):
+            return f"holds a value that is not a finite number in [-{_MAX_EXIT_OFFSET:g}, {_MAX_EXIT_OFFSET:g}] ply radii"
+        if k > 0 and v < q[k - 1]:
+            return "decreases: quantiles at higher levels must not be smaller"
     return None
 
 

@@ -462,6 +462,10 @@ class Commands : public ModelCommands {
     m.provenance["maps"]["file"] = maps_;
     model::save_model(m, out_);
     print_networks(m);
+    if (m.near_field.empty()) {
+      std::printf("note: '%s' records no signed exit offsets (gathered before decisions D72): the model has no near "
+                  "field; `neuralyarn near-field` sets one from newer maps\n", maps_.c_str());
+    }
     std::printf("%s\n", bar.stage_times().c_str());
     std::printf("wrote %s\n", out_.c_str());
     return 0;
@@ -483,7 +487,11 @@ class Commands : public ModelCommands {
     }
     model::fit_model_proxy(&m, maps, topt_.fit);
     if (const model::NearField nf = model::near_field_of(maps); !nf.empty()) {
-      m.near_field = nf; /* maps from before D72 leave the model's near field as it was */
+      m.near_field = nf;
+    }
+    else { /* maps from before D72 leave the model's near field as it was */
+      std::printf("note: '%s' records no signed exit offsets (gathered before decisions D72): the model's near field "
+                  "is left as it was\n", maps_.c_str());
     }
     if (topt_.r_free_path >= 0.0) {
       m.r_free_path = topt_.r_free_path;

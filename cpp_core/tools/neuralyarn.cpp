@@ -138,11 +138,12 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
     std::snprintf(b, sizeof(b), "%.2f", v);
     return std::string(b);
   };
-  /* Each band's mean and median (the quantile at 50 %, ny::exit_knot_level(5)). */
+  /* Each band's mean and median (the middle quantile: the levels are symmetric about 50 %). */
+  constexpr size_t median = ny::kExitQuantiles / 2;
   auto bands = [&](const std::vector<double> &q, const std::vector<double> &mean) {
     std::string t;
     for (size_t b = 0; b < mean.size() && (b + 1) * ny::kExitQuantiles <= q.size(); b++) {
-      t += std::string(b ? ", " : "") + buf(mean[b]) + "/" + buf(q[b * ny::kExitQuantiles + 4]);
+      t += std::string(b ? ", " : "") + buf(mean[b]) + "/" + buf(q[b * ny::kExitQuantiles + median]);
     }
     return t;
   };

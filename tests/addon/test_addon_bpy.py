@@ -1131,6 +1131,18 @@ _REJECTIONS = [
 ]
 
 
+def test_a_near_field_from_before_d72_is_read(addon):
+    """A model from before D72 holds six unsigned quantiles ('axial_exit_through'); the core converts them
+    (kernel/exit_placement.h), so the add-on must take the file, not refuse it."""
+    data = json.loads(open(os.path.join(addon.resources.resource_dir("models"), "cotton.json")).read())
+    data["near_field"] = {"axial_exit_through": [0.18, 0.94, 2.8, 5.85, 8.6, 17.1],
+                          "axial_exit_reflected": [0.01, 0.05, 0.2, 0.9, 2.0, 8.0]}
+    addon.model_io.parse_model(json.dumps(data), "model.json")
+    data["near_field"]["axial_exit_through"][5] = 5.0
+    with pytest.raises(addon.model_io.ModelFileError, match="'axial_exit_through' must hold six non-decreasing"):
+        addon.model_io.parse_model(json.dumps(data), "model.json")
+
+
 @pytest.mark.parametrize("case", [c[0] for c in _REJECTIONS])
 def test_every_model_file_rejection_names_its_key(addon, case):
     data = json.loads(open(os.path.join(addon.resources.resource_dir("models"), "cotton.json")).read())

@@ -85,7 +85,7 @@ TEST(ExitPlacement, OffsetsFollowTheDirection)
     EXPECT_NEAR(ny::exit_sample_offset(knots, 1.0f, u),
                 ny::exit_band_offset(knots + (ny::kExitBands - 1) * ny::kExitKnots, u), 1e-4f);
   }
-  /* Light along the axis: most paths start toward the light (cotton's far side: 95 % positive). */
+  /* Light along the axis: most paths start toward the light (this band: ~93 % positive). */
   int toward = 0;
   const int n = 1000;
   for (int i = 0; i < n; i++) {

@@ -11,17 +11,23 @@
 // implementation fails one such test with probability 1e-4; the seeds are fixed, so a pass is stable).
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include <boost/math/distributions/chi_squared.hpp>
 
 #include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <functional>
 #include <filesystem>
 #include <fstream>
 #include <random>
 
 #include "neuralyarn/geometry/ply.h"
+#include "neuralyarn/model/bake.h"
+#include "neuralyarn/kernel/exit_placement.h"
 #include "neuralyarn/kernel/fiber_bsdf.h"
 #include "neuralyarn/presets.h"
 #include "neuralyarn/rdm/embree_ply.h"
@@ -749,10 +755,12 @@ TEST(Gather, AxialExitOffsetMatchesARendererWalk)
         EXPECT_GE(q[size_t(b * ny::kExitQuantiles + k)], q[size_t(b * ny::kExitQuantiles + k - 1)]);
       }
     }
-    /* It must measure something: light along the axis keeps going (fleece ~0.7-0.8 radii), light across it
-     * hardly moves on average (~0.06). */
+    /* It must measure something, in both: light along the axis keeps going (fleece ~0.7-0.8 radii), light across
+     * it hardly moves on average (~0.06). */
     EXPECT_GT(m[j][ny::kExitBands - 1][1] / m[j][ny::kExitBands - 1][0], 0.4) << (j ? "through" : "entry side");
     EXPECT_LT(std::abs(m[j][0][1] / m[j][0][0]), 0.2) << (j ? "through" : "entry side");
+    EXPECT_GT(gathered[ny::kExitBands - 1], 0.4) << (j ? "through" : "entry side");
+    EXPECT_LT(std::abs(gathered[0]), 0.2) << (j ? "through" : "entry side");
   }
 }
 
@@ -1157,6 +1165,35 @@ TEST(MapFile, RoundTripAndCorruption)
   write_all(bad, good.substr(0, 30));
   EXPECT_NE(error_of([&] { rdm::load_maps(bad); }), "");
   EXPECT_NE(error_of([&] { rdm::load_maps(temp_path("missing.nyrdm")); }).find("cannot open"), std::string::npos);
+  /* The header's JSON edited (its length field rewritten; the payload's hash does not cover it). */
+  auto with_header = [&](const std::function<void(nlohmann::json &)> &change) {
+    uint64_t h = 0;
+    std::memcpy(&h, good.data() + 12, 8);
+    nlohmann::json header = nlohmann::json::parse(good.substr(20, size_t(h)));
+    change(header);
+    const std::string text = header.dump();
+    const uint64_t n = text.size();
+    std::string out = good.substr(0, 12) + std::string(reinterpret_cast<const char *>(&n), 8) + text +
+                      good.substr(20 + size_t(h));
+    write_all(bad, out);
+  };
+  /* Maps from D68 to D72 hold the offsets unsigned and pooled, under other keys: they load, with none (a model
+   * made from them keeps no near field). */
+  with_header([](nlohmann::json &hd) {
+    nlohmann::json &s = hd["summary"];
+    for (const char *side : {"reflected", "through"}) {
+      s[std::string("axial_exit_") + side + "_R"] = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6};
+      s[std::string("mean_axial_exit_") + side + "_R"] = 0.3;
+      s.erase(std::string("axial_exit_") + side + "_bands_R");
+      s.erase(std::string("mean_axial_exit_") + side + "_bands_R");
+    }
+  });
+  const rdm::RdmMaps d68 = rdm::load_maps(bad);
+  EXPECT_TRUE(d68.stats.axial_exit_through.empty());
+  EXPECT_TRUE(model::near_field_of(d68).empty());
+  /* A band short: refused, naming it. */
+  with_header([](nlohmann::json &hd) { hd["summary"]["axial_exit_through_bands_R"].erase(0); });
+  EXPECT_NE(error_of([&] { rdm::load_maps(bad); }).find("axial exit offsets must hold 5 bands of 9"), std::string::npos);
   /* Unwritable destination: an error, and an existing file there is left alone. */
   EXPECT_NE(error_of([&] { rdm::save_maps(maps, "/nonexistent-dir/x.nyrdm"); }).find("does not exist"), std::string::npos);
   EXPECT_NE(error_of([&] { rdm::save_maps(maps, "/dev/null/x.nyrdm"); }), "");

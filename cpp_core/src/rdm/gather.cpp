@@ -43,7 +43,10 @@ constexpr int kDisplacementBins = 10000;   /* up to 200 R */
  * +-kAxialHalf * kDisplacementBin ply radii, the ends taking what lies beyond. */
 constexpr int kAxialHalf = 5000;
 constexpr int kAxialBins = 2 * kAxialHalf;
-size_t axial_index(int side, int band, int bin) { return (size_t(side) * ny::kExitBands + size_t(band)) * kAxialBins + size_t(bin); }
+size_t axial_index(int side, int band, int bin)
+{
+  return (size_t(side) * ny::kExitBands + size_t(band)) * kAxialBins + size_t(bin);
+}
 
 /* SplitMix64 (Steele, Lea & Flood 2014): one independent stream per path, seeded from (seed, path). */
 struct PathRng {

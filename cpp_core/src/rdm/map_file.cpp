@@ -284,7 +284,7 @@ void read_description(const std::string &path, const json &h, uint32_t version, 
 }
 
 /* The header's summary: what stats_json wrote (the parts a loaded map is asked for). */
-void read_summary(const json &s, GatherStats &st)
+void read_summary(const std::string &path, const json &s, GatherStats &st)
 {
   st.paths = s.at("paths").get<uint64_t>();
   st.seconds = s.at("seconds").get<double>();
@@ -312,7 +312,9 @@ void read_summary(const json &s, GatherStats &st)
     if (st.axial_exit_reflected.size() != nq || st.axial_exit_through.size() != nq ||
         st.mean_axial_exit_reflected.size() != size_t(ny::kExitBands) ||
         st.mean_axial_exit_through.size() != size_t(ny::kExitBands)) {
-      throw std::runtime_error("the axial exit offsets must hold 5 bands of 9 quantiles and 5 means per side");
+      fail(path, "summary: the axial exit offsets must hold " + std::to_string(ny::kExitBands) + " bands of " +
+                     std::to_string(ny::kExitQuantiles) + " quantiles and " + std::to_string(ny::kExitBands) +
+                     " means per side");
     }
   }
 }
@@ -409,7 +411,7 @@ RdmMaps load_maps(const std::string &path)
   try {
     check_payload(path, c.header, c.payload);
     read_description(path, c.header, c.version, maps);
-    read_summary(c.header.at("summary"), maps.stats);
+    read_summary(path, c.header.at("summary"), maps.stats);
   }
   catch (const MapFileError &) {
     throw;

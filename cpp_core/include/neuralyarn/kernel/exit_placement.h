@@ -190,8 +190,9 @@ NY_KERNEL_FN float exit_sample_offset(NY_GLOBAL const float *knots, float cos_ax
 {
   u = u < 0.0f ? 0.0f : (u > 1.0f ? 1.0f : u);
   const float a = cos_axis < 0.0f ? -cos_axis : cos_axis;
+  /* Written so that a NaN cosine lands in band 0 (int(NaN) is undefined). */
   float x = a * float(kExitBands) - 0.5f;
-  x = x < 0.0f ? 0.0f : (x > float(kExitBands - 1) ? float(kExitBands - 1) : x);
+  x = x > 0.0f ? (x < float(kExitBands - 1) ? x : float(kExitBands - 1)) : 0.0f;
   int b = int(x);
   b = b > kExitBands - 2 ? kExitBands - 2 : b;
   const float w = x - float(b);
