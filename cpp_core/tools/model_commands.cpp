@@ -30,6 +30,12 @@ namespace {
 using model::NetworkOptions;
 using model::TrainModelOptions;
 
+/* What maps from before decisions D72 lack, for a model's near field (train, fit and near-field say it). */
+std::string no_signed_offsets(const std::string &maps)
+{
+  return "'" + maps + "' records no signed exit offsets per band (gathered before decisions D72)";
+}
+
 void add_network_options(CLI::App *cmd, const char *name, NetworkOptions *o)
 {
   const std::string p = std::string("--") + name + "-";
@@ -463,8 +469,8 @@ class Commands : public ModelCommands {
     model::save_model(m, out_);
     print_networks(m);
     if (m.near_field.empty()) {
-      std::printf("note: '%s' records no signed exit offsets (gathered before decisions D72): the model has no near "
-                  "field; `neuralyarn near-field` sets one from newer maps\n", maps_.c_str());
+      std::printf("note: %s: the model has no near field; `neuralyarn near-field` sets one from newer maps\n",
+                  no_signed_offsets(maps_).c_str());
     }
     std::printf("%s\n", bar.stage_times().c_str());
     std::printf("wrote %s\n", out_.c_str());
@@ -490,8 +496,7 @@ class Commands : public ModelCommands {
       m.near_field = nf;
     }
     else { /* maps from before D72 leave the model's near field as it was */
-      std::printf("note: '%s' records no signed exit offsets (gathered before decisions D72): the model's near field "
-                  "is left as it was\n", maps_.c_str());
+      std::printf("note: %s: the model's near field is left as it was\n", no_signed_offsets(maps_).c_str());
     }
     if (topt_.r_free_path >= 0.0) {
       m.r_free_path = topt_.r_free_path;
@@ -744,8 +749,7 @@ class Commands : public ModelCommands {
     require_same_preset(m, maps);
     const model::NearField nf = model::near_field_of(maps);
     if (nf.empty()) {
-      throw std::runtime_error("'" + maps_ + "' records no signed exit offsets per band (gathered before "
-                               "decisions D72: gather it again)");
+      throw std::runtime_error(no_signed_offsets(maps_) + ": gather it again");
     }
     const std::string out = out_.empty() ? model_ : out_;
     check_writable(out);

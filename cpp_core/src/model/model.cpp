@@ -230,10 +230,7 @@ NearField near_field_from(const json &j, const std::string &where)
     const char *key = nullptr, *problem = nullptr;
     const int got = ny::exit_side_from_json(j, through, q.data(), &key, &problem);
     if (got < 0) {
-      throw ModelError(where + "'" + key + "' " + problem);
-    }
-    if (got == 0 && through) {
-      throw ModelError(where + "must hold 'through_bands' (or a model's from before D72: 'axial_exit_through')");
+      throw ModelError(where + (key ? "'" + std::string(key) + "' " : std::string()) + problem);
     }
     (through ? nf.through : nf.reflected) = got > 0 ? q : std::vector<float>();
   }

@@ -106,8 +106,9 @@ inline void exit_quantiles_from_magnitudes(const float *m, float *q)
 /* One side's quantiles (kExitBands x kExitQuantiles floats, band after band) from a model file's "near_field"
  * object, any JSON type with nlohmann::json's interface (the model reader's and Cycles' host's): its
  * "through_bands" or "reflected_bands" (`through` picks), else the pre-D72 "axial_exit_through" or
- * "axial_exit_reflected", converted for every band. Returns 1 when read, 0 when the side is absent, -1 when it
- * is malformed, with *key the key read and *problem what is wrong with it. */
+ * "axial_exit_reflected", converted for every band. Returns 1 when read, 0 when the entry side is absent, -1 when
+ * the side is malformed or the far side (required) absent, with *problem what is wrong and *key the key it is
+ * wrong in (null for an absent far side). */
 template<class Json>
 int exit_side_from_json(const Json &near_field, bool through, float *q, const char **key, const char **problem)
 {
@@ -147,7 +148,9 @@ int exit_side_from_json(const Json &near_field, bool through, float *q, const ch
     return 1;
   }
   if (!near_field.contains(legacy_key)) {
-    return 0;
+    *key = nullptr;
+    *problem = through ? "must hold 'through_bands' (or a model's from before D72: 'axial_exit_through')" : nullptr;
+    return through ? -1 : 0;
   }
   *key = legacy_key;
   float m[kExitLegacyQuantiles + 1];
