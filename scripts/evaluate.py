@@ -536,6 +536,17 @@ def render_image(a, scene_args: list[str], stem: str, spp: int, finite: bool = T
     return read_exr(stem + ".exr")[..., :3]
 
 
+def with_diffuse_quad(text: str, name: str, colour: tuple[float, float, float],
+                      corners: tuple[tuple[float, float, float], ...]) -> str:
+    """A scene's XML text with a diffuse quad added before its end (a test's fixture for render_image's `edit`: a
+    floor, a wall): shader and mesh named `name`, `corners` its four (x, y, z) in order."""
+    points = " ".join(f"{v:g}" for c in corners for v in c)
+    quad = (f'<shader name="{name}">\n  <diffuse_bsdf name="d" color="{" ".join(f"{v:g}" for v in colour)}" />\n'
+            f'  <connect from="d bsdf" to="output surface" />\n</shader>\n<state shader="{name}">\n'
+            f'  <mesh P="{points}" nverts="4" verts="0 1 2 3" />\n</state>\n')
+    return text.replace("</cycles>", quad + "</cycles>")
+
+
 def empty_scene(a, ext: str = "xml") -> str:
     """Camera and a black background only: the renderer's own memory (baseline_rss_mb); `ext` json for Blender."""
     path = os.path.join(a.out, "scenes", f"empty.{ext}")

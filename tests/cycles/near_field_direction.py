@@ -44,14 +44,7 @@ from images import LUMINANCE  # noqa: E402
 WIDTH, HEIGHT, SPP = 160, 80, 16
 #: A black wall 3 ply radii behind the ply (camera at 12 on -z) for x < 8.2: under the sun's direction toward
 #: (0.87, 0, 0.5) it shadows the ply's front face for x < ~3.
-WALL = """<shader name="wall">
-  <diffuse_bsdf name="k" color="0 0 0" />
-  <connect from="k bsdf" to="output surface" />
-</shader>
-<state shader="wall">
-  <mesh P="-80 -30 3 8.196 -30 3 8.196 30 3 -80 30 3" nverts="4" verts="0 1 2 3" />
-</state>
-"""
+WALL = ((0.0, 0.0, 0.0), ((-80, -30, 3), (8.196, -30, 3), (8.196, 30, 3), (-80, 30, 3)))
 #: The ply's rows (its image is rows 26 .. 54; the middle, away from its silhouettes).
 ROWS = slice(32, 48)
 #: Shares of the image's light without a near field (measured: shipped +0.123 in the shadow, -0.004 in the lit
@@ -100,7 +93,7 @@ def main(out: str) -> int:
     try:
         for name, (path, ply_file) in runs.items():
             rgb = ev.render_image(a, [*common, "--plies", ply_file, "--model", path], os.path.join(out, name), SPP,
-                                  edit=lambda t: t.replace("</cycles>", WALL + "</cycles>"))
+                                  edit=lambda t: ev.with_diffuse_quad(t, "wall", *WALL))
             if (rgb < 0).any():
                 raise ev.RenderFailed(f"{name}: negative pixels")
             img[name] = rgb[ROWS] @ LUMINANCE

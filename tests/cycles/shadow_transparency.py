@@ -29,14 +29,7 @@ from images import LUMINANCE  # noqa: E402
 WIDTH, HEIGHT, SPP = 160, 80, 64
 ROTATIONS = (0, 90, 180, 270)
 #: A grey floor 3 ply radii behind the ply (camera at 12 on -z), facing the camera.
-FLOOR = """<shader name="floor">
-  <diffuse_bsdf name="d" color="0.8 0.8 0.8" />
-  <connect from="d bsdf" to="output surface" />
-</shader>
-<state shader="floor">
-  <mesh P="-40 -20 3 40 -20 3 40 20 3 -40 20 3" nverts="4" verts="0 1 2 3" />
-</state>
-"""
+FLOOR = ((0.8, 0.8, 0.8), ((-40, -20, 3), (40, -20, 3), (40, 20, 3), (-40, 20, 3)))
 #: The umbra: below the ply's image (rows 48 on), where the floor behind an opaque black ply gets < 2 % of its
 #: median light.
 UMBRA_FROM_ROW, UMBRA_LEVEL = 48, 0.02
@@ -52,7 +45,7 @@ def render(a, out: str, name: str, args: list[str], spp: int, shader=None) -> np
             start = text.index('<shader name="yarn">')
             end = text.index("</shader>", start) + len("</shader>")
             text = text[:start] + '<shader name="yarn">\n' + shader + "\n</shader>" + text[end:]
-        return text.replace("</cycles>", FLOOR + "</cycles>")
+        return ev.with_diffuse_quad(text, "floor", *FLOOR)
 
     img = ev.render_image(a, args, os.path.join(out, name), spp, finite=False, edit=fixture)
     if not np.isfinite(img).all() or (img < 0).any():
