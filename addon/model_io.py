@@ -161,6 +161,8 @@ def _refuse_constant(name: str):
 #: quantiles pooled over the bands ('axial_exit_through', 'axial_exit_reflected'), which the core converts.
 NEAR_FIELD_BANDS = 5
 NEAR_FIELD_QUANTILES = 9
+#: Where around the ply the light came in (D73): rows of the leaving point's h across the width, per band.
+NEAR_FIELD_ENTRY_ROWS = 10
 _NEAR_FIELD_LEGACY_QUANTILES = 6
 _MAX_EXIT_OFFSET = 1000.0
 
@@ -180,9 +182,29 @@ def _band_problem(q) -> str | None:
     return None
 
 
+def _entry_problem(bands) -> str | None:
+    """What is wrong with one side's entry h (decisions D73: per band, NEAR_FIELD_ENTRY_ROWS rows of nine quantiles
+    in [-1, 1]), or None (kernel/exit_placement.h entry_side_from_json, value by value)."""
+    if not isinstance(bands, list) or len(bands) != NEAR_FIELD_BANDS:
+        return "must hold five bands (of |cos| between the light and the ply's axis) of ten rows"
+    for rows in bands:
+        if not isinstance(rows, list) or len(rows) != NEAR_FIELD_ENTRY_ROWS:
+            return "must hold ten rows per band (of the leaving point's h across the width: -1 ... 1)"
+        for q in rows:
+            if not isinstance(q, list) or len(q) != NEAR_FIELD_QUANTILES:
+                return "must hold nine quantiles per row (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)"
+            for k, v in enumerate(q):
+                if not (_finite(v) and -1.0 <= v <= 1.0):
+                    return "holds a value that is not a number in [-1, 1] (across the ply's width)"
+                if k > 0 and v < q[k - 1]:
+                    return "decreases: quantiles at higher levels must not be smaller"
+    return None
+
+
 def near_field_problem(near_field) -> str | None:
     """What is wrong with a model's "near_field" object, or None: each side its 'through_bands' /
-    'reflected_bands', else the pre-D72 'axial_exit_through' / 'axial_exit_reflected'; the far side required."""
+    'reflected_bands', else the pre-D72 'axial_exit_through' / 'axial_exit_reflected'; the far side required; each
+    side's optional entry h ('through_entry', 'reflected_entry', D73) with its side's offsets."""
     if not isinstance(near_field, dict):
         return "must be an object"
     for side in ("through", "reflected"):
@@ -203,6 +225,12 @@ def near_field_problem(near_field) -> str | None:
                         "90, 95 and 99 %)")
         elif side == "through":
             return "must hold 'through_bands' (or a model's from before D72: 'axial_exit_through')"
+        entry = f"{side}_entry"
+        if entry in near_field:
+            if (problem := _entry_problem(near_field[entry])) is not None:
+                return f"'{entry}' {problem}"
+            if key not in near_field and legacy not in near_field:
+                return f"'{entry}' needs the offsets of its side ('{key}') as well"
     return None
 
 

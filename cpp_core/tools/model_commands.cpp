@@ -769,6 +769,24 @@ class Commands : public ModelCommands {
         std::printf("\n");
       }
     }
+    if (nf.through_entry.empty()) {
+      std::printf("note: %s holds no entry h (maps from before D73): paths start on the hit point's line\n",
+                  maps_.c_str());
+    }
+    else {
+      std::printf("near field: where across the width the light came in (median h of the entry for exits at h "
+                  "-0.9 ... 0.9), light across the axis:\n");
+      for (const auto &[side, q] : {std::pair{"far side", &nf.through_entry}, std::pair{"entry side", &nf.reflected_entry}}) {
+        if (q->empty()) {
+          continue;
+        }
+        std::printf("  %-10s", side);
+        for (int r = 0; r < ny::kEntryRows; r++) {
+          std::printf(" %+.2f", double((*q)[size_t(r) * ny::kExitQuantiles + ny::kExitQuantiles / 2]));
+        }
+        std::printf("\n");
+      }
+    }
     std::printf("wrote %s\n", out.c_str());
     return 0;
   }

@@ -151,6 +151,21 @@ int run_gather(const std::string &preset_name, const std::string &params_file, c
               "of |cos(w_i, axis)| 0-0.2 ... 0.8-1)  through the far side: %s; on the entry side: %s\n",
               bands(s.axial_exit_through, s.mean_axial_exit_through).c_str(),
               bands(s.axial_exit_reflected, s.mean_axial_exit_reflected).c_str());
+  /* Where the light came in across the width for exits at its edge (h -1 ... -0.8) and its middle (-0.2 ... 0),
+   * light across the axis (band 0): 10/50/90 %. */
+  auto entry = [&](const std::vector<double> &q) {
+    std::string t;
+    for (const int row : {0, ny::kEntryRows / 2 - 1}) {
+      const size_t at = size_t(row) * ny::kExitQuantiles;
+      if (at + ny::kExitQuantiles <= q.size()) {
+        t += std::string(row ? ", middle " : "edge ") + buf(q[at + 2]) + "/" + buf(q[at + median]) + "/" + buf(q[at + 6]);
+      }
+    }
+    return t;
+  };
+  std::printf("entry across the width (h seen along w_i, 10/50/90 %%, light across the axis) for exits at the "
+              "edge and in the middle  through the far side: %s; on the entry side: %s\n",
+              entry(s.entry_h_through).c_str(), entry(s.entry_h_reflected).c_str());
   if (s.invalid_weights) {
     std::printf("WARNING: %llu paths had invalid weights and were dropped\n", (unsigned long long)s.invalid_weights);
   }

@@ -932,6 +932,18 @@ def _corruptions():
         data["fallback"]["kernel_flat_fnv1a64"] = "0123456789abcdef"
         return json.dumps(data)
 
+    def entry_row(row, key="through_entry"):
+        """The model's entry h (D73) with its last band's last row replaced."""
+        def apply(data):
+            nf = dict(data["near_field"])
+            nf[key] = nf[key][:-1] + [nf[key][-1][:-1] + [row]]
+            return json.dumps(dict(data, near_field=nf))
+        return apply
+
+    def entry_without_offsets(data):
+        nf = {k: v for k, v in data["near_field"].items() if k != "reflected_bands"}
+        return json.dumps(dict(data, near_field=nf))
+
     return [
         ("NaN in the kernel", raw(lambda t: t.replace('"kernel_flat": [5.0,', '"kernel_flat": [NaN,', 1))),
         ("Infinity in the kernel", flat(lambda f: f.__setitem__(40, 1e999))),
@@ -966,6 +978,12 @@ def _corruptions():
             data["near_field"], through_bands=data["near_field"]["through_bands"][:4])))),
         ("a pre-D72 near field decreasing", lambda data: json.dumps(dict(data, near_field={
             "axial_exit_through": [0.1, 0.2, 0.3, 0.4, 0.5, 0.45]}))),
+        ("an entry h row of eight quantiles", entry_row([-0.9, -0.5, -0.2, 0.0, 0.1, 0.2, 0.3, 0.4])),
+        ("an entry h beyond the width", entry_row([-0.9, -0.5, -0.2, 0.0, 0.1, 0.2, 0.3, 0.4, 1.5])),
+        ("a decreasing entry h row", entry_row([-0.9, -0.5, -0.2, 0.0, 0.1, 0.2, 0.3, 0.4, 0.35], "reflected_entry")),
+        ("an entry h band of nine rows", lambda data: json.dumps(dict(data, near_field=dict(
+            data["near_field"], through_entry=[band[:9] for band in data["near_field"]["through_entry"]])))),
+        ("an entry side's h without its offsets", entry_without_offsets),
     ]
 
 
@@ -1128,6 +1146,18 @@ _REJECTIONS = [
      "'near_field' must hold 'through_bands'"),
     ("pre-D72 near field decreasing", _edit(["near_field"], {"axial_exit_through": [0.1, 0.2, 0.3, 0.4, 0.5, 0.45]}),
      "'near_field' 'axial_exit_through' must hold six non-decreasing quantiles"),
+    ("entry h beyond the width", _edit(["near_field", "through_entry"], [[[0.0] * 8 + [1.5]] * 10] * 5),
+     "'near_field' 'through_entry' holds a value that is not a number in \\[-1, 1\\]"),
+    ("entry h of nine rows", _edit(["near_field", "through_entry"], [[[0.0] * 9] * 9] * 5),
+     "'near_field' 'through_entry' must hold ten rows per band"),
+    ("entry h of four bands", _edit(["near_field", "reflected_entry"], [[[0.0] * 9] * 10] * 4),
+     "'near_field' 'reflected_entry' must hold five bands"),
+    ("entry h rows of eight quantiles", _edit(["near_field", "through_entry"], [[[0.0] * 8] * 10] * 5),
+     "'near_field' 'through_entry' must hold nine quantiles per row"),
+    ("entry h decreasing", _edit(["near_field", "reflected_entry"], [[[0.1] * 8 + [0.0]] * 10] * 5),
+     "'near_field' 'reflected_entry' decreases"),
+    ("entry h without its side's offsets", _edit(["near_field", "reflected_bands"], None),
+     "'near_field' 'reflected_entry' needs the offsets of its side \\('reflected_bands'\\) as well"),
 ]
 
 

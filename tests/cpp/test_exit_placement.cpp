@@ -4,6 +4,7 @@
 // band of the light's direction (kernel/exit_placement.h), and the model file's "near_field" (model/model.h).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -200,4 +201,124 @@ TEST(ExitPlacement, TakenFromTheMapsStatistics)
   EXPECT_EQ(nf.reflected[0], -9.0f);
   maps.stats.axial_exit_through = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6}; /* D68's pooled form */
   EXPECT_TRUE(model::near_field_of(maps).empty());
+}
+
+namespace {
+/* An entry h table (D73): per band and row, nine quantiles about the row's centre c, spread s (clamped to the width):
+ * the far side's light across the axis spreads wide, the entry side's stays near where it leaves. */
+std::vector<float> entry_quantiles(float spread)
+{
+  const float z[ny::kExitQuantiles] = {-2.33f, -1.64f, -1.28f, -0.67f, 0.0f, 0.67f, 1.28f, 1.64f, 2.33f};
+  std::vector<float> q;
+  for (int b = 0; b < ny::kExitBands; b++) {
+    for (int r = 0; r < ny::kEntryRows; r++) {
+      const float c = -0.9f + 0.2f * float(r) * (1.0f - 0.1f * float(b));
+      for (int k = 0; k < ny::kExitQuantiles; k++) {
+        q.push_back(std::clamp(c + spread * z[k], -1.0f, 1.0f));
+      }
+    }
+  }
+  return q;
+}
+}  // namespace
+
+/* The entry's h drawn in the kernel (D73) follows a row's quantiles, moves with the hit point's h and the direction's
+ * band linearly between their centres, stays on the width, and survives a NaN. */
+TEST(ExitPlacement, EntryFollowsTheRowsAndBands)
+{
+  const std::vector<float> q = entry_quantiles(0.1f);
+  std::vector<float> knots(ny::kEntrySideSize);
+  ny::entry_side_knots(q.data(), knots.data());
+  /* Band 0's centre (|cos| 0.1) and row 3's centre (h -0.3): that row's quantile function, level by level. */
+  for (int k = 1; k <= ny::kExitQuantiles; k++) {
+    EXPECT_NEAR(ny::entry_sample_h(knots.data(), 0.1f, -0.3f, ny::exit_knot_level(k)), q[size_t(3 * 9 + k - 1)], 1e-5f);
+  }
+  /* Half-way between rows 3 and 4 (h -0.2), and between bands 0 and 1 (|cos| 0.2), at the median: the mean of the
+   * two rows' (bands') medians; the cosine's sign does not matter. */
+  EXPECT_NEAR(ny::entry_sample_h(knots.data(), 0.1f, -0.2f, 0.5f), 0.5f * (q[3 * 9 + 4] + q[4 * 9 + 4]), 1e-5f);
+  const size_t band1 = size_t(ny::kEntryRows * 9);
+  EXPECT_NEAR(ny::entry_sample_h(knots.data(), -0.2f, -0.3f, 0.5f), 0.5f * (q[3 * 9 + 4] + q[band1 + 3 * 9 + 4]), 1e-5f);
+  /* Beyond the outer rows' and bands' centres: theirs. */
+  EXPECT_FLOAT_EQ(ny::entry_sample_h(knots.data(), 1.0f, 1.0f, 0.5f), q[q.size() - 5]);
+  EXPECT_FLOAT_EQ(ny::entry_sample_h(knots.data(), 0.0f, -1.0f, 0.5f), q[4]);
+  /* On the width for every level, the extrapolated ends included; NaN lands in the first band and row. */
+  const std::vector<float> wide = entry_quantiles(0.6f);
+  ny::entry_side_knots(wide.data(), knots.data());
+  for (int i = 0; i <= 1000; i++) {
+    const float h = ny::entry_sample_h(knots.data(), 0.5f, 0.95f, float(i) / 1000.0f);
+    ASSERT_GE(h, -1.0f);
+    ASSERT_LE(h, 1.0f);
+  }
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_FLOAT_EQ(ny::entry_sample_h(knots.data(), nan, nan, 0.5f), wide[4]);
+}
+
+/* A model file's entry h: read and written with its side, refused by key when malformed or without its side's
+ * offsets; the kernel's block of a side holds it after the offsets' knots, its size telling whether it is there. */
+TEST(ExitPlacement, EntryInTheModelFileAndTheKernelBlock)
+{
+  model::YarnModel m = synthetic_model("cotton", 7);
+  const std::vector<float> e = entry_quantiles(0.2f);
+  m.near_field = model::NearField{side_quantiles(), side_quantiles(), e, e};
+  nlohmann::json j = model::model_to_json(m);
+  EXPECT_TRUE(model::model_from_json(j, "t").near_field == m.near_field);
+  float block[1 + ny::kExitSideSizeWithEntry];
+  const char *key = nullptr, *problem = nullptr;
+  ASSERT_EQ(ny::exit_side_block_from_json(j["near_field"], true, block, &key, &problem), 1 + ny::kExitSideSizeWithEntry);
+  EXPECT_EQ(block[0], float(ny::kExitSideSizeWithEntry));
+  std::vector<float> knots(ny::kEntrySideSize);
+  ny::entry_side_knots(e.data(), knots.data());
+  EXPECT_EQ(std::vector<float>(block + 1 + ny::kExitSideSize, block + 1 + ny::kExitSideSizeWithEntry), knots);
+  nlohmann::json before = j; /* a model from before D73: the offsets alone */
+  before["near_field"].erase("through_entry");
+  ASSERT_EQ(ny::exit_side_block_from_json(before["near_field"], true, block, &key, &problem), 1 + ny::kExitSideSize);
+  EXPECT_EQ(block[0], float(ny::kExitSideSize));
+  EXPECT_TRUE(model::model_from_json(before, "t").near_field.through_entry.empty());
+  nlohmann::json no_side = j; /* an entry side without its offsets: refused (its h would move nothing along) */
+  no_side["near_field"].erase("reflected_bands");
+  EXPECT_EQ(ny::exit_side_block_from_json(no_side["near_field"], false, block, &key, &problem), -1);
+  EXPECT_STREQ(key, "reflected_entry");
+  EXPECT_THROW(model::model_from_json(no_side, "t"), model::ModelError);
+  const nlohmann::json row = std::vector<float>(e.begin(), e.begin() + 9);
+  nlohmann::json wide = row, decreasing = row, text = row;
+  wide[8] = 1.5;
+  decreasing[8] = -1.0;
+  text[0] = "x";
+  const nlohmann::json rows = nlohmann::json::array({row, row, row, row, row, row, row, row, row, row});
+  auto band_with = [&](const nlohmann::json &bad_row) {
+    nlohmann::json r = rows;
+    r[9] = bad_row;
+    return nlohmann::json::array({rows, rows, rows, rows, r});
+  };
+  for (const char *k : {"through_entry", "reflected_entry"}) {
+    for (const auto &bad : {band_with(wide), band_with(decreasing), band_with(text), band_with({0.1, 0.2}),
+                            nlohmann::json::array({rows, rows}), nlohmann::json::array({rows, rows, rows, rows, row}),
+                            nlohmann::json("cotton")}) {
+      nlohmann::json b = j;
+      b["near_field"][k] = bad;
+      try {
+        model::model_from_json(b, "t");
+        ADD_FAILURE() << "accepted " << k << " " << bad.dump();
+      }
+      catch (const model::ModelError &err) {
+        EXPECT_NE(std::string(err.what()).find(std::string("near_field: '") + k), std::string::npos) << err.what();
+      }
+      EXPECT_EQ(ny::exit_side_block_from_json(b["near_field"], k[0] == 't', block, &key, &problem), -1) << bad.dump();
+    }
+  }
+}
+
+/* A bake takes the entry h from its maps with the offsets; maps from before D73 give the offsets alone. */
+TEST(ExitPlacement, EntryTakenFromTheMapsStatistics)
+{
+  rdm::RdmMaps maps;
+  const std::vector<float> q = side_quantiles(), e = entry_quantiles(0.2f);
+  maps.stats.axial_exit_through.assign(q.begin(), q.end());
+  maps.stats.axial_exit_reflected.assign(q.begin(), q.end());
+  EXPECT_TRUE(model::near_field_of(maps).through_entry.empty());
+  maps.stats.entry_h_through.assign(e.begin(), e.end());
+  maps.stats.entry_h_reflected.assign(e.begin(), e.end());
+  const model::NearField nf = model::near_field_of(maps);
+  EXPECT_EQ(nf.through_entry, e);
+  EXPECT_EQ(nf.reflected_entry, e);
 }

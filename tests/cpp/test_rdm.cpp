@@ -764,6 +764,117 @@ TEST(Gather, AxialExitOffsetMatchesARendererWalk)
   }
 }
 
+/* Where around the ply light came in, given where it leaves (decisions D73): the gather's entry-h quantiles per row of
+ * the exit's h against the same statistic from a renderer's walk through Embree curves. Per side (the leaving point's
+ * half: facing the light or not) and row, the mean entry h (the quantile function's trapezoid mean: its knots, the
+ * ends stepped out and kept on [-1, 1]) must be the walk's within its noise, and what it measures must show: light
+ * across the axis that leaves through the far side at the width's edge came in nearer the middle, light that leaves
+ * on its own side near where it came in. */
+TEST(Gather, EntryAcrossTheWidthMatchesARendererWalk)
+{
+  /* The walks draw w_i uniformly in solid angle; the gather's theta bins of equal angle hold equal paths, and its
+   * weights must make up for that (unweighted, the gather's 22 bins put the far side's edge row's median at -0.39 for
+   * the -0.81 the weights give at any bins). */
+  const rdm::MapResolution bins{1, 2, 2, 2};
+  const FiberPreset &preset = find_preset("fleece");
+  const rdm::RdmMaps maps = rdm::gather(preset, small_options(400000, {6, 2, 2, 2}, false, false));
+  const RendererPly ply(preset);
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  /* h across the width seen along w of where the line through o along d leaves the cylinder, and its half. */
+  auto width = [&](ny::Vec3 o, ny::Vec3 d, ny::Vec3 w, bool *facing) {
+    double y = o.y, z = o.z;
+    const double a2 = double(d.y) * d.y + double(d.z) * d.z;
+    if (a2 > 0.0) {
+      const double b = y * d.y + z * d.z, c = y * y + z * z - double(ply.Rb) * ply.Rb;
+      const double t = std::max(0.0, (-b + std::sqrt(std::max(b * b - a2 * c, 0.0))) / a2);
+      y += t * d.y;
+      z += t * d.z;
+    }
+    *facing = y * w.y + z * w.z >= 0.0;
+    const double aw = std::sqrt(double(w.y) * w.y + double(w.z) * w.z);
+    return std::clamp((y * w.z - z * w.y) / (aw * double(ply.Rb)), -1.0, 1.0);
+  };
+  /* [half][band][row]: sums of w, w h, w^2 h^2, w^2 h, w^2 (the mirror image included, as the gather records it) */
+  double m[2][ny::kExitBands][ny::kEntryRows][5] = {};
+  const int n_walks = 60000;
+  for (int k = 0; k < n_walks; k++) {
+    const Entry e = draw_entry(bins, 0, (k >> 1) & 1, [&] { return U(rng); });
+    const RendererWalk w = ply.walk(k, e, rng);
+    if (!w.alive || w.events == 0 || !(std::abs(e.wi.x) < 0.9999f)) {
+      continue;
+    }
+    bool facing = true, unused = true;
+    const double h_in = width(e.n * ply.Rb, e.wi, e.wi, &unused), h_out = width(w.o, w.d, e.wi, &facing);
+    const int band = std::min(ny::kExitBands - 1, int(std::abs(e.wi.x) * float(ny::kExitBands)));
+    const double wt = (double(w.beta.r) + w.beta.g + w.beta.b) / 3.0 * double(ny::dot(e.wi, e.n));
+    for (const double sign : {1.0, -1.0}) {
+      const int row = std::min(ny::kEntryRows - 1, int((sign * h_out + 1.0) * 0.5 * ny::kEntryRows));
+      const double h = sign * h_in, add[5] = {wt, wt * h, wt * wt * h * h, wt * wt * h, wt * wt};
+      for (int i = 0; i < 5; i++) {
+        m[facing ? 0 : 1][band][row][i] += add[i];
+      }
+    }
+  }
+  const rdm::GatherStats &st = maps.stats;
+  const size_t nq = size_t(ny::kExitBands) * ny::kEntryRows * ny::kExitQuantiles;
+  ASSERT_EQ(st.entry_h_reflected.size(), nq);
+  ASSERT_EQ(st.entry_h_through.size(), nq);
+  auto trapezoid_mean = [](const double *q) {
+    float qf[ny::kExitQuantiles], knots[ny::kExitKnots];
+    for (int k = 0; k < ny::kExitQuantiles; k++) {
+      qf[k] = float(q[k]);
+    }
+    ny::exit_knots(qf, knots);
+    knots[0] = std::max(knots[0], -1.0f);
+    knots[ny::kExitKnots - 1] = std::min(knots[ny::kExitKnots - 1], 1.0f);
+    double mean = 0.0;
+    for (int k = 1; k < ny::kExitKnots; k++) {
+      mean += double(ny::exit_knot_level(k) - ny::exit_knot_level(k - 1)) * 0.5 * double(knots[k - 1] + knots[k]);
+    }
+    return mean;
+  };
+  int compared = 0;
+  for (int j = 0; j < 2; j++) {
+    const std::vector<double> &q = j ? st.entry_h_through : st.entry_h_reflected;
+    for (int b = 0; b < ny::kExitBands; b++) {
+      double W_band = 0.0;
+      for (int r = 0; r < ny::kEntryRows; r++) {
+        W_band += m[j][b][r][0];
+      }
+      for (int r = 0; r < ny::kEntryRows; r++) {
+        const double *mr = m[j][b][r];
+        const double *qr = q.data() + (size_t(b) * ny::kEntryRows + size_t(r)) * ny::kExitQuantiles;
+        for (int k = 1; k < ny::kExitQuantiles; k++) {
+          EXPECT_GE(qr[k], qr[k - 1]);
+        }
+        if (mr[0] < 0.02 * W_band) {
+          continue; /* too few walks in this row to compare */
+        }
+        const double mean = mr[1] / mr[0];
+        const double se = std::sqrt(std::max(0.0, mr[2] - 2.0 * mean * mr[3] + mean * mean * mr[4])) / mr[0];
+        /* The walk's noise with the gather's (~sqrt(60 000 / 400 000) of it), the trapezoid's approximation of a
+         * quantile function known at nine levels (~0.02 for the edge rows' steep tails). */
+        const double tol = 4.0 * se * std::sqrt(1.0 + 60000.0 / 400000.0) + 0.03;
+        EXPECT_NEAR(trapezoid_mean(qr), mean, tol)
+            << (j ? "far side" : "entry side") << ", band " << b << ", row " << r << ": walked " << mean << " +- " << se;
+        compared++;
+      }
+    }
+  }
+  EXPECT_GT(compared, 50);
+  /* It must measure something a renderer that starts on the hit point's line (D72) leaves out: light across the axis
+   * came in spread across the width (fleece, 10-90 %: ~1.0 at the far side's edge row, ~1.5 in its middle, ~0.7 in
+   * the entry side's middle), more so when it went through the ply. */
+  auto spread = [&](const std::vector<double> &q, int row) {
+    const double *r = q.data() + size_t(row) * ny::kExitQuantiles;
+    return r[6] - r[2];
+  };
+  EXPECT_GT(spread(st.entry_h_through, 0), 0.4);
+  EXPECT_GT(spread(st.entry_h_reflected, ny::kEntryRows / 2), 0.2);
+  EXPECT_GT(spread(st.entry_h_through, ny::kEntryRows / 2), spread(st.entry_h_reflected, ny::kEntryRows / 2) + 0.3);
+}
+
 TEST(Gather, EnergyBookkeeping)
 {
   for (const char *name : {"fleece", "cotton", "polyester"}) {
@@ -1132,6 +1243,9 @@ TEST(MapFile, RoundTripAndCorruption)
   EXPECT_EQ(back.stats.events_histogram, trimmed);
   EXPECT_EQ(back.stats.axial_exit_reflected, maps.stats.axial_exit_reflected);
   EXPECT_EQ(back.stats.axial_exit_through, maps.stats.axial_exit_through);
+  ASSERT_EQ(maps.stats.entry_h_through.size(), size_t(ny::kExitBands * ny::kEntryRows * ny::kExitQuantiles));
+  EXPECT_EQ(back.stats.entry_h_reflected, maps.stats.entry_h_reflected);
+  EXPECT_EQ(back.stats.entry_h_through, maps.stats.entry_h_through);
   EXPECT_EQ(back.stats.mean_axial_exit_reflected, maps.stats.mean_axial_exit_reflected);
   EXPECT_EQ(back.stats.mean_axial_exit_through, maps.stats.mean_axial_exit_through);
   EXPECT_EQ(int(back.stats.axial_exit_reflected.size()), ny::kExitBands * ny::kExitQuantiles);
@@ -1194,6 +1308,25 @@ TEST(MapFile, RoundTripAndCorruption)
   /* A band short: refused, naming it. */
   with_header([](nlohmann::json &hd) { hd["summary"]["axial_exit_through_bands_R"].erase(0); });
   EXPECT_NE(error_of([&] { rdm::load_maps(bad); }).find("axial exit offsets must hold 5 bands of 9"), std::string::npos);
+  /* Maps from before D73: no entry h; they load, and a model from them starts paths on the hit point's line. */
+  with_header([](nlohmann::json &hd) {
+    hd["summary"].erase("entry_h_reflected_bands_rows");
+    hd["summary"].erase("entry_h_through_bands_rows");
+  });
+  const rdm::RdmMaps d72 = rdm::load_maps(bad);
+  EXPECT_TRUE(d72.stats.entry_h_through.empty());
+  EXPECT_FALSE(model::near_field_of(d72).through.empty());
+  EXPECT_TRUE(model::near_field_of(d72).through_entry.empty());
+  rdm::save_maps(d72, bad + ".again"); /* written again: still without, and it loads */
+  EXPECT_TRUE(rdm::load_maps(bad + ".again").stats.entry_h_through.empty());
+  /* An entry h off the width, or a row short: refused. */
+  for (const auto &edit : std::vector<std::function<void(nlohmann::json &)>>{
+           [](nlohmann::json &hd) { hd["summary"]["entry_h_through_bands_rows"][3] = 1.5; },
+           [](nlohmann::json &hd) { hd["summary"]["entry_h_reflected_bands_rows"].erase(0); },
+           [](nlohmann::json &hd) { hd["summary"]["entry_h_reflected_bands_rows"][8] = -1.0; /* a row's 99 % below its 95 % */ }}) {
+    with_header(edit);
+    EXPECT_NE(error_of([&] { rdm::load_maps(bad); }).find("the entry's h must hold 5 bands of 10 rows"), std::string::npos);
+  }
   /* Unwritable destination: an error, and an existing file there is left alone. */
   EXPECT_NE(error_of([&] { rdm::save_maps(maps, "/nonexistent-dir/x.nyrdm"); }).find("does not exist"), std::string::npos);
   EXPECT_NE(error_of([&] { rdm::save_maps(maps, "/dev/null/x.nyrdm"); }), "");

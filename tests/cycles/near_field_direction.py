@@ -7,7 +7,8 @@ the ply glows into the shadow on the light's side of its edge, and the lit part 
 
 A cotton ply, long and straight, under a sun 120 degrees from the view toward the ply's +x axis (behind the ply), a
 black wall behind it shadowing it for x below about 3 ply radii. Rendered by the patched standalone Cycles with the
-shipped model, with the same model without its near field, and with the near field mirrored (every band's offsets
+shipped model's offsets (its entry h left out, every path starting at the hit point's angle about the curve: where
+around the ply paths start is near_field_entry.py's, D73), with the same model without its near field, and with the near field mirrored (every band's offsets
 negated: light that travels against its direction), all with one seed, so that their differences are the near
 field's. Against the model without a near field (over the ply's rows; the shadow: the columns under a quarter of
 the brightest column's light): the shipped model must gain at least MIN_SHADOW_GAIN of the image's light in the
@@ -73,21 +74,21 @@ def main(out: str) -> int:
     keys = ply["plies"][0]
     with open(reversed_plies, "w") as f:
         json.dump({**ply, "plies": [[v for i in range(len(keys) // 3 - 1, -1, -1) for v in keys[3 * i:3 * i + 3]]]}, f)
-    shipped = os.path.join(ev.MODELS, "cotton.json")
-    model = json.load(open(shipped))
+    model = json.load(open(os.path.join(ev.MODELS, "cotton.json")))
     if "through_bands" not in model.get("near_field", {}):
         print("near_field_direction: the shipped cotton model has no signed near field ('through_bands')",
               file=sys.stderr)
         return 1
-    models = {"shipped": shipped}
-    for name, nf in (("far", None), ("mirrored", mirrored(model["near_field"])), ("legacy", LEGACY)):
+    offsets = {k: v for k, v in model["near_field"].items() if not k.endswith("_entry")}
+    models = {}
+    for name, nf in (("shipped", offsets), ("far", None), ("mirrored", mirrored(offsets)), ("legacy", LEGACY)):
         models[name] = os.path.join(out, f"cotton_{name}.json")
         with open(models[name], "w") as f:
             json.dump({**{k: v for k, v in model.items() if k != "near_field"}, **({"near_field": nf} if nf else {})}, f)
     common = ["--preset", "cotton", "--lights", "sun-120-axis", "--width", str(WIDTH), "--height", str(HEIGHT),
               "--seed", "1"]
     runs = {name: (path, plies) for name, path in models.items()}
-    runs["reversed"] = (shipped, reversed_plies)
+    runs["reversed"] = (models["shipped"], reversed_plies)
     runs["far_reversed"] = (models["far"], reversed_plies)  # its own baseline: the order changes the samples
     img = {}
     try:

@@ -295,8 +295,18 @@ NearField near_field_of(const rdm::RdmMaps &maps)
     return q.size() == size_t(ny::kExitBands) * ny::kExitQuantiles ? std::vector<float>(q.begin(), q.end())
                                                                     : std::vector<float>();
   };
-  NearField nf{quantiles(maps.stats.axial_exit_through), quantiles(maps.stats.axial_exit_reflected)};
-  return nf.through.empty() ? NearField() : nf;
+  NearField nf{quantiles(maps.stats.axial_exit_through), quantiles(maps.stats.axial_exit_reflected), {}, {}};
+  if (nf.through.empty()) {
+    return NearField();
+  }
+  auto entry = [](const std::vector<double> &q) {
+    return q.size() == size_t(ny::kExitBands) * ny::kEntryRows * ny::kExitQuantiles
+               ? std::vector<float>(q.begin(), q.end())
+               : std::vector<float>();
+  };
+  nf.through_entry = entry(maps.stats.entry_h_through);
+  nf.reflected_entry = nf.reflected.empty() ? std::vector<float>() : entry(maps.stats.entry_h_reflected);
+  return nf;
 }
 
 YarnModel train_model(const rdm::RdmMaps &maps, const TrainModelOptions &o)

@@ -233,6 +233,15 @@ NearField near_field_from(const json &j, const std::string &where)
       throw ModelError(where + (key ? "'" + std::string(key) + "' " : std::string()) + problem);
     }
     (through ? nf.through : nf.reflected) = got > 0 ? q : std::vector<float>();
+    std::vector<float> e(size_t(ny::kExitBands) * ny::kEntryRows * ny::kExitQuantiles);
+    const int entry = ny::entry_side_from_json(j, through, e.data(), &key, &problem);
+    if (entry < 0) {
+      throw ModelError(where + "'" + key + "' " + problem);
+    }
+    if (entry > 0 && got == 0) {
+      throw ModelError(where + "'" + key + "' needs the offsets of its side ('reflected_bands') as well");
+    }
+    (through ? nf.through_entry : nf.reflected_entry) = entry > 0 ? e : std::vector<float>();
   }
   return nf;
 }
@@ -313,6 +322,28 @@ json near_field_to_json(const NearField &near_field)
                       "D72)"}};
   if (!near_field.reflected.empty()) {
     j["reflected_bands"] = bands(near_field.reflected);
+  }
+  auto rows = [](const std::vector<float> &q) {
+    json a = json::array();
+    for (int b = 0; b < ny::kExitBands; b++) {
+      json band = json::array();
+      for (int r = 0; r < ny::kEntryRows; r++) {
+        const auto at = q.begin() + (b * ny::kEntryRows + r) * ny::kExitQuantiles;
+        band.push_back(std::vector<float>(at, at + ny::kExitQuantiles));
+      }
+      a.push_back(band);
+    }
+    return a;
+  };
+  if (!near_field.through_entry.empty()) {
+    j["through_entry"] = rows(near_field.through_entry);
+    j["about_entry"] = "energy-weighted quantiles of where across the ply's width (h in [-1, 1], seen along the "
+                       "light's direction) the light came in, per band (as above) and per row of where it leaves "
+                       "(h -1 ... 1 in ten rows): through the far side, and on the side it entered "
+                       "(docs/decisions.md D73)";
+  }
+  if (!near_field.reflected_entry.empty()) {
+    j["reflected_entry"] = rows(near_field.reflected_entry);
   }
   return j;
 }

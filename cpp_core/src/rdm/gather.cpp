@@ -47,6 +47,13 @@ size_t axial_index(int side, int band, int bin)
 {
   return (size_t(side) * ny::kExitBands + size_t(band)) * kAxialBins + size_t(bin);
 }
+/* The entry's h histogram per side, band and row of the exit's h (decisions D73): bins of 1 / kEntryHalf. */
+constexpr int kEntryHalf = 100;
+constexpr int kEntryBins = 2 * kEntryHalf;
+size_t entry_index(int side, int band, int row, int bin)
+{
+  return ((size_t(side) * ny::kExitBands + size_t(band)) * ny::kEntryRows + size_t(row)) * kEntryBins + size_t(bin);
+}
 
 /* SplitMix64 (Steele, Lea & Flood 2014): one independent stream per path, seeded from (seed, path). */
 struct PathRng {
@@ -99,6 +106,8 @@ struct LocalStats {
   std::vector<uint64_t> displacement, displacement_M;
   /* (axial_index, exit energy fixed point) of each scattered exit: [side 0 entry, 1 far][band][signed offset bin] */
   std::vector<std::pair<uint32_t, uint64_t>> axial;
+  /* (entry_index, exit energy times the entry's cosine) of each scattered exit and of its mirror image */
+  std::vector<std::pair<uint32_t, uint64_t>> entry;
   uint64_t energy[3][3] = {}; /* [T/R/M][rgb] fixed */
   uint64_t absorbed[3] = {}, lost[3] = {};
   double balance[3] = {}, balance_sq[3] = {}; /* per chunk in double: summed in chunk order below */
@@ -110,6 +119,7 @@ struct LocalStats {
 struct SharedStats {
   std::vector<uint64_t> events, displacement, displacement_M;
   std::vector<uint64_t> axial; /* axial_index */
+  std::vector<uint64_t> entry; /* entry_index */
   uint64_t energy[3][3] = {}, absorbed[3] = {}, lost[3] = {};
   std::vector<double> balance, balance_sq; /* [chunk][rgb]: combined in chunk order, so deterministic */
   uint64_t paths[3] = {}, terminated = 0, truncated = 0, events_total = 0, slab_crossings = 0,
@@ -132,6 +142,9 @@ void merge(SharedStats &s, const LocalStats &l, uint64_t chunk)
   }
   for (const auto &[i, w] : l.axial) {
     atomic_add(&s.axial[i], w);
+  }
+  for (const auto &[i, w] : l.entry) {
+    atomic_add(&s.entry[i], w);
   }
   for (int k = 0; k < 3; k++) {
     for (int c = 0; c < 3; c++) {
@@ -201,6 +214,10 @@ Vec3 world_dir(const FiberMedium &, const SlabRay &r) { return r.d; }
 struct Entry {
   size_t in_bin = 0;
   float wi_axial = 0.0f; /* w_i's cosine with the axis (x) */
+  Vec3 wi;                /* w_i (toward the light) */
+  /* The light that came in with it, for a uniform field of light: w_i's cosine with n times its bin's share of the
+   * solid angle over its share of the paths (theta bins of equal angle hold equal paths, not equal solid angle). */
+  float irradiance = 0.0f;
   Vec3 n, ex, ey, point;
 };
 
@@ -239,6 +256,8 @@ Entry enter(const Medium &tracer, const MapResolution &b, const std::vector<doub
   e.point = e.n * tracer.bound_radius() + e.ex * x_entry;
   const Vec3 wi = e.ex * wi_local.x + e.ey * wi_local.y + e.n * wi_local.z;
   e.wi_axial = wi.x;
+  e.wi = wi;
+  e.irradiance = float(cos_t * (c0 - c1) * double(b.theta_i));
   ray->o = e.point;
   ray->d = -wi;
   ray->slab = 0;
@@ -338,6 +357,28 @@ double axial_exit_offset(Vec3 p, Vec3 d, Vec3 entry, double R)
   return crossing_x(p) - crossing_x(entry);
 }
 
+/* Where light leaving from `p` along `d` crosses the envelope (radius R about the x axis), seen along `w` (decisions
+ * D73): its h across the width in [-1, 1] (the crossing's offset from the axis along w's perpendicular part turned a
+ * quarter about +x: the renderer's cross(w's perpendicular part, tangent)) and whether it lies on the envelope's
+ * half that faces w. A `d` along the axis never crosses the side: `p` itself. `w` must not lie along the axis. */
+struct WidthPoint {
+  double h;
+  bool facing;
+};
+WidthPoint width_point(Vec3 p, Vec3 d, Vec3 w, double R)
+{
+  double y = p.y, z = p.z;
+  const double a2 = double(d.y) * d.y + double(d.z) * d.z;
+  if (a2 > 0.0) {
+    const double b = y * d.y + z * d.z, c = y * y + z * z - R * R;
+    const double t = std::max((-b + std::sqrt(std::max(b * b - a2 * c, 0.0))) / a2, 0.0);
+    y += t * d.y;
+    z += t * d.z;
+  }
+  const double aw = std::sqrt(double(w.y) * w.y + double(w.z) * w.z);
+  return {std::clamp((y * w.z - z * w.y) / (aw * R), -1.0, 1.0), y * w.y + z * w.z >= 0.0};
+}
+
 /* A finished walk into the accumulators: its incident bin's count and absorption, the energy balance, and,
  * if it left, its label (T, R or M), exit energy, displacement and map record. */
 template <class Medium>
@@ -409,8 +450,22 @@ void score(const Medium &tracer, const GatherOptions &opt, const Entry &e, const
                        double(envelope_radius(tracer));
   const int band = std::min(ny::kExitBands - 1, int(std::abs(e.wi_axial) * float(ny::kExitBands)));
   const int abin = int(std::clamp(std::floor(axial / kDisplacementBin) + kAxialHalf, 0.0, double(kAxialBins - 1)));
-  ls.axial.emplace_back(uint32_t(axial_index(wo.z < 0.0f ? 1 : 0, band, abin)),
-                        to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f)));
+  const int side = wo.z < 0.0f ? 1 : 0;
+  ls.axial.emplace_back(uint32_t(axial_index(side, band, abin)), to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f)));
+  /* Where around the ply the light came in, given where it leaves, across the width seen along w_i (D73), on the
+   * side a renderer tells by the leaving point's normal (the light in front of it or behind): weighted by the light
+   * that came in there (Entry::irradiance), recorded with its mirror image too (h -> -h: a renderer's tangent may
+   * run either way along the ply). */
+  if (std::abs(e.wi_axial) < 0.9999f) {
+    const double R = double(tracer.bound_radius());
+    const WidthPoint in = width_point(e.point, e.wi, e.wi, R), out = width_point(p_w, d_w, e.wi, R);
+    const int row = std::min(ny::kEntryRows - 1, int((out.h + 1.0) * 0.5 * ny::kEntryRows));
+    const int bin = std::min(kEntryBins - 1, int((in.h + 1.0) * kEntryHalf));
+    const int half = out.facing ? 0 : 1;
+    const uint64_t w = to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f) * e.irradiance);
+    ls.entry.emplace_back(uint32_t(entry_index(half, band, row, bin)), w);
+    ls.entry.emplace_back(uint32_t(entry_index(half, band, ny::kEntryRows - 1 - row, kEntryBins - 1 - bin)), w);
+  }
   int to, po;
   outgoing_bin(b, wo.x, wo.y, wo.z, &to, &po);
   const size_t idx = (in_bin * b.outgoing() + size_t(to) * size_t(b.phi_o) + size_t(po)) * 3;
@@ -713,6 +768,7 @@ double accumulate(const FiberPreset &preset, const GatherOptions &opt, const Geo
   shared.displacement.assign(kDisplacementBins, 0);
   shared.displacement_M.assign(kDisplacementBins, 0);
   shared.axial.assign(2 * size_t(ny::kExitBands) * kAxialBins, 0);
+  shared.entry.assign(2 * size_t(ny::kExitBands) * ny::kEntryRows * kEntryBins, 0);
 
   const uint64_t n_chunks = (opt.paths + kChunk - 1) / kChunk;
   std::atomic<uint64_t> done{0};
@@ -727,6 +783,7 @@ double accumulate(const FiberPreset &preset, const GatherOptions &opt, const Geo
       const uint64_t k0 = chunk * kChunk, k1 = std::min(opt.paths, k0 + kChunk);
       ls.records.reserve(k1 - k0);
       ls.axial.reserve(k1 - k0);
+      ls.entry.reserve(2 * (k1 - k0));
       for (uint64_t k = k0; k < k1; k++) {
         if (!geo.plies.empty()) {
           /* Every cross-section gets the same paths per incident bin, each with its mirror image. */
@@ -846,9 +903,33 @@ void finalize(const Accumulators &acc, const GatherOptions &opt, tbb::task_arena
   maps.symmetrized = opt.symmetrize;
 }
 
-/* One side's signed axial offset histograms (kExitBands of kAxialBins, from `hist`) -> per band its quantiles at
- * ny::exit_knot_level(1 .. ny::kExitQuantiles), linear within a bin, band after band, and its mean (bin centres);
- * a band without weight gets zeros (no offset). */
+/* A histogram of `bins` bins of width `step` from `lo` -> its quantiles at ny::exit_knot_level(1 ..
+ * ny::kExitQuantiles), linear within a bin, appended to `quantiles`; `empty` for each if it holds no weight. */
+void histogram_quantiles(const uint64_t *h, int bins, double lo, double step, double empty, std::vector<double> &quantiles)
+{
+  double total = 0.0;
+  for (int i = 0; i < bins; i++) {
+    total += double(h[i]);
+  }
+  double cum = 0.0;
+  int i = 0;
+  for (int k = 1; k <= ny::kExitQuantiles; k++) {
+    if (!(total > 0.0)) {
+      quantiles.push_back(empty);
+      continue;
+    }
+    const double target = double(ny::exit_knot_level(k)) * total;
+    while (i + 1 < bins && cum + double(h[i]) < target) {
+      cum += double(h[i]);
+      i++;
+    }
+    const double in_bin = h[i] ? std::clamp((target - cum) / double(h[i]), 0.0, 1.0) : 0.0;
+    quantiles.push_back(lo + (double(i) + in_bin) * step);
+  }
+}
+
+/* One side's signed axial offset histograms (kExitBands of kAxialBins, from `hist`) -> per band its quantiles,
+ * band after band, and its mean (bin centres); a band without weight gets zeros (no offset). */
 void axial_summary(const uint64_t *hist, std::vector<double> &quantiles, std::vector<double> &means)
 {
   quantiles.clear();
@@ -861,22 +942,23 @@ void axial_summary(const uint64_t *hist, std::vector<double> &quantiles, std::ve
       moment += double(h[i]) * (double(i - kAxialHalf) + 0.5) * kDisplacementBin;
     }
     means.push_back(total > 0.0 ? moment / total : 0.0);
-    double cum = 0.0;
-    int i = 0;
-    for (int k = 1; k <= ny::kExitQuantiles; k++) {
-      if (!(total > 0.0)) {
-        quantiles.push_back(0.0);
-        continue;
-      }
-      const double target = double(ny::exit_knot_level(k)) * total;
-      while (i + 1 < kAxialBins && cum + double(h[i]) < target) {
-        cum += double(h[i]);
-        i++;
-      }
-      const double in_bin = h[i] ? std::clamp((target - cum) / double(h[i]), 0.0, 1.0) : 0.0;
-      quantiles.push_back((double(i - kAxialHalf) + in_bin) * kDisplacementBin);
-    }
+    histogram_quantiles(h, kAxialBins, -kAxialHalf * kDisplacementBin, kDisplacementBin, 0.0, quantiles);
   }
+}
+
+/* One side's entry-h histograms (kExitBands x kEntryRows of kEntryBins, from `hist`) -> per row its quantiles, band
+ * after band, row after row; a row without weight gets its own centre (the light came in on the line it leaves on). */
+std::vector<double> entry_summary(const uint64_t *hist)
+{
+  std::vector<double> quantiles;
+  for (int r = 0; r < ny::kExitBands * ny::kEntryRows; r++) {
+    const double centre = -1.0 + (2.0 * (r % ny::kEntryRows) + 1.0) / ny::kEntryRows;
+    histogram_quantiles(hist + size_t(r) * kEntryBins, kEntryBins, -1.0, 1.0 / kEntryHalf, centre, quantiles);
+  }
+  for (double &q : quantiles) {
+    q = std::clamp(q, -1.0, 1.0);
+  }
+  return quantiles;
 }
 
 /* The shared statistics -> the gather's summary (all but its timings). */
@@ -920,6 +1002,8 @@ void summarize(const SharedStats &shared, const GatherOptions &opt, GatherStats 
   st.p95_displacement_M = percentile(shared.displacement_M, 0.95, kDisplacementBin);
   axial_summary(shared.axial.data() + axial_index(0, 0, 0), st.axial_exit_reflected, st.mean_axial_exit_reflected);
   axial_summary(shared.axial.data() + axial_index(1, 0, 0), st.axial_exit_through, st.mean_axial_exit_through);
+  st.entry_h_reflected = entry_summary(shared.entry.data() + entry_index(0, 0, 0, 0));
+  st.entry_h_through = entry_summary(shared.entry.data() + entry_index(1, 0, 0, 0));
 }
 
 RdmMaps gather_in(const FiberPreset &preset, const geometry::YarnStructure &structure, const GatherOptions &opt,

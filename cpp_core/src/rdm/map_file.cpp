@@ -117,6 +117,12 @@ json stats_json(const GatherStats &s)
   j["axial_exit_through_bands_R"] = s.axial_exit_through;
   j["mean_axial_exit_reflected_bands_R"] = s.mean_axial_exit_reflected;
   j["mean_axial_exit_through_bands_R"] = s.mean_axial_exit_through;
+  /* Where around the ply the light came in, per band and row of the exit's h (D73); none in maps read from an older
+   * file and written again. */
+  if (!s.entry_h_through.empty()) {
+    j["entry_h_reflected_bands_rows"] = s.entry_h_reflected;
+    j["entry_h_through_bands_rows"] = s.entry_h_through;
+  }
   /* The path-length distribution, trimmed after its last non-empty bin. */
   size_t last = 0;
   for (size_t i = 0; i < s.events_histogram.size(); i++) {
@@ -315,6 +321,23 @@ void read_summary(const std::string &path, const json &s, GatherStats &st)
       fail(path, "summary: the axial exit offsets must hold " + std::to_string(ny::kExitBands) + " bands of " +
                      std::to_string(ny::kExitQuantiles) + " quantiles and " + std::to_string(ny::kExitBands) +
                      " means per side");
+    }
+  }
+  /* Measured so since D73: older files have none (their models start paths on the line through the hit point). */
+  if (s.contains("entry_h_through_bands_rows")) {
+    st.entry_h_reflected = s.at("entry_h_reflected_bands_rows").get<std::vector<double>>();
+    st.entry_h_through = s.at("entry_h_through_bands_rows").get<std::vector<double>>();
+    const size_t nq = size_t(ny::kExitBands) * ny::kEntryRows * ny::kExitQuantiles;
+    for (const std::vector<double> *q : {&st.entry_h_reflected, &st.entry_h_through}) {
+      bool ok = q->size() == nq;
+      for (size_t i = 0; ok && i < q->size(); i++) {
+        ok = (*q)[i] >= -1.0 && (*q)[i] <= 1.0 && (i % ny::kExitQuantiles == 0 || (*q)[i] >= (*q)[i - 1]);
+      }
+      if (!ok) {
+        fail(path, "summary: the entry's h must hold " + std::to_string(ny::kExitBands) + " bands of " +
+                       std::to_string(ny::kEntryRows) + " rows of " + std::to_string(ny::kExitQuantiles) +
+                       " non-decreasing quantiles in [-1, 1] per side");
+      }
     }
   }
 }

@@ -17,6 +17,13 @@
 //
 // The quantiles become knots at the levels 0, the gather's nine and 1 (the ends extrapolated by the step next to
 // them); between knots the inverse distribution is linear, and between the bands' centres the offsets are.
+//
+// Where around the ply the light came in (decisions D73): light enters a ply most where its surface faces the light,
+// not on the line through the point a renderer shades. Seen along the light's direction, the ply's width runs
+// across h in [-1, 1]; the gather measures, per side and band, the distribution of the entry's h given the exit's
+// (rdm::GatherStats::entry_h_through, entry_h_reflected: kEntryRows rows of the exit's h, nine quantiles each of
+// the entry's), and a renderer starts the path from the ply's face toward its direction at an h drawn from the row
+// of the hit point's h (linear between rows and between bands, as the offsets are between bands).
 #pragma once
 
 #include "platform.h"
@@ -39,6 +46,14 @@ NY_KERNEL_FN float exit_knot_level(int k)
 /* Largest |quantile| a model may carry (ply radii). */
 constexpr float kExitMaxOffset = 1000.0f;
 static_assert(kExitBands >= 2, "exit_sample_offset interpolates between two bands");
+
+/* The entry's h (decisions D73): rows of the exit's h across [-1, 1] (centres -0.9, -0.7, ..., 0.9), per band; a
+ * side's entry knots, band after band, row after row; a side's block in a kernel array holds its size
+ * (kExitSideSize, or kExitSideSizeWithEntry with the entry's knots after the offsets'), then the knots. */
+constexpr int kEntryRows = 10;
+constexpr int kEntrySideSize = kExitBands * kEntryRows * kExitKnots;
+constexpr int kExitSideSizeWithEntry = kExitSideSize + kEntrySideSize;
+static_assert(kEntryRows >= 2, "entry_sample_h interpolates between two rows");
 
 #ifndef NY_KERNEL_DEVICE
 /* Checks one band's quantiles (kExitQuantiles of them, signed ply radii): finite, within kExitMaxOffset,
@@ -171,6 +186,115 @@ int exit_side_from_json(const Json &near_field, bool through, float *q, const ch
   }
   return 1;
 }
+
+/* Checks one row's quantiles of the entry's h (kExitQuantiles of them): in [-1, 1], non-decreasing. Returns null
+ * if they are fine, else what is wrong. */
+inline const char *entry_quantiles_check(const float *q, int n)
+{
+  if (n != kExitQuantiles) {
+    return "must hold nine quantiles per row (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)";
+  }
+  for (int k = 0; k < n; k++) {
+    if (!(q[k] >= -1.0f && q[k] <= 1.0f)) {
+      return "holds a value that is not a number in [-1, 1] (across the ply's width)";
+    }
+    if (k > 0 && !(q[k] >= q[k - 1])) {
+      return "decreases: quantiles at higher levels must not be smaller";
+    }
+  }
+  return nullptr;
+}
+
+/* A side's entry knots (kEntrySideSize floats) from its checked quantiles (kExitBands x kEntryRows x
+ * kExitQuantiles): each row's as exit_knots, the stepped-out ends kept on the width. */
+inline void entry_side_knots(const float *q, float *knots)
+{
+  for (int r = 0; r < kExitBands * kEntryRows; r++) {
+    float *k = knots + r * kExitKnots;
+    exit_knots(q + r * kExitQuantiles, k);
+    k[0] = k[0] < -1.0f ? -1.0f : k[0];
+    k[kExitKnots - 1] = k[kExitKnots - 1] > 1.0f ? 1.0f : k[kExitKnots - 1];
+  }
+}
+
+/* One side's quantiles of the entry's h (kExitBands x kEntryRows x kExitQuantiles floats) from a model file's
+ * "near_field" object: its "through_entry" or "reflected_entry" (`through` picks). Returns 1 when read, 0 when
+ * absent (the path starts on the line through the hit point, as before D73), -1 when malformed, with *key and
+ * *problem. */
+template<class Json>
+int entry_side_from_json(const Json &near_field, bool through, float *q, const char **key, const char **problem)
+{
+  *key = through ? "through_entry" : "reflected_entry";
+  *problem = nullptr;
+  if (!near_field.contains(*key)) {
+    return 0;
+  }
+  const Json &a = near_field[*key];
+  if (!a.is_array() || int(a.size()) != kExitBands) {
+    *problem = "must hold five bands (of |cos| between the light and the ply's axis) of ten rows";
+    return -1;
+  }
+  for (int b = 0; b < kExitBands; b++) {
+    const Json &rows = a[size_t(b)];
+    if (!rows.is_array() || int(rows.size()) != kEntryRows) {
+      *problem = "must hold ten rows per band (of the leaving point's h across the width: -1 ... 1)";
+      return -1;
+    }
+    for (int r = 0; r < kEntryRows; r++) {
+      float row[kExitQuantiles + 1];
+      int n = 0;
+      if (rows[size_t(r)].is_array()) {
+        for (const Json &v : rows[size_t(r)]) {
+          if (n > kExitQuantiles) {
+            break;
+          }
+          row[n++] = v.is_number() ? v.template get<float>() : NY_INFINITY;
+        }
+      }
+      if ((*problem = entry_quantiles_check(row, n)) != nullptr) {
+        return -1;
+      }
+      for (int k = 0; k < kExitQuantiles; k++) {
+        q[(b * kEntryRows + r) * kExitQuantiles + k] = row[k];
+      }
+    }
+  }
+  return 1;
+}
+
+/* One side's block of a kernel array (at most 1 + kExitSideSizeWithEntry floats) from a model file's "near_field":
+ * [0] for a side without offsets, else [its size, the offsets' knots, the entry's knots if it has them]. Returns
+ * the floats written, or -1 with *key and *problem (as exit_side_from_json, entry_side_from_json). */
+template<class Json>
+int exit_side_block_from_json(const Json &near_field, bool through, float *block, const char **key,
+                              const char **problem)
+{
+  float q[kExitBands * kExitQuantiles * (1 + kEntryRows)];
+  const int got = exit_side_from_json(near_field, through, q, key, problem);
+  if (got < 0) {
+    return -1;
+  }
+  const int entry = entry_side_from_json(near_field, through, q + kExitBands * kExitQuantiles, key, problem);
+  if (entry < 0) {
+    return -1;
+  }
+  if (got == 0) {
+    if (entry > 0) {
+      *problem = "needs the offsets of its side ('reflected_bands') as well";
+      return -1;
+    }
+    block[0] = 0.0f;
+    return 1;
+  }
+  exit_side_knots(q, block + 1);
+  if (entry == 0) {
+    block[0] = float(kExitSideSize);
+    return 1 + kExitSideSize;
+  }
+  entry_side_knots(q + kExitBands * kExitQuantiles, block + 1 + kExitSideSize);
+  block[0] = float(kExitSideSizeWithEntry);
+  return 1 + kExitSideSizeWithEntry;
+}
 #endif
 
 /* One band's offset at level u in [0, 1]: the inverse distribution through its knots. */
@@ -185,6 +309,35 @@ NY_KERNEL_FN float exit_band_offset(NY_GLOBAL const float *knots, float u)
   return knots[kExitKnots - 1];
 }
 
+/* Where x in [0, n - 1] lies between the centres of n equal cells over [0, 1] of `a` (first cell, weight): NaN
+ * lands in the first cell (int(NaN) is undefined). */
+NY_KERNEL_FN int exit_cell(float a, int n, NY_PRIVATE float *w)
+{
+  float x = a * float(n) - 0.5f;
+  x = x > 0.0f ? (x < float(n - 1) ? x : float(n - 1)) : 0.0f;
+  int c = int(x);
+  c = c > n - 2 ? n - 2 : c;
+  *w = x - float(c);
+  return c;
+}
+
+/* The entry's h (across the ply's width seen along the path's direction, [-1, 1]) for a path that leaves a ply
+ * at `h_exit` in a direction at `cos_axis` to its axis, at level u in [0, 1): the side's entry knots
+ * (kEntrySideSize floats), linear between the two nearest bands and the two nearest rows. */
+NY_KERNEL_FN float entry_sample_h(NY_GLOBAL const float *knots, float cos_axis, float h_exit, float u)
+{
+  u = u < 0.0f ? 0.0f : (u > 1.0f ? 1.0f : u);
+  float wb, wr;
+  const int b = exit_cell(cos_axis < 0.0f ? -cos_axis : cos_axis, kExitBands, &wb);
+  const int r = exit_cell(0.5f * (h_exit + 1.0f), kEntryRows, &wr);
+  NY_GLOBAL const float *k = knots + (b * kEntryRows + r) * kExitKnots;
+  const float h00 = exit_band_offset(k, u), h01 = exit_band_offset(k + kExitKnots, u);
+  k += kEntryRows * kExitKnots;
+  const float h10 = exit_band_offset(k, u), h11 = exit_band_offset(k + kExitKnots, u);
+  const float h = (1.0f - wb) * (h00 + (h01 - h00) * wr) + wb * (h10 + (h11 - h10) * wr);
+  return h < -1.0f ? -1.0f : (h > 1.0f ? 1.0f : h);
+}
+
 /* An offset along the ply's axis (ply radii, positive along `cos_axis`'s axis direction) for a path that leaves
  * the ply in a direction at `cos_axis` to that axis, at level u in [0, 1): the side's bands (`knots`,
  * kExitSideSize floats) at |cos_axis|, linear between the two nearest band centres, turned toward where the path
@@ -192,13 +345,8 @@ NY_KERNEL_FN float exit_band_offset(NY_GLOBAL const float *knots, float u)
 NY_KERNEL_FN float exit_sample_offset(NY_GLOBAL const float *knots, float cos_axis, float u)
 {
   u = u < 0.0f ? 0.0f : (u > 1.0f ? 1.0f : u);
-  const float a = cos_axis < 0.0f ? -cos_axis : cos_axis;
-  /* Written so that a NaN cosine lands in band 0 (int(NaN) is undefined). */
-  float x = a * float(kExitBands) - 0.5f;
-  x = x > 0.0f ? (x < float(kExitBands - 1) ? x : float(kExitBands - 1)) : 0.0f;
-  int b = int(x);
-  b = b > kExitBands - 2 ? kExitBands - 2 : b;
-  const float w = x - float(b);
+  float w;
+  const int b = exit_cell(cos_axis < 0.0f ? -cos_axis : cos_axis, kExitBands, &w);
   const float s0 = exit_band_offset(knots + b * kExitKnots, u);
   const float s1 = exit_band_offset(knots + (b + 1) * kExitKnots, u);
   const float s = s0 + (s1 - s0) * w;

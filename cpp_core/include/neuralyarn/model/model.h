@@ -77,8 +77,16 @@ struct RShapeTable {
  * before it rendered. */
 struct NearField {
   std::vector<float> through, reflected;
+  /* Where around the ply the light came in, per side (decisions D73; rdm::GatherStats::entry_h_through,
+   * entry_h_reflected: ny::kExitBands x ny::kEntryRows x ny::kExitQuantiles of h in [-1, 1]). Empty: on the line
+   * through the hit point, as models before D73 rendered. */
+  std::vector<float> through_entry, reflected_entry;
   bool empty() const { return through.empty() && reflected.empty(); }
-  bool operator==(const NearField &o) const { return through == o.through && reflected == o.reflected; }
+  bool operator==(const NearField &o) const
+  {
+    return through == o.through && reflected == o.reflected && through_entry == o.through_entry &&
+           reflected_entry == o.reflected_entry;
+  }
 };
 
 struct YarnModel {

@@ -97,6 +97,13 @@ struct GatherStats {
    * over the incidences and unsigned). */
   std::vector<double> axial_exit_reflected, axial_exit_through;
   std::vector<double> mean_axial_exit_reflected, mean_axial_exit_through;
+  /* Where around the ply the light came in, given where it leaves (decisions D73): across the ply's width seen along
+   * w_i (h in [-1, 1]), the entry's h at the levels ny::exit_knot_level(1 .. ny::kExitQuantiles) per row of the
+   * exit's h (ny::kEntryRows over [-1, 1]) per band of |cos(w_i, axis)|, band after band, row after row, weighted by
+   * the light that came in (exit energy times the entry's cosine times its theta bin's share of the solid angle over
+   * its share of the paths), mirror-symmetric in h; on the exit point's half facing w_i and on the other (through
+   * the far side). Empty for maps written before D73. */
+  std::vector<double> entry_h_reflected, entry_h_through;
   double paths_per_second() const { return seconds > 0.0 ? double(paths) / seconds : 0.0; }
 };
 
