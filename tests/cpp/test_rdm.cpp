@@ -726,7 +726,8 @@ TEST(Gather, AxialExitOffsetMatchesARendererWalk)
     const double s = travel * (crossing_x(w.o, w.d) - crossing_x(e.n * ply.Rb, w.d)) /
                      double(ply.tracer.ply_radius());
     const int band = std::min(ny::kExitBands - 1, int(std::abs(e.wi.x) * float(ny::kExitBands)));
-    const double wt = (double(w.beta.r) + w.beta.g + w.beta.b) / 3.0;
+    /* The light that came in with it: w_i is drawn uniformly in solid angle (the gather's one theta bin). */
+    const double wt = (double(w.beta.r) + w.beta.g + w.beta.b) / 3.0 * double(ny::dot(e.wi, e.n));
     const double add[6] = {wt, wt * s, wt * s * s, wt * wt * s * s, wt * wt * s, wt * wt};
     for (int i = 0; i < 6; i++) {
       m[int(through)][band][i] += add[i];

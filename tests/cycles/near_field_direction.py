@@ -48,9 +48,9 @@ WIDTH, HEIGHT, SPP = 160, 80, 16
 WALL = ((0.0, 0.0, 0.0), ((-80, -30, 3), (8.196, -30, 3), (8.196, 30, 3), (-80, 30, 3)))
 #: The ply's rows (its image is rows 26 .. 54; the middle, away from its silhouettes).
 ROWS = slice(32, 48)
-#: Shares of the image's light without a near field (measured: shipped +0.123 in the shadow, -0.004 in the lit
-#: part; mirrored -0.239 in the lit part; the seed-to-seed spread of each at 16 spp is under 0.01. The reversed
-#: ply against its own baseline: +0.136 / -0.004 — its samples are not the same ones, hence the wider margin, still
+#: Shares of the image's light without a near field (measured: shipped +0.128 in the shadow, -0.003 in the lit
+#: part; mirrored -0.249 in the lit part; the seed-to-seed spread of each at 16 spp is under 0.01. The reversed
+#: ply against its own baseline: +0.141 / -0.003 — its samples are not the same ones, hence the wider margin, still
 #: far from the +-0.2 a kernel that follows the curve's parameter would show).
 MIN_SHADOW_GAIN, MAX_LIT_LOSS, MIN_MIRROR_LOSS, SAME_REVERSED = 0.06, 0.02, 0.1, 0.03
 #: D71's shipped cotton near field (|offset| quantiles at 25 ... 99 %, ply radii): a model file from before D72.

@@ -444,14 +444,16 @@ void score(const Medium &tracer, const GatherOptions &opt, const Entry &e, const
     ls.disp_sum_M += disp_fx;
     ls.disp_count_M++;
   }
-  /* Signed: positive the way the light travelled along the axis (-w_i's), banded by |cos(w_i, axis)| (D72). */
+  /* Signed: positive the way the light travelled along the axis (-w_i's), banded by |cos(w_i, axis)| (D72), weighted
+   * by the light that came in with it (Entry::irradiance, as the entry's h below: D73). */
   const double travel = e.wi_axial > 0.0f ? -1.0 : 1.0;
   const double axial = travel * axial_exit_offset(p_w, d_w, e.point, double(tracer.bound_radius())) /
                        double(envelope_radius(tracer));
   const int band = std::min(ny::kExitBands - 1, int(std::abs(e.wi_axial) * float(ny::kExitBands)));
   const int abin = int(std::clamp(std::floor(axial / kDisplacementBin) + kAxialHalf, 0.0, double(kAxialBins - 1)));
   const int side = wo.z < 0.0f ? 1 : 0;
-  ls.axial.emplace_back(uint32_t(axial_index(side, band, abin)), to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f)));
+  const uint64_t w_in = to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f) * e.irradiance);
+  ls.axial.emplace_back(uint32_t(axial_index(side, band, abin)), w_in);
   /* Where around the ply the light came in, given where it leaves, across the width seen along w_i (D73), on the
    * side a renderer tells by the leaving point's normal (the light in front of it or behind): weighted by the light
    * that came in there (Entry::irradiance), recorded with its mirror image too (h -> -h: a renderer's tangent may
@@ -462,9 +464,8 @@ void score(const Medium &tracer, const GatherOptions &opt, const Entry &e, const
     const int row = std::min(ny::kEntryRows - 1, int((out.h + 1.0) * 0.5 * ny::kEntryRows));
     const int bin = std::min(kEntryBins - 1, int((in.h + 1.0) * kEntryHalf));
     const int half = out.facing ? 0 : 1;
-    const uint64_t w = to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f) * e.irradiance);
-    ls.entry.emplace_back(uint32_t(entry_index(half, band, row, bin)), w);
-    ls.entry.emplace_back(uint32_t(entry_index(half, band, ny::kEntryRows - 1 - row, kEntryBins - 1 - bin)), w);
+    ls.entry.emplace_back(uint32_t(entry_index(half, band, row, bin)), w_in);
+    ls.entry.emplace_back(uint32_t(entry_index(half, band, ny::kEntryRows - 1 - row, kEntryBins - 1 - bin)), w_in);
   }
   int to, po;
   outgoing_bin(b, wo.x, wo.y, wo.z, &to, &po);

@@ -88,7 +88,9 @@ struct GatherStats {
   double mean_displacement_M = 0.0, p95_displacement_M = 0.0;
   /* How far along the ply (yarn) axis scattered light travels inside before it leaves: the offset of its exit along
    * the axis (ply radii) from where a ray from the entry point along the exit direction would leave, signed
-   * (positive the way the light travelled along the axis, -w_i's) and weighted by the exit energy (mean of RGB),
+   * (positive the way the light travelled along the axis, -w_i's) and weighted by the exit energy (mean of RGB) times
+   * the light that came in with it (cos theta_i times its theta bin's share of the solid angle over its share of the
+   * paths; since D73),
    * per band of |cos(w_i, axis)| (ny::kExitBands of equal width), at the levels ny::exit_knot_level(1 ..
    * ny::kExitQuantiles), band after band: over the exits on the entry side (R and M, w_o.z > 0 in the entry frame)
    * and over those through the far side; with each band's mean. A far-field BSDF puts every exit at its entry
