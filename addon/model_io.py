@@ -171,15 +171,23 @@ def _finite(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
-def _band_problem(q) -> str | None:
+def _quantiles_problem(q, lo: float, hi: float, count: str, out_of_range: str) -> str | None:
+    """What is wrong with nine quantiles in [lo, hi], or None (kernel/exit_placement.h quantiles_check: value by
+    value, the first fault names the message)."""
     if not isinstance(q, list) or len(q) != NEAR_FIELD_QUANTILES:
-        return "must hold nine quantiles per band (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)"
-    for k, v in enumerate(q):  # value by value, as the core's check: the first fault names the message
-        if not (_finite(v) and -_MAX_EXIT_OFFSET <= v <= _MAX_EXIT_OFFSET):
-            return f"holds a value that is not a finite number in [-{_MAX_EXIT_OFFSET:g}, {_MAX_EXIT_OFFSET:g}] ply radii"
+        return count
+    for k, v in enumerate(q):
+        if not (_finite(v) and lo <= v <= hi):
+            return out_of_range
         if k > 0 and v < q[k - 1]:
             return "decreases: quantiles at higher levels must not be smaller"
     return None
+
+
+def _band_problem(q) -> str | None:
+    return _quantiles_problem(
+        q, -_MAX_EXIT_OFFSET, _MAX_EXIT_OFFSET, "must hold nine quantiles per band (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)",
+        f"holds a value that is not a finite number in [-{_MAX_EXIT_OFFSET:g}, {_MAX_EXIT_OFFSET:g}] ply radii")
 
 
 def _entry_problem(bands) -> str | None:
@@ -191,13 +199,11 @@ def _entry_problem(bands) -> str | None:
         if not isinstance(rows, list) or len(rows) != NEAR_FIELD_ENTRY_ROWS:
             return "must hold ten rows per band (of the leaving point's h across the width: -1 ... 1)"
         for q in rows:
-            if not isinstance(q, list) or len(q) != NEAR_FIELD_QUANTILES:
-                return "must hold nine quantiles per row (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)"
-            for k, v in enumerate(q):
-                if not (_finite(v) and -1.0 <= v <= 1.0):
-                    return "holds a value that is not a number in [-1, 1] (across the ply's width)"
-                if k > 0 and v < q[k - 1]:
-                    return "decreases: quantiles at higher levels must not be smaller"
+            problem = _quantiles_problem(q, -1.0, 1.0,
+                                         "must hold nine quantiles per row (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)",
+                                         "holds a value that is not a number in [-1, 1] (across the ply's width)")
+            if problem is not None:
+                return problem
     return None
 
 

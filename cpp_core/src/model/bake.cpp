@@ -291,21 +291,19 @@ void select_m_candidate(YarnModel *model, const rdm::RdmMaps &maps, const TrainM
 
 NearField near_field_of(const rdm::RdmMaps &maps)
 {
-  auto quantiles = [](const std::vector<double> &q) {
-    return q.size() == size_t(ny::kExitBands) * ny::kExitQuantiles ? std::vector<float>(q.begin(), q.end())
-                                                                    : std::vector<float>();
+  /* The gather's quantiles as floats, if there are `n` of them (maps before D72 / D73 have none). */
+  auto quantiles = [](const std::vector<double> &q, size_t n) {
+    return q.size() == n ? std::vector<float>(q.begin(), q.end()) : std::vector<float>();
   };
-  NearField nf{quantiles(maps.stats.axial_exit_through), quantiles(maps.stats.axial_exit_reflected), {}, {}};
+  const size_t offsets = size_t(ny::kExitBands) * ny::kExitQuantiles, entry = offsets * ny::kEntryRows;
+  NearField nf{quantiles(maps.stats.axial_exit_through, offsets), quantiles(maps.stats.axial_exit_reflected, offsets),
+               quantiles(maps.stats.entry_h_through, entry), quantiles(maps.stats.entry_h_reflected, entry)};
   if (nf.through.empty()) {
     return NearField();
   }
-  auto entry = [](const std::vector<double> &q) {
-    return q.size() == size_t(ny::kExitBands) * ny::kEntryRows * ny::kExitQuantiles
-               ? std::vector<float>(q.begin(), q.end())
-               : std::vector<float>();
-  };
-  nf.through_entry = entry(maps.stats.entry_h_through);
-  nf.reflected_entry = nf.reflected.empty() ? std::vector<float>() : entry(maps.stats.entry_h_reflected);
+  if (nf.reflected.empty()) {
+    nf.reflected_entry.clear(); /* an entry h needs its side's offsets */
+  }
   return nf;
 }
 

@@ -227,21 +227,14 @@ NearField near_field_from(const json &j, const std::string &where)
   NearField nf;
   for (const bool through : {true, false}) {
     std::vector<float> q(size_t(ny::kExitBands) * ny::kExitQuantiles);
+    std::vector<float> e(size_t(ny::kExitBands) * ny::kEntryRows * ny::kExitQuantiles);
     const char *key = nullptr, *problem = nullptr;
-    const int got = ny::exit_side_from_json(j, through, q.data(), &key, &problem);
-    if (got < 0) {
+    bool has_offsets = false, has_entry = false;
+    if (!ny::near_field_side_from_json(j, through, q.data(), e.data(), &has_offsets, &has_entry, &key, &problem)) {
       throw ModelError(where + (key ? "'" + std::string(key) + "' " : std::string()) + problem);
     }
-    (through ? nf.through : nf.reflected) = got > 0 ? q : std::vector<float>();
-    std::vector<float> e(size_t(ny::kExitBands) * ny::kEntryRows * ny::kExitQuantiles);
-    const int entry = ny::entry_side_from_json(j, through, e.data(), &key, &problem);
-    if (entry < 0) {
-      throw ModelError(where + "'" + key + "' " + problem);
-    }
-    if (entry > 0 && got == 0) {
-      throw ModelError(where + "'" + key + "' needs the offsets of its side ('reflected_bands') as well");
-    }
-    (through ? nf.through_entry : nf.reflected_entry) = entry > 0 ? e : std::vector<float>();
+    (through ? nf.through : nf.reflected) = has_offsets ? q : std::vector<float>();
+    (through ? nf.through_entry : nf.reflected_entry) = has_entry ? e : std::vector<float>();
   }
   return nf;
 }

@@ -213,8 +213,7 @@ Vec3 world_dir(const FiberMedium &, const SlabRay &r) { return r.d; }
  * and the entry point. */
 struct Entry {
   size_t in_bin = 0;
-  float wi_axial = 0.0f; /* w_i's cosine with the axis (x) */
-  Vec3 wi;                /* w_i (toward the light) */
+  Vec3 wi; /* w_i (toward the light); its x: its cosine with the axis */
   /* The light that came in with it, for a uniform field of light: w_i's cosine with n times its bin's share of the
    * solid angle over its share of the paths (theta bins of equal angle hold equal paths, not equal solid angle). */
   float irradiance = 0.0f;
@@ -255,7 +254,6 @@ Entry enter(const Medium &tracer, const MapResolution &b, const std::vector<doub
   e.ex = make_vec3(1.0f, 0.0f, 0.0f);
   e.point = e.n * tracer.bound_radius() + e.ex * x_entry;
   const Vec3 wi = e.ex * wi_local.x + e.ey * wi_local.y + e.n * wi_local.z;
-  e.wi_axial = wi.x;
   e.wi = wi;
   e.irradiance = float(cos_t * (c0 - c1) * double(b.theta_i));
   ray->o = e.point;
@@ -446,10 +444,10 @@ void score(const Medium &tracer, const GatherOptions &opt, const Entry &e, const
   }
   /* Signed: positive the way the light travelled along the axis (-w_i's), banded by |cos(w_i, axis)| (D72), weighted
    * by the light that came in with it (Entry::irradiance, as the entry's h below: D73). */
-  const double travel = e.wi_axial > 0.0f ? -1.0 : 1.0;
+  const double travel = e.wi.x > 0.0f ? -1.0 : 1.0;
   const double axial = travel * axial_exit_offset(p_w, d_w, e.point, double(tracer.bound_radius())) /
                        double(envelope_radius(tracer));
-  const int band = std::min(ny::kExitBands - 1, int(std::abs(e.wi_axial) * float(ny::kExitBands)));
+  const int band = std::min(ny::kExitBands - 1, int(std::abs(e.wi.x) * float(ny::kExitBands)));
   const int abin = int(std::clamp(std::floor(axial / kDisplacementBin) + kAxialHalf, 0.0, double(kAxialBins - 1)));
   const int side = wo.z < 0.0f ? 1 : 0;
   const uint64_t w_in = to_fixed((beta[0] + beta[1] + beta[2]) * (1.0f / 3.0f) * e.irradiance);
@@ -458,7 +456,7 @@ void score(const Medium &tracer, const GatherOptions &opt, const Entry &e, const
    * side a renderer tells by the leaving point's normal (the light in front of it or behind): weighted by the light
    * that came in there (Entry::irradiance), recorded with its mirror image too (h -> -h: a renderer's tangent may
    * run either way along the ply). */
-  if (std::abs(e.wi_axial) < 0.9999f) {
+  if (std::abs(e.wi.x) < 0.9999f) {
     const double R = double(tracer.bound_radius());
     const WidthPoint in = width_point(e.point, e.wi, e.wi, R), out = width_point(p_w, d_w, e.wi, R);
     const int row = std::min(ny::kEntryRows - 1, int((out.h + 1.0) * 0.5 * ny::kEntryRows));

@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -330,8 +331,10 @@ void read_summary(const std::string &path, const json &s, GatherStats &st)
     const size_t nq = size_t(ny::kExitBands) * ny::kEntryRows * ny::kExitQuantiles;
     for (const std::vector<double> *q : {&st.entry_h_reflected, &st.entry_h_through}) {
       bool ok = q->size() == nq;
-      for (size_t i = 0; ok && i < q->size(); i++) {
-        ok = (*q)[i] >= -1.0 && (*q)[i] <= 1.0 && (i % ny::kExitQuantiles == 0 || (*q)[i] >= (*q)[i - 1]);
+      for (size_t r = 0; ok && r < nq / ny::kExitQuantiles; r++) {
+        float row[ny::kExitQuantiles];
+        std::copy(q->begin() + ptrdiff_t(r * ny::kExitQuantiles), q->begin() + ptrdiff_t((r + 1) * ny::kExitQuantiles), row);
+        ok = ny::entry_quantiles_check(row, ny::kExitQuantiles) == nullptr;
       }
       if (!ok) {
         fail(path, "summary: the entry's h must hold " + std::to_string(ny::kExitBands) + " bands of " +

@@ -56,22 +56,47 @@ constexpr int kExitSideSizeWithEntry = kExitSideSize + kEntrySideSize;
 static_assert(kEntryRows >= 2, "entry_sample_h interpolates between two rows");
 
 #ifndef NY_KERNEL_DEVICE
-/* Checks one band's quantiles (kExitQuantiles of them, signed ply radii): finite, within kExitMaxOffset,
- * non-decreasing. Returns null if they are fine, else what is wrong. */
-inline const char *exit_quantiles_check(const float *q, int n)
+/* Checks kExitQuantiles quantiles: `n` of them, each in [lo, hi] (NaN is not), non-decreasing. Returns null if they
+ * are fine, else what is wrong: `count` or `range`, or that they decrease. */
+inline const char *quantiles_check(const float *q, int n, float lo, float hi, const char *count, const char *range)
 {
   if (n != kExitQuantiles) {
-    return "must hold nine quantiles per band (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)";
+    return count;
   }
   for (int k = 0; k < n; k++) {
-    if (!(q[k] >= -kExitMaxOffset && q[k] <= kExitMaxOffset)) {
-      return "holds a value that is not a finite number in [-1000, 1000] ply radii";
+    if (!(q[k] >= lo && q[k] <= hi)) {
+      return range;
     }
     if (k > 0 && !(q[k] >= q[k - 1])) {
       return "decreases: quantiles at higher levels must not be smaller";
     }
   }
   return nullptr;
+}
+
+/* Checks one band's quantiles (kExitQuantiles of them, signed ply radii): finite, within kExitMaxOffset,
+ * non-decreasing. Returns null if they are fine, else what is wrong. */
+inline const char *exit_quantiles_check(const float *q, int n)
+{
+  return quantiles_check(q, n, -kExitMaxOffset, kExitMaxOffset,
+                         "must hold nine quantiles per band (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)",
+                         "holds a value that is not a finite number in [-1000, 1000] ply radii");
+}
+
+/* Up to `n` numbers of JSON array `a` into `out` (n + 1 floats: one more, if there are more, so that a check names
+ * the count; a non-number as infinity, which every range check refuses); how many were read (0 for a non-array). */
+template<class Json> int json_numbers(const Json &a, float *out, int n)
+{
+  int m = 0;
+  if (a.is_array()) {
+    for (const Json &v : a) {
+      if (m > n) {
+        break;
+      }
+      out[m++] = v.is_number() ? v.template get<float>() : NY_INFINITY;
+    }
+  }
+  return m;
 }
 
 /* The knots (kExitKnots floats) of one band's checked quantiles: the first and the last stepped out by the
@@ -130,19 +155,6 @@ int exit_side_from_json(const Json &near_field, bool through, float *q, const ch
   const char *bands_key = through ? "through_bands" : "reflected_bands";
   const char *legacy_key = through ? "axial_exit_through" : "axial_exit_reflected";
   *problem = nullptr;
-  /* Up to `n` numbers of an array (one more, if there are more: the check then names the count). */
-  auto numbers = [](const Json &a, float *out, int n) {
-    int m = 0;
-    if (a.is_array()) {
-      for (const Json &v : a) {
-        if (m > n) {
-          break;
-        }
-        out[m++] = v.is_number() ? v.template get<float>() : NY_INFINITY;
-      }
-    }
-    return m;
-  };
   float band[kExitQuantiles + 1];
   if (near_field.contains(bands_key)) {
     *key = bands_key;
@@ -152,7 +164,7 @@ int exit_side_from_json(const Json &near_field, bool through, float *q, const ch
       return -1;
     }
     for (int b = 0; b < kExitBands; b++) {
-      const int n = numbers(a[size_t(b)], band, kExitQuantiles);
+      const int n = json_numbers(a[size_t(b)], band, kExitQuantiles);
       if ((*problem = exit_quantiles_check(band, n)) != nullptr) {
         return -1;
       }
@@ -169,7 +181,7 @@ int exit_side_from_json(const Json &near_field, bool through, float *q, const ch
   }
   *key = legacy_key;
   float m[kExitLegacyQuantiles + 1];
-  const int n = numbers(near_field[legacy_key], m, kExitLegacyQuantiles);
+  const int n = json_numbers(near_field[legacy_key], m, kExitLegacyQuantiles);
   bool ok = n == kExitLegacyQuantiles;
   for (int k = 0; ok && k < n; k++) {
     ok = m[k] >= 0.0f && m[k] <= kExitMaxOffset && (k == 0 || m[k] >= m[k - 1]);
@@ -191,18 +203,8 @@ int exit_side_from_json(const Json &near_field, bool through, float *q, const ch
  * if they are fine, else what is wrong. */
 inline const char *entry_quantiles_check(const float *q, int n)
 {
-  if (n != kExitQuantiles) {
-    return "must hold nine quantiles per row (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)";
-  }
-  for (int k = 0; k < n; k++) {
-    if (!(q[k] >= -1.0f && q[k] <= 1.0f)) {
-      return "holds a value that is not a number in [-1, 1] (across the ply's width)";
-    }
-    if (k > 0 && !(q[k] >= q[k - 1])) {
-      return "decreases: quantiles at higher levels must not be smaller";
-    }
-  }
-  return nullptr;
+  return quantiles_check(q, n, -1.0f, 1.0f, "must hold nine quantiles per row (at 1, 5, 10, 25, 50, 75, 90, 95 and 99 %)",
+                         "holds a value that is not a number in [-1, 1] (across the ply's width)");
 }
 
 /* A side's entry knots (kEntrySideSize floats) from its checked quantiles (kExitBands x kEntryRows x
@@ -242,16 +244,7 @@ int entry_side_from_json(const Json &near_field, bool through, float *q, const c
     }
     for (int r = 0; r < kEntryRows; r++) {
       float row[kExitQuantiles + 1];
-      int n = 0;
-      if (rows[size_t(r)].is_array()) {
-        for (const Json &v : rows[size_t(r)]) {
-          if (n > kExitQuantiles) {
-            break;
-          }
-          row[n++] = v.is_number() ? v.template get<float>() : NY_INFINITY;
-        }
-      }
-      if ((*problem = entry_quantiles_check(row, n)) != nullptr) {
+      if ((*problem = entry_quantiles_check(row, json_numbers(rows[size_t(r)], row, kExitQuantiles))) != nullptr) {
         return -1;
       }
       for (int k = 0; k < kExitQuantiles; k++) {
@@ -262,36 +255,53 @@ int entry_side_from_json(const Json &near_field, bool through, float *q, const c
   return 1;
 }
 
+/* One side of a model file's "near_field": its offsets' quantiles into `q` (kExitBands x kExitQuantiles) as
+ * exit_side_from_json, its entry h's into `e` (kExitBands x kEntryRows x kExitQuantiles) as entry_side_from_json,
+ * *has_offsets and *has_entry whether it holds them; an entry h needs its side's offsets. Returns false with *key and
+ * *problem when the side is malformed. */
+template<class Json>
+bool near_field_side_from_json(const Json &near_field, bool through, float *q, float *e, bool *has_offsets,
+                               bool *has_entry, const char **key, const char **problem)
+{
+  const int got = exit_side_from_json(near_field, through, q, key, problem);
+  if (got < 0) {
+    return false;
+  }
+  const int entry = entry_side_from_json(near_field, through, e, key, problem);
+  if (entry < 0) {
+    return false;
+  }
+  if (entry > 0 && got == 0) {
+    *problem = "needs the offsets of its side ('reflected_bands') as well"; /* the far side's are required */
+    return false;
+  }
+  *has_offsets = got > 0;
+  *has_entry = entry > 0;
+  return true;
+}
+
 /* One side's block of a kernel array (at most 1 + kExitSideSizeWithEntry floats) from a model file's "near_field":
  * [0] for a side without offsets, else [its size, the offsets' knots, the entry's knots if it has them]. Returns
- * the floats written, or -1 with *key and *problem (as exit_side_from_json, entry_side_from_json). */
+ * the floats written, or -1 with *key and *problem (near_field_side_from_json). */
 template<class Json>
 int exit_side_block_from_json(const Json &near_field, bool through, float *block, const char **key,
                               const char **problem)
 {
-  float q[kExitBands * kExitQuantiles * (1 + kEntryRows)];
-  const int got = exit_side_from_json(near_field, through, q, key, problem);
-  if (got < 0) {
+  float q[kExitBands * kExitQuantiles], e[kExitBands * kEntryRows * kExitQuantiles];
+  bool has_offsets = false, has_entry = false;
+  if (!near_field_side_from_json(near_field, through, q, e, &has_offsets, &has_entry, key, problem)) {
     return -1;
   }
-  const int entry = entry_side_from_json(near_field, through, q + kExitBands * kExitQuantiles, key, problem);
-  if (entry < 0) {
-    return -1;
-  }
-  if (got == 0) {
-    if (entry > 0) {
-      *problem = "needs the offsets of its side ('reflected_bands') as well";
-      return -1;
-    }
+  if (!has_offsets) {
     block[0] = 0.0f;
     return 1;
   }
   exit_side_knots(q, block + 1);
-  if (entry == 0) {
+  if (!has_entry) {
     block[0] = float(kExitSideSize);
     return 1 + kExitSideSize;
   }
-  entry_side_knots(q + kExitBands * kExitQuantiles, block + 1 + kExitSideSize);
+  entry_side_knots(e, block + 1 + kExitSideSize);
   block[0] = float(kExitSideSizeWithEntry);
   return 1 + kExitSideSizeWithEntry;
 }
