@@ -11,15 +11,19 @@ straight plies, the back one 2.5 radii deeper and 1.4 higher, shadowing the uppe
 under the back light (decisions D70; also prints the front ply's shadowed half over its lit half); `yarn`: the harness's
 yarn close-up (three plies twisted, touching); `lone`: one ply of the yarn alone (`ply1`, `ply2`: the others);
 `yarn-S`, `lone-S`, `ply1-S`, `ply2-S`: the same with the plies' offsets from the yarn's axis times S (the sum of
-the three lone plies against the yarn: what the plies do to each other). The reference is explicit fibers over four
+the three lone plies against the yarn: what the plies do to each other); `helix-S`: the lone ply with its whole helix
+(offset and pitch) times S, so bent 1/S as much (decisions D74); `tilt-A`, `roll-A`: one straight ply turned A degrees
+toward the camera or in the image plane (what a straight ply shows of the angles a helix shows). The reference is explicit fibers over four
 orientations of the cross-section (--ref-spp each); its floor is one half of them against the other. Prints per
 scene the luminance error (R / G / B) over the whole frame and, for `crossed` and `half`, over the front ply where
-the back one shadows it; writes OUT/bench_near_field.json. A benchmark: prints, never a test.
+the back one shadows it; writes OUT/bench_near_field.json and, with --image PNG, per scene explicit fibers, the native
+closure with its near field and their difference (luminance) side by side. A benchmark: prints, never a test.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 
@@ -44,8 +48,25 @@ def plies(scene: str) -> dict:
         return crossed_plies([0.0, 84.0], YARN_LENGTH)
     if scene == "half":
         return parallel_plies([(0.0, 0.0), (1.4, 2.5)], YARN_LENGTH)
-    d = straight_yarn_plies(YARN_LENGTH)
     name, _, spread = scene.partition("-")
+    if name in ("tilt", "roll"):
+        a = math.radians(float(spread))
+        t = np.linspace(-0.5 * YARN_LENGTH, 0.5 * YARN_LENGTH, 400)
+        axis = (math.cos(a), 0.0, math.sin(a)) if name == "tilt" else (math.cos(a), math.sin(a), 0.0)
+        p = t[:, None] * np.array(axis)[None, :]
+        return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": YARN_LENGTH,
+                "plies": [[round(float(v), 5) for v in p.ravel()]]}
+    if name == "helix":
+        # The yarn S times as long, scaled down to the frame's length; its first ply cut to the frame.
+        scale = float(spread)
+        d = straight_yarn_plies(YARN_LENGTH * scale)
+        p = np.array(d["plies"][0]).reshape(-1, 3) * scale
+        p = p[np.abs(p[:, 0]) <= 0.5 * YARN_LENGTH + 2.0]
+        d["plies"], d["length"] = [[round(float(v), 5) for v in p.ravel()]], YARN_LENGTH
+        d["yarns"] = [[round(float(v), 5) for v in (-0.5 * YARN_LENGTH, 0, 0, 0.5 * YARN_LENGTH, 0, 0)]]
+        d["yarn_radius"] *= scale
+        return d
+    d = straight_yarn_plies(YARN_LENGTH)
     if spread:
         d["plies"] = [[round(v * (float(spread) if i % 3 else 1.0), 5) for i, v in enumerate(p)] for p in d["plies"]]
     if name == "lone":
@@ -81,14 +102,16 @@ def main() -> int:
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per render")
     ap.add_argument("--out", default=os.path.join(ev.ROOT, "build", "bench_near_field"))
+    ap.add_argument("--image", help="a PNG of each scene: fibers, native (near field), native - fibers")
     a = ap.parse_args()
     a.width, a.height = WIDTH, HEIGHT
     for s in a.scenes:
         name, _, spread = s.partition("-")
-        if not (s in ("crossed", "half") or (name in ("yarn", "lone", "ply1", "ply2") and
-                                   (not spread or spread.replace(".", "", 1).isdigit()))):
-            print(f"bench_near_field: unknown scene '{s}' (crossed, half, yarn, lone, ply1, ply2, each with -S but crossed and half)",
-                  file=sys.stderr)
+        number = spread.replace(".", "", 1).isdigit()
+        if not (s in ("crossed", "half") or (name in ("yarn", "lone", "ply1", "ply2") and (not spread or number)) or
+                (name in ("helix", "tilt", "roll") and number)):
+            print(f"bench_near_field: unknown scene '{s}' (crossed, half, yarn, lone, ply1, ply2, each with -S but crossed "
+                  "and half; helix-S, tilt-A, roll-A)", file=sys.stderr)
             return 1
     os.makedirs(a.out, exist_ok=True)
     shipped = os.path.join(ev.MODELS, f"{a.preset}.json")
@@ -99,7 +122,7 @@ def main() -> int:
     far = os.path.join(a.out, f"{a.preset}_far_field.json")
     with open(far, "w") as f:
         json.dump({k: v for k, v in model.items() if k != "near_field"}, f)
-    rows = []
+    rows, panels = [], []
     print("| scene | frame: far field | frame: near field | shadowed ply: far | shadowed ply: near | floor, frame |")
     print("|---|---|---|---|---|---|")
     for scene in a.scenes:
@@ -126,13 +149,37 @@ def main() -> int:
             print("half: the front ply's shadowed half over its lit half: " +
                   ", ".join(f"{k} {v:.2f}" for k, v in row["shadowed_over_lit"].items()), flush=True)
         rows.append(row)
+        panels.append((scene, halves["explicit"], halves["near"]))
         shadowed = [fmt(row[k]) if k in row else "" for k in ("far_shadowed", "near_shadowed")]
         print(f"| {scene} | {fmt(row['far'])} | {fmt(row['near'])} | {shadowed[0]} | {shadowed[1]} | "
               f"{100 * floor['luminance']:+.1f} |", flush=True)
     with open(os.path.join(a.out, "bench_near_field.json"), "w") as f:
         json.dump({"preset": a.preset, "light": a.light, "spp": a.spp, "ref_spp": a.ref_spp,
                    "rotations": list(ROTATIONS), "rows": rows}, f, indent=1)
+    if a.image:
+        write_panels(a.image, panels, a.preset, a.light)
     return 0
+
+
+def write_panels(path: str, panels: list, preset: str, light: str) -> None:
+    """Per scene (a row): explicit fibers, the native closure, native - fibers, in luminance on one scale."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(len(panels), 3, figsize=(12, 2.2 * len(panels)), squeeze=False)
+    for ax, (scene, ref, img) in zip(axes, panels):
+        r, n = ref @ LUMINANCE, img @ LUMINANCE
+        top = float(np.percentile(r, 99.5)) or 1.0
+        ax[0].imshow(r, vmin=0.0, vmax=top, cmap="gray")
+        ax[1].imshow(n, vmin=0.0, vmax=top, cmap="gray")
+        ax[2].imshow(n - r, vmin=-0.5 * top, vmax=0.5 * top, cmap="RdBu_r")
+        for a_, title in zip(ax, (f"{scene}: explicit fibers", "native (near field)", "native - fibers (red: brighter)")):
+            a_.set_title(title, fontsize=9)
+            a_.axis("off")
+    fig.suptitle(f"{preset}, {light} light", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=72)
+    plt.close(fig)
 
 
 if __name__ == "__main__":
