@@ -13,7 +13,8 @@ yarn close-up (three plies twisted, touching); `lone`: one ply of the yarn alone
 `yarn-S`, `lone-S`, `ply1-S`, `ply2-S`: the same with the plies' offsets from the yarn's axis times S (the sum of
 the three lone plies against the yarn: what the plies do to each other); `helix-S`: the lone ply with its whole helix
 (offset and pitch) times S, so bent 1/S as much (decisions D74); `tilt-A`, `roll-A`: one straight ply turned A degrees
-toward the camera or in the image plane (what a straight ply shows of the angles a helix shows). The reference is explicit fibers over four
+toward the camera or in the image plane (what a straight ply shows of the angles a helix shows); `ring-S`: one ply bent on a circle of radius S in the
+image plane (the bend alone). The reference is explicit fibers over four
 orientations of the cross-section (--ref-spp each); its floor is one half of them against the other. Prints per
 scene the luminance error (R / G / B) over the whole frame and, for `crossed` and `half`, over the front ply where
 the back one shadows it; writes OUT/bench_near_field.json and, with --image PNG, per scene explicit fibers, the native
@@ -55,6 +56,16 @@ def plies(scene: str) -> dict:
         axis = (math.cos(a), 0.0, math.sin(a)) if name == "tilt" else (math.cos(a), math.sin(a), 0.0)
         p = t[:, None] * np.array(axis)[None, :]
         return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": YARN_LENGTH,
+                "plies": [[round(float(v), 5) for v in p.ravel()]]}
+    if name in ("ring", "ringy"):
+        # A ply bent on a circle: `ring-S` of radius S in the image plane (bending alone); `ringy-A` of radius 3 (the
+        # yarn's helix bends its ply about as much) turned A degrees about the image's vertical, so that at its top
+        # and bottom the ply turns toward the camera while it bends, as a helix's crests do.
+        radius, turn = (float(spread), 0.0) if name == "ring" else (3.0, math.radians(float(spread)))
+        a = np.linspace(0.0, 2.0 * math.pi, max(64, int(8 * radius)) + 1)
+        x, y = radius * np.cos(a), radius * np.sin(a)
+        p = np.stack([x * math.cos(turn), y, x * math.sin(turn)], axis=1)
+        return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": float(2.0 * math.pi * radius),
                 "plies": [[round(float(v), 5) for v in p.ravel()]]}
     if name == "helix":
         # The yarn S times as long, scaled down to the frame's length; its first ply cut to the frame.
@@ -109,9 +120,9 @@ def main() -> int:
         name, _, spread = s.partition("-")
         number = spread.replace(".", "", 1).isdigit()
         if not (s in ("crossed", "half") or (name in ("yarn", "lone", "ply1", "ply2") and (not spread or number)) or
-                (name in ("helix", "tilt", "roll") and number)):
+                (name in ("helix", "tilt", "roll", "ring", "ringy") and number)):
             print(f"bench_near_field: unknown scene '{s}' (crossed, half, yarn, lone, ply1, ply2, each with -S but crossed "
-                  "and half; helix-S, tilt-A, roll-A)", file=sys.stderr)
+                  "and half; helix-S, tilt-A, roll-A, ring-S, ringy-A)", file=sys.stderr)
             return 1
     os.makedirs(a.out, exist_ok=True)
     shipped = os.path.join(ev.MODELS, f"{a.preset}.json")

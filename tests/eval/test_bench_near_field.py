@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
 """bench_near_field.py's scenes of one ply (decisions D74): `helix-S` is the yarn's first ply with its whole helix S
 times as large, bent 1/S as much and cut to the frame; `tilt-A` / `roll-A` a straight ply turned toward the camera
-(on -z) or in the image plane; a malformed scene name is refused before anything renders."""
+(on -z) or in the image plane; `ring-S` a ply on a circle of radius S in the image plane, `ringy-A` the radius-3 circle
+turned A degrees about the vertical; a malformed scene name is refused before anything renders."""
 import math
 import os
 import subprocess
@@ -54,9 +55,21 @@ def test_a_turned_straight_ply(name, angle):
     assert np.allclose(p.mean(axis=0), 0.0, atol=1e-4)  # through the view's axis
 
 
-@pytest.mark.parametrize("scene", ["helix", "helix-x", "tilt-", "roll-1e3", "bend-2"])
+@pytest.mark.parametrize("scene", ["helix", "helix-x", "tilt-", "roll-1e3", "bend-2", "ring", "ringy-a"])
 def test_a_malformed_scene_is_refused(scene, tmp_path):
     r = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "bench_near_field.py"), "--scenes", scene,
                         "--out", str(tmp_path)], capture_output=True, text=True)
     assert r.returncode == 1 and f"unknown scene '{scene}'" in r.stderr
     assert not os.listdir(tmp_path)
+
+
+def test_a_ring_is_bent_by_its_radius_and_turned_about_the_vertical():
+    for radius in (3.0, 4.5):
+        p = _points(f"ring-{radius:g}")
+        assert np.allclose(p[:, 2], 0.0) and np.allclose(np.hypot(p[:, 0], p[:, 1]), radius, rtol=1e-4)
+        assert _median_curvature(p) == pytest.approx(1.0 / radius, rel=0.01)
+    p = _points("ringy-60")
+    # Radius 3, in the plane through the vertical turned 60 degrees toward the camera: x and z in that ratio.
+    assert _median_curvature(p) == pytest.approx(1.0 / 3.0, rel=0.01)
+    assert np.allclose(p[:, 2], p[:, 0] * math.tan(math.radians(60.0)), atol=1e-4)
+    assert np.abs(p[:, 1]).max() == pytest.approx(3.0, rel=1e-3)
