@@ -14,12 +14,12 @@ import re
 import sys
 import types
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+import cycles_check  # first: it puts scripts/ (evaluate, garment, images) on the path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import evaluate as ev  # noqa: E402
-from images import read_exr  # noqa: E402
+import evaluate as ev
+from images import read_exr
 
 SIZE = 64
 SPP = 512
@@ -68,6 +68,4 @@ def main(out: str) -> int:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        raise SystemExit(__doc__)
-    raise SystemExit(main(sys.argv[1]))
+    cycles_check.run(main, __doc__)

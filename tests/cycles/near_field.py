@@ -18,13 +18,13 @@ import os
 import sys
 import types
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+import cycles_check  # first: it puts scripts/ (evaluate, garment, images) on the path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import evaluate as ev  # noqa: E402
-from garment import crossed_plies  # noqa: E402
-from images import LUMINANCE  # noqa: E402
+import evaluate as ev
+from garment import crossed_plies
+from images import LUMINANCE
 
 WIDTH, HEIGHT, SPP = 160, 80, 64
 #: The front ply over the back one at the camera's 12 ply radii (rows, columns of the 160 x 80 frame).
@@ -79,7 +79,4 @@ def main(out: str) -> int:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        print(__doc__, file=sys.stderr)
-        sys.exit(2)
-    sys.exit(main(sys.argv[1]))
+    cycles_check.run(main, __doc__)

@@ -34,13 +34,13 @@ import os
 import sys
 import types
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+import cycles_check  # first: it puts scripts/ (evaluate, garment, images) on the path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import evaluate as ev  # noqa: E402
-from garment import parallel_plies  # noqa: E402
-from images import LUMINANCE  # noqa: E402
+import evaluate as ev
+from garment import parallel_plies
+from images import LUMINANCE
 
 WIDTH, HEIGHT, SPP = 160, 80, 16
 #: A black wall 3 ply radii behind the ply (camera at 12 on -z) for x < 8.2: under the sun's direction toward
@@ -131,13 +131,8 @@ def main(out: str) -> int:
     if not share["mirrored"][1] < share["legacy"][1] < share["shipped"][1]:
         problems.append(f"the pre-D72 model's lit part {share['legacy'][1]:+.3f} is not between the mirrored and the "
                         "shipped model's: its offsets are not taken either way")
-    for p in problems:
-        print(f"near_field_direction: {p}", file=sys.stderr)
-    return 1 if problems else 0
+    return cycles_check.report("near_field_direction", problems)
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        print(__doc__, file=sys.stderr)
-        sys.exit(2)
-    sys.exit(main(sys.argv[1]))
+    cycles_check.run(main, __doc__)

@@ -25,13 +25,13 @@ import os
 import sys
 import types
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+import cycles_check  # first: it puts scripts/ (evaluate, garment, images) on the path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import evaluate as ev  # noqa: E402
-from garment import parallel_plies  # noqa: E402
-from images import LUMINANCE  # noqa: E402
+import evaluate as ev
+from garment import parallel_plies
+from images import LUMINANCE
 
 WIDTH, HEIGHT, SPP, EXPLICIT_SPP = 160, 80, 32, 16
 #: The plate: the plane y = PLATE_Y (ply radii; the ply's axis is the x axis, the camera at 12 on -z) from z = -0.5
@@ -101,13 +101,8 @@ def main(out: str) -> int:
     if not dark >= DARK_SIDE_KEEPS:
         problems.append(f"a plate on the ply's dark side takes {1 - dark:.3f} of the model's light: paths start on "
                         "the side away from the light")
-    for p in problems:
-        print(f"near_field_entry: {p}", file=sys.stderr)
-    return 1 if problems else 0
+    return cycles_check.report("near_field_entry", problems)
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        print(__doc__, file=sys.stderr)
-        sys.exit(2)
-    sys.exit(main(sys.argv[1]))
+    cycles_check.run(main, __doc__)

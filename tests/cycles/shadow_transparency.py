@@ -19,12 +19,12 @@ import os
 import sys
 import types
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+import cycles_check  # first: it puts scripts/ (evaluate, garment, images) on the path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import evaluate as ev  # noqa: E402
-from images import LUMINANCE  # noqa: E402
+import evaluate as ev
+from images import LUMINANCE
 
 WIDTH, HEIGHT, SPP = 160, 80, 64
 ROTATIONS = (0, 90, 180, 270)
@@ -85,7 +85,4 @@ def main(out: str) -> int:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        print(__doc__, file=sys.stderr)
-        sys.exit(2)
-    sys.exit(main(sys.argv[1]))
+    cycles_check.run(main, __doc__)
