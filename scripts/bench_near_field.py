@@ -18,7 +18,8 @@ image plane (the bend alone). The reference is explicit fibers over four
 orientations of the cross-section (--ref-spp each); its floor is one half of them against the other. Prints per
 scene the luminance error (R / G / B) over the whole frame and, for `crossed` and `half`, over the front ply where
 the back one shadows it; writes OUT/bench_near_field.json and, with --image PNG, per scene explicit fibers, the native
-closure with its near field and their difference (luminance) side by side. A benchmark: prints, never a test.
+closure with its near field and their difference (luminance) side by side; with --maps, for the rings also the
+model's and the maps' far field predicted on the ring (aggregation against fit, decisions D74). A benchmark: prints, never a test.
 """
 from __future__ import annotations
 
@@ -26,13 +27,14 @@ import argparse
 import json
 import math
 import os
+import subprocess
 import sys
 
 import numpy as np
 
 import evaluate as ev
 from garment import crossed_plies, parallel_plies, straight_yarn_plies
-from images import LUMINANCE
+from images import LUMINANCE, read_exr
 
 ROTATIONS = (0, 90, 180, 270)
 WIDTH, HEIGHT = 160, 80
@@ -114,6 +116,8 @@ def main() -> int:
     ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per render")
     ap.add_argument("--out", default=os.path.join(ev.ROOT, "build", "bench_near_field"))
     ap.add_argument("--image", help="a PNG of each scene: fibers, native (near field), native - fibers")
+    ap.add_argument("--maps", help="the preset's maps (.nyrdm): for ring-S and ringy-A, also the model's and the maps' far "
+                    "field predicted on the ring (cpp_core/bench/bench_bent_ply; decisions D74)")
     a = ap.parse_args()
     a.width, a.height = WIDTH, HEIGHT
     for s in a.scenes:
@@ -159,6 +163,8 @@ def main() -> int:
                                         for k, v in halves.items()}
             print("half: the front ply's shadowed half over its lit half: " +
                   ", ".join(f"{k} {v:.2f}" for k, v in row["shadowed_over_lit"].items()), flush=True)
+        if a.maps and scene.partition("-")[0] in ("ring", "ringy"):
+            row["predicted"] = predicted_on_ring(a, scene, halves["explicit"], halves["far"])
         rows.append(row)
         panels.append((scene, halves["explicit"], halves["near"]))
         shadowed = [fmt(row[k]) if k in row else "" for k in ("far_shadowed", "near_shadowed")]
@@ -170,6 +176,29 @@ def main() -> int:
     if a.image:
         write_panels(a.image, panels, a.preset, a.light)
     return 0
+
+
+def predicted_on_ring(a, scene: str, explicit: np.ndarray, native: np.ndarray) -> dict:
+    """The model's and the maps' far field on the ring of `scene` (bench_bent_ply, direct light only) against explicit
+    fibers and the native render (far field): luminance over the frame and over the 3 % of pixels where the native
+    render exceeds the fibers most. Prints one line; the numbers for the JSON."""
+    name, _, value = scene.partition("-")
+    ring = ["--radius", value, "--turn", "0"] if name == "ring" else ["--radius", "3", "--turn", value]
+    prefix = os.path.join(a.out, f"predicted_{scene}")
+    tool = os.path.join(ev.BUILD, "cpp_core", "bench_bent_ply")
+    r = subprocess.run([tool, "--model", os.path.join(ev.MODELS, f"{a.preset}.json"), "--maps", a.maps, "--rig", a.light,
+                        "--width", str(WIDTH), "--height", str(HEIGHT), *ring, "--out", prefix],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"bench_near_field: {tool} failed: {r.stderr.strip()}")
+    lum = {"fibers": explicit @ LUMINANCE, "native": native @ LUMINANCE,
+           **{k: read_exr(f"{prefix}_{k}.exr")[..., :3] @ LUMINANCE for k in ("model", "maps")}}
+    excess = lum["native"] - lum["fibers"]
+    glint = excess > np.percentile(excess, 97)
+    out = {k: {"frame": float(v.mean()), "glint": float(v[glint].mean())} for k, v in lum.items()}
+    print(f"{scene}: frame / the 3 % of pixels where native exceeds fibers most: " +
+          ", ".join(f"{k} {v['frame']:.5f} / {v['glint']:.4f}" for k, v in out.items()), flush=True)
+    return out
 
 
 def write_panels(path: str, panels: list, preset: str, light: str) -> None:

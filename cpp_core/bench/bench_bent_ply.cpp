@@ -1,0 +1,147 @@
+// SPDX-License-Identifier: Apache-2.0
+//
+// A straight ply's far field on a bent one, predicted without a renderer (decisions D74): one ply on a circle of radius
+// --radius ply radii in the image plane, turned --turn degrees about the image's vertical (bench_near_field.py's
+// `ring-S` and `ringy-A` scenes: the same camera, 12 ply radii away on -z, field of view 0.9 across the shorter side),
+// under a distant-light rig, each camera ray's hit given the direct light of the rig through the model's far field and
+// through the radiance distribution maps themselves (interpolated; the best any far-field model of a straight ply can
+// do). Where explicit fibers differ from both alike, the error is the aggregation's (a straight ply's far field on a
+// bent ply), not the fit's. No shadows and no light between parts of the ring: only the camera-facing hits' direct light.
+//
+// Usage: bench_bent_ply --model M.json --maps M.nyrdm [--turn 60] [--radius 3] [--rig back] [--width 160]
+//                       [--height 80] [--lobes RM|R|M] [--out PREFIX]   (PREFIX_model.exr, PREFIX_maps.exr)
+// Prints each image's mean colour. A benchmark: prints, never a test.
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <Eigen/Dense>
+
+#include "neuralyarn/plots.h"
+#include "neuralyarn/rdm/map_file.h"
+#include "neuralyarn/scenes/closeup_prediction.h"
+#include "neuralyarn/units.h"
+
+using namespace neuralyarn;
+
+namespace {
+
+/* The rig's distant lights as 6 x 6 directions over each light's disc, with their share of its irradiance. */
+std::vector<std::pair<Eigen::Vector3d, double>> rig_directions(const scenes::LightRig &rig)
+{
+  std::vector<std::pair<Eigen::Vector3d, double>> out;
+  for (const scenes::RigLight &l : rig.lights) {
+    if (l.kind != scenes::RigLight::Kind::distant) {
+      throw std::runtime_error("rig '" + rig.name + "' has sphere lights: only distant lights are predicted");
+    }
+    const Eigen::Vector3d z = Eigen::Vector3d(l.x, l.y, l.z).normalized(), u = z.unitOrthogonal(), v = z.cross(u);
+    const double cos_max = std::cos(0.5 * l.size * kDeg);
+    const int n = 6;
+    for (int a = 0; a < n; a++) {
+      for (int b = 0; b < n; b++) {
+        const double c = 1.0 - (1.0 - cos_max) * (a + 0.5) / n, s = std::sqrt(std::max(0.0, 1.0 - c * c));
+        const double phi = 2.0 * kPi * (b + 0.5) / n;
+        out.emplace_back(c * z + s * std::cos(phi) * u + s * std::sin(phi) * v, l.strength / (n * n));
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char **argv)
+{
+  CLI::App app{"A straight ply's far field (model and maps) on a ply bent on a circle, predicted"};
+  std::string model_path, maps_path, rig_name = "back", lobes_name = "RM", out;
+  double turn_deg = 60.0, radius = 3.0;
+  int width = 160, height = 80, sub = 3;
+  app.add_option("--model", model_path, "Model file (.json)")->required();
+  app.add_option("--maps", maps_path, "Its maps (.nyrdm)")->required();
+  app.add_option("--turn", turn_deg, "The circle turned about the image's vertical (degrees)")->check(CLI::Range(0.0, 89.0));
+  app.add_option("--radius", radius, "The circle's radius (ply radii)")->check(CLI::Range(1.5, 5.0));
+  app.add_option("--rig", rig_name, "A distant-light rig (scenes::find_light_rig)");
+  app.add_option("--width", width)->check(CLI::Range(8, 4096));
+  app.add_option("--height", height)->check(CLI::Range(8, 4096));
+  app.add_option("--lobes", lobes_name, "RM, R or M");
+  app.add_option("--out", out, "Write PREFIX_model.exr and PREFIX_maps.exr");
+  CLI11_PARSE(app, argc, argv);
+  try {
+    const model::YarnModel model = model::load_model(model_path);
+    const rdm::RdmMaps maps = rdm::load_maps(maps_path);
+    const scenes::Lobes lobes = scenes::parse_lobes(lobes_name);
+    const std::vector<scenes::FarField> far = {
+        scenes::model_far_field(model, lobes),
+        scenes::maps_far_field(maps, lobes, scenes::MapLookup::kInterpolated)};
+    const auto lights = rig_directions(scenes::find_light_rig(rig_name));
+    const double turn = turn_deg * kDeg;
+    /* The circle's plane: e1 (the image's x turned toward the camera) and e2 (the image's vertical). */
+    const Eigen::Vector3d e1(std::cos(turn), 0.0, std::sin(turn)), e2(0.0, 1.0, 0.0), e3 = e1.cross(e2);
+    const Eigen::Vector3d o(0.0, 0.0, -scenes::kCloseupCameraDistance);
+    const double t = std::tan(0.5 * scenes::kCloseupCameraFov) * (width >= height ? 1.0 : double(height) / width);
+    const double aspect = double(width) / height;
+    std::vector<std::vector<float>> img(far.size(), std::vector<float>(size_t(width) * height * 3, 0.0f));
+    for (int py = 0; py < height; py++) {
+      for (int px = 0; px < width; px++) {
+        for (int k = 0; k < sub * sub; k++) {
+          const double u = (2.0 * (px + (k % sub + 0.5) / sub) / width - 1.0) * t * aspect;
+          const double v = (1.0 - 2.0 * (py + (k / sub + 0.5) / sub) / height) * t;
+          const Eigen::Vector3d d = Eigen::Vector3d(u, v, 1.0).normalized();
+          /* Sphere tracing the tube of radius 1 about the circle. */
+          double s = 0.0;
+          bool hit = false;
+          Eigen::Vector3d p;
+          for (int step = 0; step < 512 && s < 4.0 * scenes::kCloseupCameraDistance; step++) {
+            p = o + s * d;
+            const double dist = std::hypot(std::hypot(p.dot(e1), p.dot(e2)) - radius, p.dot(e3)) - 1.0;
+            if (dist < 1e-7) {
+              hit = true;
+              break;
+            }
+            s += dist;
+          }
+          if (!hit) {
+            continue;
+          }
+          /* The yarn frame at the hit: x along the circle (increasing angle, as the scene's keys run), z the normal. */
+          const double a = std::atan2(p.dot(e2), p.dot(e1));
+          const Eigen::Vector3d C = radius * (std::cos(a) * e1 + std::sin(a) * e2);
+          const Eigen::Vector3d X = -std::sin(a) * e1 + std::cos(a) * e2, Z = (p - C).normalized(), Y = Z.cross(X);
+          auto local = [&](const Eigen::Vector3d &w) {
+            return ny::make_vec3(float(w.dot(X)), float(w.dot(Y)), float(w.dot(Z)));
+          };
+          const ny::Vec3 wi = local(-d);
+          if (!(wi.z > 0.0f)) {
+            continue;
+          }
+          for (size_t f = 0; f < far.size(); f++) {
+            float *q = &img[f][(size_t(py) * width + px) * 3];
+            for (const auto &[dir, irradiance] : lights) {
+              const scenes::Rgb3 e = far[f].eval(wi, local(dir));
+              const double w = irradiance / (sub * sub);
+              q[0] += float(w * e.r), q[1] += float(w * e.g), q[2] += float(w * e.b);
+            }
+          }
+        }
+      }
+    }
+    const char *names[] = {"model", "maps"};
+    for (size_t f = 0; f < far.size(); f++) {
+      double m[3] = {0, 0, 0};
+      for (size_t i = 0; i < img[f].size(); i++) {
+        m[i % 3] += img[f][i] / (double(width) * height);
+      }
+      std::printf("%s: frame mean %.6f %.6f %.6f\n", names[f], m[0], m[1], m[2]);
+      if (!out.empty()) {
+        write_rgb_exr(img[f], width, height, out + "_" + names[f] + ".exr");
+      }
+    }
+  }
+  catch (const std::exception &e) {
+    std::fprintf(stderr, "bench_bent_ply: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
