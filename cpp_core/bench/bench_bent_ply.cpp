@@ -26,32 +26,6 @@
 
 using namespace neuralyarn;
 
-namespace {
-
-/* The rig's distant lights as 6 x 6 directions over each light's disc, with their share of its irradiance. */
-std::vector<std::pair<Eigen::Vector3d, double>> rig_directions(const scenes::LightRig &rig)
-{
-  std::vector<std::pair<Eigen::Vector3d, double>> out;
-  for (const scenes::RigLight &l : rig.lights) {
-    if (l.kind != scenes::RigLight::Kind::distant) {
-      throw std::runtime_error("rig '" + rig.name + "' has sphere lights: only distant lights are predicted");
-    }
-    const Eigen::Vector3d z = Eigen::Vector3d(l.x, l.y, l.z).normalized(), u = z.unitOrthogonal(), v = z.cross(u);
-    const double cos_max = std::cos(0.5 * l.size * kDeg);
-    const int n = 6;
-    for (int a = 0; a < n; a++) {
-      for (int b = 0; b < n; b++) {
-        const double c = 1.0 - (1.0 - cos_max) * (a + 0.5) / n, s = std::sqrt(std::max(0.0, 1.0 - c * c));
-        const double phi = 2.0 * kPi * (b + 0.5) / n;
-        out.emplace_back(c * z + s * std::cos(phi) * u + s * std::sin(phi) * v, l.strength / (n * n));
-      }
-    }
-  }
-  return out;
-}
-
-}  // namespace
-
 int main(int argc, char **argv)
 {
   CLI::App app{"A straight ply's far field (model and maps) on a ply bent on a circle, predicted"};
@@ -75,7 +49,7 @@ int main(int argc, char **argv)
     const std::vector<scenes::FarField> far = {
         scenes::model_far_field(model, lobes),
         scenes::maps_far_field(maps, lobes, scenes::MapLookup::kInterpolated)};
-    const auto lights = rig_directions(scenes::find_light_rig(rig_name));
+    const auto lights = scenes::distant_light_directions(scenes::find_light_rig(rig_name));
     const double turn = turn_deg * kDeg;
     /* The circle's plane: e1 (the image's x turned toward the camera) and e2 (the image's vertical). */
     const Eigen::Vector3d e1(std::cos(turn), 0.0, std::sin(turn)), e2(0.0, 1.0, 0.0), e3 = e1.cross(e2);

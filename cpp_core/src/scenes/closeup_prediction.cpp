@@ -201,17 +201,9 @@ FarField fallback_far_field(const model::YarnModel &model)
   return out;
 }
 
-Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &r, const CloseupCamera &camera)
+std::vector<std::pair<Eigen::Vector3d, double>> distant_light_directions(const LightRig &rig)
 {
-  if (!(r.width > 0 && r.height > 0 && r.w > 0 && r.h > 0 && r.x >= 0 && r.y >= 0 && r.x + r.w <= r.width &&
-        r.y + r.h <= r.height))
-  {
-    throw std::runtime_error("the predicted region lies outside the image");
-  }
-  if (!(camera.distance > 1.0 && camera.fov > 0.0 && camera.fov < kPi)) {
-    throw std::runtime_error("the predicted camera must lie outside the curve, with a field of view in (0, pi)");
-  }
-  std::vector<std::pair<Eigen::Vector3d, double>> lights; /* direction toward the light, irradiance / count */
+  std::vector<std::pair<Eigen::Vector3d, double>> lights;
   for (const RigLight &l : rig.lights) {
     if (l.kind != RigLight::Kind::distant) {
       throw std::runtime_error("light rig '" + rig.name +
@@ -222,6 +214,20 @@ Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &
       lights.emplace_back(d, l.strength / double(dirs.size()));
     }
   }
+  return lights;
+}
+
+Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &r, const CloseupCamera &camera)
+{
+  if (!(r.width > 0 && r.height > 0 && r.w > 0 && r.h > 0 && r.x >= 0 && r.y >= 0 && r.x + r.w <= r.width &&
+        r.y + r.h <= r.height))
+  {
+    throw std::runtime_error("the predicted region lies outside the image");
+  }
+  if (!(camera.distance > 1.0 && camera.fov > 0.0 && camera.fov < kPi)) {
+    throw std::runtime_error("the predicted camera must lie outside the curve, with a field of view in (0, pi)");
+  }
+  const std::vector<std::pair<Eigen::Vector3d, double>> lights = distant_light_directions(rig);
   /* The ply runs along x, so the image varies across rows, and most steeply in the rows its silhouette
    * crosses (a rim lit from behind glows within a fraction of a pixel of it): those rows get 256 sub-rows. */
   const std::vector<double> offset_x = box_offsets(4), offset_y = box_offsets(8), offset_rim = box_offsets(256);

@@ -21,7 +21,10 @@
 
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "neuralyarn/kernel/frames.h"
 #include "neuralyarn/model/model.h"
@@ -76,6 +79,9 @@ struct CloseupCamera {
 /* The expected mean colour over the region of the close-up under `rig` (its environment or distant
  * lights; throws std::runtime_error for sphere lights, whose near-field position and size this does not
  * model), with the pixels filtered as the scenes state it (a box one pixel wide, decisions D36). */
+/* The rig's distant lights as directions toward the light, 6 x 6 uniform in solid angle over each light's disc, each
+ * with its share of the light's irradiance (the prediction's quadrature); throws std::runtime_error for sphere lights. */
+std::vector<std::pair<Eigen::Vector3d, double>> distant_light_directions(const LightRig &rig);
 Rgb3 predict_closeup(const FarField &f, const LightRig &rig, const PixelRegion &region,
                      const CloseupCamera &camera = {});
 
