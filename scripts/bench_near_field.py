@@ -13,8 +13,7 @@ yarn close-up (three plies twisted, touching); `lone`: one ply of the yarn alone
 `yarn-S`, `lone-S`, `ply1-S`, `ply2-S`: the same with the plies' offsets from the yarn's axis times S (the sum of
 the three lone plies against the yarn: what the plies do to each other); `helix-S`: the lone ply with its whole helix
 (offset and pitch) times S, so bent 1/S as much (decisions D74); `tilt-A`, `roll-A`: one straight ply turned A degrees
-toward the camera or in the image plane (what a straight ply shows of the angles a helix shows); `ring-S`: one ply bent on a circle of radius S in the
-image plane (the bend alone). The reference is explicit fibers over four
+toward the camera or in the image plane (what a straight ply shows of the angles a helix shows); `ring-S`, `ringy-A`: one ply bent on a circle (ring_of). The reference is explicit fibers over four
 orientations of the cross-section (--ref-spp each); its floor is one half of them against the other. Prints per
 scene the luminance error (R / G / B) over the whole frame and, for `crossed` and `half`, over the front ply where
 the back one shadows it; writes OUT/bench_near_field.json and, with --image PNG, per scene explicit fibers, the native
@@ -53,19 +52,14 @@ def plies(scene: str) -> dict:
         return parallel_plies([(0.0, 0.0), (1.4, 2.5)], YARN_LENGTH)
     name, _, spread = scene.partition("-")
     if name in ("tilt", "roll"):
-        a = math.radians(float(spread))
-        t = np.linspace(-0.5 * YARN_LENGTH, 0.5 * YARN_LENGTH, 400)
-        axis = (math.cos(a), 0.0, math.sin(a)) if name == "tilt" else (math.cos(a), math.sin(a), 0.0)
-        p = t[:, None] * np.array(axis)[None, :]
-        return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": YARN_LENGTH,
-                "plies": [[round(float(v), 5) for v in p.ravel()]]}
+        d = crossed_plies([float(spread)], YARN_LENGTH)  # one straight ply turned in the image plane (roll)
+        if name == "tilt":  # ... or toward the camera: its y and z swapped
+            d["plies"] = [np.reshape(p, (-1, 3))[:, [0, 2, 1]].ravel().tolist() for p in d["plies"]]
+        return d
     if name in ("ring", "ringy"):
-        # A ply bent on a circle: `ring-S` of radius S in the image plane (bending alone); `ringy-A` of radius 3 (the
-        # yarn's helix bends its ply about as much) turned A degrees about the image's vertical, so that at its top
-        # and bottom the ply turns toward the camera while it bends, as a helix's crests do.
-        radius, turn = (float(spread), 0.0) if name == "ring" else (3.0, math.radians(float(spread)))
+        radius, turn_deg = ring_of(scene)
         a = np.linspace(0.0, 2.0 * math.pi, max(64, int(8 * radius)) + 1)
-        x, y = radius * np.cos(a), radius * np.sin(a)
+        x, y, turn = radius * np.cos(a), radius * np.sin(a), math.radians(turn_deg)
         p = np.stack([x * math.cos(turn), y, x * math.sin(turn)], axis=1)
         return {"format": "neuralyarn-plies 1", "ply_radius": 1.0, "length": float(2.0 * math.pi * radius),
                 "plies": [[round(float(v), 5) for v in p.ravel()]]}
@@ -87,6 +81,14 @@ def plies(scene: str) -> dict:
     elif name.startswith("ply"):
         d["plies"] = [d["plies"][int(name[3:])]]
     return d
+
+
+def ring_of(scene: str) -> tuple[float, float]:
+    """(radius, degrees turned about the image's vertical) of a ply bent on a circle: `ring-S` of radius S in the image
+    plane (bending alone); `ringy-A` of radius 3 (the yarn's helix bends its ply about as much) turned A degrees, so
+    that at its top and bottom the ply turns toward the camera while it bends, as a helix's crests do."""
+    name, _, value = scene.partition("-")
+    return (float(value), 0.0) if name == "ring" else (3.0, float(value))
 
 
 def render(a, args: list[str], name: str, spp: int) -> np.ndarray:
@@ -182,8 +184,8 @@ def predicted_on_ring(a, scene: str, explicit: np.ndarray, native: np.ndarray) -
     """The model's and the maps' far field on the ring of `scene` (bench_bent_ply, direct light only) against explicit
     fibers and the native render (far field): luminance over the frame and over the 3 % of pixels where the native
     render exceeds the fibers most. Prints one line; the numbers for the JSON."""
-    name, _, value = scene.partition("-")
-    ring = ["--radius", value, "--turn", "0"] if name == "ring" else ["--radius", "3", "--turn", value]
+    radius, turn = ring_of(scene)
+    ring = ["--radius", f"{radius:g}", "--turn", f"{turn:g}"]
     prefix = os.path.join(a.out, f"predicted_{scene}")
     tool = os.path.join(ev.BUILD, "cpp_core", "bench_bent_ply")
     r = subprocess.run([tool, "--model", os.path.join(ev.MODELS, f"{a.preset}.json"), "--maps", a.maps, "--rig", a.light,
