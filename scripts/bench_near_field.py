@@ -120,6 +120,9 @@ def main() -> int:
     ap.add_argument("--image", help="a PNG of each scene: fibers, native (near field), native - fibers")
     ap.add_argument("--maps", help="the preset's maps (.nyrdm): for ring-S and ringy-A, also the model's and the maps' far "
                     "field predicted on the ring (cpp_core/bench/bench_bent_ply; decisions D74)")
+    ap.add_argument("--sector-maps", nargs="+", metavar="M", help="with --maps: maps of the bent ply gathered per sector "
+                    "about the tube (cpp_core/bench/bench_bent_gather --sector k --sectors K, in order of k), predicted "
+                    "each where its sector is (decisions D75)")
     a = ap.parse_args()
     a.width, a.height = WIDTH, HEIGHT
     for s in a.scenes:
@@ -130,6 +133,9 @@ def main() -> int:
             print(f"bench_near_field: unknown scene '{s}' (crossed, half, yarn, lone, ply1, ply2, each with -S but crossed "
                   "and half; helix-S, tilt-A, roll-A, ring-S, ringy-A)", file=sys.stderr)
             return 1
+    if a.sector_maps and not a.maps:
+        print("bench_near_field: --sector-maps needs --maps (the straight ply's, predicted beside them)", file=sys.stderr)
+        return 1
     os.makedirs(a.out, exist_ok=True)
     shipped = os.path.join(ev.MODELS, f"{a.preset}.json")
     model = json.load(open(shipped))
@@ -166,7 +172,7 @@ def main() -> int:
             print("half: the front ply's shadowed half over its lit half: " +
                   ", ".join(f"{k} {v:.2f}" for k, v in row["shadowed_over_lit"].items()), flush=True)
         if a.maps and scene.partition("-")[0] in ("ring", "ringy"):
-            row["predicted"] = predicted_on_ring(a, scene, halves["explicit"], halves["far"])
+            row["predicted"] = predicted_on_ring(a, scene, parts, halves["far"])
         rows.append(row)
         panels.append((scene, halves["explicit"], halves["near"]))
         shadowed = [fmt(row[k]) if k in row else "" for k in ("far_shadowed", "near_shadowed")]
@@ -180,27 +186,41 @@ def main() -> int:
     return 0
 
 
-def predicted_on_ring(a, scene: str, explicit: np.ndarray, native: np.ndarray) -> dict:
-    """The model's and the maps' far field on the ring of `scene` (bench_bent_ply, direct light only) against explicit
-    fibers and the native render (far field): luminance over the frame and over the 3 % of pixels where the native
-    render exceeds the fibers most. Prints one line; the numbers for the JSON."""
+def predicted_on_ring(a, scene: str, explicit_parts: list, native: np.ndarray) -> dict:
+    """The model's and the maps' far field on the ring of `scene` (bench_bent_ply, direct light only; with --sector-maps
+    also the bent ply's own maps per sector) against explicit fibers and the native render (far field): luminance over
+    the frame and over the glint (frame_and_glint). Prints one line; the numbers for the JSON."""
     radius, turn = ring_of(scene)
     ring = ["--radius", f"{radius:g}", "--turn", f"{turn:g}"]
     prefix = os.path.join(a.out, f"predicted_{scene}")
     tool = os.path.join(ev.BUILD, "cpp_core", "bench_bent_ply")
+    sectors = ["--sector-maps", *a.sector_maps] if a.sector_maps else []
     r = subprocess.run([tool, "--model", os.path.join(ev.MODELS, f"{a.preset}.json"), "--maps", a.maps, "--rig", a.light,
-                        "--width", str(WIDTH), "--height", str(HEIGHT), *ring, "--out", prefix],
+                        "--width", str(WIDTH), "--height", str(HEIGHT), *ring, *sectors, "--out", prefix],
                        capture_output=True, text=True)
     if r.returncode != 0:
         raise SystemExit(f"bench_near_field: {tool} failed: {r.stderr.strip()}")
-    lum = {"fibers": explicit @ LUMINANCE, "native": native @ LUMINANCE,
-           **{k: read_exr(f"{prefix}_{k}.exr")[..., :3] @ LUMINANCE for k in ("model", "maps")}}
-    excess = lum["native"] - lum["fibers"]
-    glint = excess > np.percentile(excess, 97)
-    out = {k: {"frame": float(v.mean()), "glint": float(v[glint].mean())} for k, v in lum.items()}
+    names = ("model", "maps", "sectors") if a.sector_maps else ("model", "maps")
+    out = frame_and_glint(explicit_parts, native, {k: read_exr(f"{prefix}_{k}.exr")[..., :3] for k in names})
     print(f"{scene}: frame / the 3 % of pixels where native exceeds fibers most: " +
           ", ".join(f"{k} {v['frame']:.5f} / {v['glint']:.4f}" for k, v in out.items()), flush=True)
     return out
+
+
+def frame_and_glint(explicit_parts: list, native: np.ndarray, others: dict) -> dict:
+    """Mean luminance over the frame and over the glint — the 3 % of pixels where the native render exceeds the fibers
+    most — of the fibers (the mean of `explicit_parts`), the native render and `others`. The glint's pixels are chosen
+    with the first half of the fibers' renders and the fibers measured there with the other half: chosen and measured
+    in the same noisy image, they would be the pixels where its noise happens to be low."""
+    n = len(explicit_parts) // 2
+    chooser = sum(explicit_parts[:n]) / n @ LUMINANCE
+    measured = sum(explicit_parts[n:]) / (len(explicit_parts) - n) @ LUMINANCE
+    lum = {"fibers": sum(explicit_parts) / len(explicit_parts) @ LUMINANCE, "native": native @ LUMINANCE,
+           **{k: v @ LUMINANCE for k, v in others.items()}}
+    excess = lum["native"] - chooser
+    glint = excess > np.percentile(excess, 97)
+    return {k: {"frame": float(v.mean()), "glint": float((measured if k == "fibers" else v)[glint].mean())}
+            for k, v in lum.items()}
 
 
 def write_panels(path: str, panels: list, preset: str, light: str) -> None:

@@ -7,9 +7,12 @@
 // through the radiance distribution maps themselves (interpolated; the best any far-field model of a straight ply can
 // do). Where explicit fibers differ from both alike, the error is the aggregation's (a straight ply's far field on a
 // bent ply), not the fit's. No shadows and no light between parts of the ring: only the camera-facing hits' direct light.
+// With --sector-maps, also the bent ply's own far field (decisions D75): maps gathered on the ring, one per sector of
+// psi about the tube (bench_bent_gather --sector k --sectors K), each hit read from its sector's.
 //
-// Usage: bench_bent_ply --model M.json --maps M.nyrdm [--turn 60] [--radius 3] [--rig back] [--width 160]
-//                       [--height 80] [--lobes RM|R|M] [--out PREFIX]   (PREFIX_model.exr, PREFIX_maps.exr)
+// Usage: bench_bent_ply --model M.json --maps M.nyrdm [--sector-maps S0.nyrdm ...] [--turn 60] [--radius 3]
+//                       [--rig back] [--width 160] [--height 80] [--lobes RM|R|M] [--out PREFIX]
+//                       (PREFIX_model.exr, PREFIX_maps.exr, PREFIX_sectors.exr)
 // Prints each image's mean colour. A benchmark: prints, never a test.
 #include <cmath>
 #include <cstdio>
@@ -34,6 +37,9 @@ int main(int argc, char **argv)
   int width = 160, height = 80, sub = 3;
   app.add_option("--model", model_path, "Model file (.json)")->required();
   app.add_option("--maps", maps_path, "Its maps (.nyrdm)")->required();
+  std::vector<std::string> sector_paths;
+  app.add_option("--sector-maps", sector_paths, "Maps gathered per sector about the bent tube (bench_bent_gather "
+                 "--sector k --sectors K, k = 0 ... K - 1): each hit takes its sector's (the images' `sectors`)");
   app.add_option("--turn", turn_deg, "The circle turned about the image's vertical (degrees)")->check(CLI::Range(0.0, 89.0));
   app.add_option("--radius", radius, "The circle's radius (ply radii)")->check(CLI::Range(1.5, 5.0));
   app.add_option("--rig", rig_name, "A distant-light rig (scenes::find_light_rig)");
@@ -49,6 +55,15 @@ int main(int argc, char **argv)
     const std::vector<scenes::FarField> far = {
         scenes::model_far_field(model, lobes),
         scenes::maps_far_field(maps, lobes, scenes::MapLookup::kInterpolated)};
+    std::vector<rdm::RdmMaps> sector_maps;
+    for (const std::string &p : sector_paths) {
+      sector_maps.push_back(rdm::load_maps(p));
+    }
+    std::vector<scenes::FarField> by_sector;
+    for (const rdm::RdmMaps &m : sector_maps) {
+      by_sector.push_back(scenes::maps_far_field(m, lobes, scenes::MapLookup::kInterpolated)); /* refers to m */
+    }
+    const int n_far = int(far.size()) + (by_sector.empty() ? 0 : 1);
     const auto lights = scenes::distant_light_directions(scenes::find_light_rig(rig_name));
     const double turn = turn_deg * kDeg;
     /* The circle's plane: e1 (the image's x turned toward the camera) and e2 (the image's vertical). */
@@ -56,7 +71,7 @@ int main(int argc, char **argv)
     const Eigen::Vector3d o(0.0, 0.0, -scenes::kCloseupCameraDistance);
     const double t = std::tan(0.5 * scenes::kCloseupCameraFov) * (width >= height ? 1.0 : double(height) / width);
     const double aspect = double(width) / height;
-    std::vector<std::vector<float>> img(far.size(), std::vector<float>(size_t(width) * height * 3, 0.0f));
+    std::vector<std::vector<float>> img(size_t(n_far), std::vector<float>(size_t(width) * height * 3, 0.0f));
     for (int py = 0; py < height; py++) {
       for (int px = 0; px < width; px++) {
         for (int k = 0; k < sub * sub; k++) {
@@ -90,10 +105,16 @@ int main(int argc, char **argv)
           if (!(wi.z > 0.0f)) {
             continue;
           }
-          for (size_t f = 0; f < far.size(); f++) {
-            float *q = &img[f][(size_t(py) * width + px) * 3];
+          /* psi: the hit's angle about the tube from the circle's outward direction toward e3. */
+          const Eigen::Vector3d out = std::cos(a) * e1 + std::sin(a) * e2;
+          const double psi = std::atan2(Z.dot(e3), Z.dot(out));
+          const int K = int(by_sector.size());
+          const int sector = K > 0 ? int(std::lround(psi / (2.0 * kPi / K)) % K + K) % K : 0;
+          for (int f = 0; f < n_far; f++) {
+            const scenes::FarField &ff = f < int(far.size()) ? far[size_t(f)] : by_sector[size_t(sector)];
+            float *q = &img[size_t(f)][(size_t(py) * width + px) * 3];
             for (const auto &[dir, irradiance] : lights) {
-              const scenes::Rgb3 e = far[f].eval(wi, local(dir));
+              const scenes::Rgb3 e = ff.eval(wi, local(dir));
               const double w = irradiance / (sub * sub);
               q[0] += float(w * e.r), q[1] += float(w * e.g), q[2] += float(w * e.b);
             }
@@ -101,8 +122,8 @@ int main(int argc, char **argv)
         }
       }
     }
-    const char *names[] = {"model", "maps"};
-    for (size_t f = 0; f < far.size(); f++) {
+    const char *names[] = {"model", "maps", "sectors"};
+    for (size_t f = 0; f < img.size(); f++) {
       double m[3] = {0, 0, 0};
       for (size_t i = 0; i < img[f].size(); i++) {
         m[i % 3] += img[f][i] / (double(width) * height);

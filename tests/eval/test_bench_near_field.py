@@ -73,3 +73,19 @@ def test_a_ring_is_bent_by_its_radius_and_turned_about_the_vertical():
     assert _median_curvature(p) == pytest.approx(1.0 / 3.0, rel=0.01)
     assert np.allclose(p[:, 2], p[:, 0] * math.tan(math.radians(60.0)), atol=1e-4)
     assert np.abs(p[:, 1]).max() == pytest.approx(3.0, rel=1e-3)
+
+
+def test_the_glint_is_measured_in_fiber_renders_it_was_not_chosen_in():
+    """The glint's pixels (where native exceeds the fibers most) are chosen with half the fibers' renders and measured
+    in the other half. Here native is the truth without noise and each of four fiber renders the truth plus noise
+    (sigma 0.05 on values 0.1-0.2, a fixed seed): the fibers' glint must equal native's within 5 % (4 standard errors
+    of 384 pixels of two renders are 2.5 %); chosen and measured in the mean of all four it reads ~40 % low."""
+    rng = np.random.default_rng(3)
+    y, x = np.mgrid[0:bnf.HEIGHT, 0:bnf.WIDTH]
+    truth = 0.15 + 0.05 * np.sin(x / 9.0) * np.cos(y / 7.0)
+    rgb = lambda v: np.repeat(v[..., None], 3, axis=2)  # noqa: E731
+    parts = [rgb(truth + rng.normal(0.0, 0.05, truth.shape)) for _ in range(4)]
+    out = bnf.frame_and_glint(parts, rgb(truth), {"same": rgb(truth)})
+    assert out["fibers"]["glint"] == pytest.approx(out["native"]["glint"], rel=0.05)
+    assert out["same"] == out["native"]
+    assert out["fibers"]["frame"] == pytest.approx(out["native"]["frame"], rel=0.01)

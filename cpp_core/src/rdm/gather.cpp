@@ -208,6 +208,11 @@ Vec3 world_point(const PlyTracer &t, const SlabRay &r) { return t.to_world_point
 Vec3 world_point(const FiberMedium &, const SlabRay &r) { return r.o; }
 Vec3 world_dir(const PlyTracer &t, const SlabRay &r) { return t.to_world_dir(r.d, r.slab); }
 Vec3 world_dir(const FiberMedium &, const SlabRay &r) { return r.d; }
+EntryFrame entry_frame(const PlyTracer &t, double u_around, double u_along)
+{
+  return cylinder_entry(t.bound_radius(), 0.0, u_around, u_along);
+}
+EntryFrame entry_frame(const FiberMedium &m, double u_around, double u_along) { return m.entry_frame(u_around, u_along); }
 
 /* Where a path enters: its incident bin, the entry frame (n the envelope's normal, ex the axis, ey = z x x)
  * and the entry point. */
@@ -243,16 +248,15 @@ Entry enter(const Medium &tracer, const MapResolution &b, const std::vector<doub
   const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
   const double phi = -kPi + 2.0 * kPi * (pi + rng.uniform_double()) / b.phi_i;
   const Vec3 wi_local = make_vec3(float(sin_t * std::cos(phi)), float(sin_t * std::sin(phi)), float(cos_t));
-  double sin_a, cos_a;
-  sincos(2.0 * kPi * rng.uniform_double(), &sin_a, &cos_a);
-  const double L_entry = entry_length(tracer);
-  const float x_entry = L_entry > 0.0 ? float(L_entry * (rng.uniform_double() - 0.5)) : 0.0f;
+  const double u_around = rng.uniform_double();
+  const double u_along = entry_length(tracer) > 0.0 ? rng.uniform_double() : 0.5;
+  const EntryFrame f = entry_frame(tracer, u_around, u_along);
   Entry e;
   e.in_bin = in_bin;
-  e.n = make_vec3(0.0f, float(cos_a), float(sin_a));
-  e.ey = make_vec3(0.0f, float(sin_a), float(-cos_a));
-  e.ex = make_vec3(1.0f, 0.0f, 0.0f);
-  e.point = e.n * tracer.bound_radius() + e.ex * x_entry;
+  e.n = f.n;
+  e.ey = f.ey;
+  e.ex = f.ex;
+  e.point = f.point;
   const Vec3 wi = e.ex * wi_local.x + e.ey * wi_local.y + e.n * wi_local.z;
   e.wi = wi;
   e.irradiance = float(cos_t * (c0 - c1) * double(b.theta_i));
