@@ -340,7 +340,7 @@ TEST(Fallback, RoundTripsThroughTheModelFileAndBadTablesAreRejected)
 }
 
 /* The shipped models carry tables (the loader has checked, by the kernel array's hash, that they belong to
- * the model); for two of them (recomputing costs ~5 s each) they also equal a fresh computation. */
+ * the model); for two of them (recomputing costs ~5 s each) they also render as a fresh computation does. */
 TEST(Fallback, ShippedModelsCarryCurrentTables)
 {
   for (const char *preset : {"fleece", "silk", "polyester", "cotton", "gabardine"}) {
@@ -355,10 +355,30 @@ TEST(Fallback, ShippedModelsCarryCurrentTables)
     for (size_t k = 0; k < f.P_T.size(); k++) {
       EXPECT_NEAR(m.fallback->P_T[k], f.P_T[k], 1e-6) << preset;
     }
+    /* The weights are a means; what renders is their lobes' sum. Where two lobes coincide (silk: its R lobe and the
+     * M ladder's first, both at the roughness floor) a cell's split between them is not unique, and a machine of
+     * another instruction set (-march=native) splits it otherwise. So the fallback as it renders, at every cell
+     * centre's w_i and 400 w_o over the sphere, must equal the fresh tables' within 1e-5 (relative to the larger of
+     * 1 and the value). */
     ASSERT_EQ(m.fallback->W.size(), f.W.size());
-    for (size_t k = 0; k < f.W.size(); k++) {
-      EXPECT_NEAR(m.fallback->W[k], f.W[k], 1e-5 * std::max(1.0f, f.W[k])) << preset;
+    double worst = 0.0;
+    for (int i = 0; i < f.theta_bins; i++) {
+      for (int j = 0; j < f.phi_bins; j++) {
+        const ny::Vec3 wi = ny::direction_from_angles(float(f.theta_center(i)), float(f.phi_center(j)));
+        for (int a = 0; a < 20; a++) {
+          for (int b = 0; b < 20; b++) {
+            const double t = kPi * (a + 0.5) / 20.0, ph = 2.0 * kPi * (b + 0.5) / 20.0;
+            const model::cycles_lobes::Dir wo{std::sin(t) * std::cos(ph), std::sin(t) * std::sin(ph), std::cos(t)};
+            const auto shipped = model::fallback_eval(*m.fallback, {wi.x, wi.y, wi.z}, wo);
+            const auto fresh = model::fallback_eval(f, {wi.x, wi.y, wi.z}, wo);
+            for (int c = 0; c < 3; c++) {
+              worst = std::max(worst, std::abs(double(shipped[c]) - fresh[c]) / std::max(1.0, std::abs(double(fresh[c]))));
+            }
+          }
+        }
+      }
     }
+    EXPECT_LT(worst, 1e-5) << preset;
     for (size_t k = 0; k < f.E_R.size(); k++) {
       EXPECT_NEAR(m.fallback->E_R[k], f.E_R[k], 1e-6) << preset;
       EXPECT_NEAR(m.fallback->E_M_up[k], f.E_M_up[k], 1e-6) << preset;
