@@ -1,9 +1,10 @@
 # SPDX-License-Identifier: Apache-2.0
 """Image regression (issue 19): a few small scenes per method, rendered and compared with committed references
-(tests/data/regression/*.exr). The cases of one curve per ply (the native closure, the baseline, the fallbacks)
-by Blender's render-test rule, `idiff -fail 0.016 -failpercent 1` on the display images (each pair at
-the reference's exposure, clamped, sRGB: scripts/images.py); explicit fibers by their mean colour per channel over
-the frame and the central region, within MEANS_TOLERANCE (their paths are not the same on every CPU, below).
+(tests/data/regression/*.exr). The close-ups' single curves (the native closure, the baseline, the fallbacks) by
+Blender's render-test rule, `idiff -fail 0.016 -failpercent 1` on the display images (each pair at the reference's
+exposure, clamped, sRGB: scripts/images.py); explicit fibers and the knit's touching curves by their mean colour per
+channel over the frame and the central region, within MEANS_TOLERANCE (their paths are not the same on every CPU,
+below).
 
     .venv/bin/python scripts/regression_images.py [--out DIR] [--cases NAME ...]    # compare (CI)
     .venv/bin/python scripts/regression_images.py --update                          # regenerate the references
@@ -15,7 +16,7 @@ shaders, the scene writers, the Blender builder — moves pixels. Not so across 
 on an Intel Xeon and an AMD EPYC, 17-41 % of their pixels differed, up to 1 in display units, frame means within
 5 % (most likely Embree's and the natively built kernel's rounding, AVX-512 on the one and AVX2 on the other: a
 ray grazing one of hundreds of fibers hits it on one machine and misses it on the other, and the path goes on
-elsewhere).
+elsewhere); the same for the knit's curves where they touch, whichever method shades them.
 Those cases are rendered with enough samples for their means to be a measurement and compared as one.
 Regenerate the references (--update) only for a change meant to alter images, and say so in the commit. Exits 1
 naming each case that differs or fails.
@@ -41,9 +42,15 @@ IDIFF = ["-fail", "0.016", "-failpercent", "1"]
 #: harness's knit patch (make_examples.py's), 64 x 64.
 SIZES = {"closeup": (64, 32), "knit": (64, 64)}
 CLOSEUP = ["--camera-distance", "5", "--ply-length", "30"]
-#: Explicit fibers' mean colour per channel (frame and central region), relative error allowed per scene: half
-#: as much again as six seeds of each case differ pairwise at its samples (docs/benchmarks.md "Image regression").
-MEANS_TOLERANCE = {"closeup": 0.06, "knit": 0.10}
+#: The cases compared by their mean colour per channel (frame and central region), with the relative error allowed:
+#: those whose paths are not the same on every CPU — explicit fibers, and the knit's touching curves, where a ray
+#: grazing a neighbouring curve hits it on one CPU and misses it on another (the native knit's 16-spp render moved
+#: 26 % of its pixels between a Zen 4 and a Zen 3 VM, 1.1 % of them beyond idiff's 0.016) — rendered with enough
+#: samples for their means to be a measurement. Half as much again as six seeds of each case differ pairwise at its
+#: samples (docs/benchmarks.md "Image regression"). Every other case: the pixel rule.
+MEANS_TOLERANCE = {"closeup_fleece_keyrim_explicit": 0.06, "closeup_cotton_grazing_explicit": 0.06,
+                   "knit_polyester_keyrim_explicit": 0.10, "knit_polyester_keyrim_native": 0.03,
+                   "knit_polyester_keyrim_nodes": 0.03}
 #: (name, scene, renderer, cycles-scene arguments, samples): three presets under three rigs by every method
 #: (explicit fibers, the native closure, a baseline in the standalone Cycles; the OSL and stock-node fallbacks in
 #: Blender). `--model P` names a preset's shipped model.
@@ -60,8 +67,8 @@ CASES = [
     ("closeup_silk_back_native", "closeup", "cycles", ["--preset", "silk", "--lights", "back", "--model", "silk"], 16),
     ("closeup_silk_back_osl", "closeup", "osl", ["--preset", "silk", "--lights", "back", "--model", "silk"], 16),
     ("knit_polyester_keyrim_explicit", "knit", "cycles", ["--preset", "polyester"], 64),
-    ("knit_polyester_keyrim_native", "knit", "cycles", ["--preset", "polyester", "--model", "polyester"], 16),
-    ("knit_polyester_keyrim_nodes", "knit", "nodes", ["--preset", "polyester", "--model", "polyester"], 16),
+    ("knit_polyester_keyrim_native", "knit", "cycles", ["--preset", "polyester", "--model", "polyester"], 256),
+    ("knit_polyester_keyrim_nodes", "knit", "nodes", ["--preset", "polyester", "--model", "polyester"], 256),
 ]
 
 
@@ -77,11 +84,6 @@ def render(name: str, scene: str, renderer: str, args: list[str], spp: int, out:
     ev.render(types.SimpleNamespace(width=width, height=height, threads=2, timeout=600.0), path, spp, exr, name,
               None if renderer == "cycles" else renderer, finite=False)
     return exr
-
-
-def explicit(args: list[str]) -> bool:
-    """Whether cycles-scene draws the case's fibers (as it does when given neither a model nor a baseline)."""
-    return "--model" not in args and "--baseline" not in args
 
 
 def region(scene: str, name: str, out: str) -> tuple[slice, slice]:
@@ -154,8 +156,8 @@ def main() -> int:
                 ok, what = True, "reference written"
             else:
                 ref, img = load(name, exr)
-                if explicit(args):
-                    ok, what = compare_means(ref, img, region(scene, name, a.out), MEANS_TOLERANCE[scene])
+                if name in MEANS_TOLERANCE:
+                    ok, what = compare_means(ref, img, region(scene, name, a.out), MEANS_TOLERANCE[name])
                 else:
                     ok, what = compare_pixels(name, ref, img, a.out)
         except ev.RenderFailed as e:
