@@ -17,8 +17,9 @@ toward the camera or in the image plane (what a straight ply shows of the angles
 orientations of the cross-section (--ref-spp each); its floor is one half of them against the other. Prints per
 scene the luminance error (R / G / B) over the whole frame and, for `crossed` and `half`, over the front ply where
 the back one shadows it; writes OUT/bench_near_field.json and, with --image PNG, per scene explicit fibers, the native
-closure with its near field and their difference (luminance) side by side; with --maps, for the rings also the
-model's and the maps' far field predicted on the ring (aggregation against fit, decisions D74). A benchmark: prints, never a test.
+closure with its near field and their difference (luminance) side by side; with --maps, for the scenes of one ply
+also the model's and the maps' far field predicted on it (aggregation against fit, decisions D74) and with
+--sector-maps the bent ply's own (D75). A benchmark: prints, never a test.
 """
 from __future__ import annotations
 
@@ -41,6 +42,8 @@ WIDTH, HEIGHT = 160, 80
 OVERLAP = (slice(35, 45), slice(74, 86))
 #: `half`: the front ply's upper (shadowed) and lower (lit) halves (rows 34 .. 46 at the camera's 12 ply radii).
 SHADOWED_HALF, LIT_HALF = (slice(34, 40), slice(20, 140)), (slice(41, 47), slice(20, 140))
+#: The scenes of one ply, which --maps predicts without a renderer (no shadows, no light between plies).
+ONE_PLY = ("helix", "tilt", "roll", "ring", "ringy", "lone", "ply1", "ply2")
 YARN_LENGTH = 48.7  # ply radii: the harness's yarn close-up at its default camera
 
 
@@ -118,8 +121,9 @@ def main() -> int:
     ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per render")
     ap.add_argument("--out", default=os.path.join(ev.ROOT, "build", "bench_near_field"))
     ap.add_argument("--image", help="a PNG of each scene: fibers, native (near field), native - fibers")
-    ap.add_argument("--maps", help="the preset's maps (.nyrdm): for ring-S and ringy-A, also the model's and the maps' far "
-                    "field predicted on the ring (cpp_core/bench/bench_bent_ply; decisions D74)")
+    ap.add_argument("--maps", help="the preset's maps (.nyrdm): for the scenes of one ply (helix, tilt, roll, ring, ringy, "
+                    "lone, ply1, ply2), also the model's and the maps' far field predicted on it without a renderer "
+                    "(cpp_core/bench/bench_bent_ply; decisions D74)")
     ap.add_argument("--sector-maps", nargs="+", metavar="M", help="with --maps: maps of the bent ply gathered per sector "
                     "about the tube (cpp_core/bench/bench_bent_gather --sector k --sectors K, in order of k), predicted "
                     "each where its sector is (decisions D75)")
@@ -171,8 +175,8 @@ def main() -> int:
                                         for k, v in halves.items()}
             print("half: the front ply's shadowed half over its lit half: " +
                   ", ".join(f"{k} {v:.2f}" for k, v in row["shadowed_over_lit"].items()), flush=True)
-        if a.maps and scene.partition("-")[0] in ("ring", "ringy"):
-            row["predicted"] = predicted_on_ring(a, scene, parts, halves["far"])
+        if a.maps and scene.partition("-")[0] in ONE_PLY:
+            row["predicted"] = predicted(a, scene, path, parts, halves["far"])
         rows.append(row)
         panels.append((scene, halves["explicit"], halves["near"]))
         shadowed = [fmt(row[k]) if k in row else "" for k in ("far_shadowed", "near_shadowed")]
@@ -186,17 +190,16 @@ def main() -> int:
     return 0
 
 
-def predicted_on_ring(a, scene: str, explicit_parts: list, native: np.ndarray) -> dict:
-    """The model's and the maps' far field on the ring of `scene` (bench_bent_ply, direct light only; with --sector-maps
-    also the bent ply's own maps per sector) against explicit fibers and the native render (far field): luminance over
-    the frame and over the glint (frame_and_glint). Prints one line; the numbers for the JSON."""
-    radius, turn = ring_of(scene)
-    ring = ["--radius", f"{radius:g}", "--turn", f"{turn:g}"]
+def predicted(a, scene: str, plies_path: str, explicit_parts: list, native: np.ndarray) -> dict:
+    """The model's and the maps' far field on the plies of `scene` (bench_bent_ply --plies, direct light only, no
+    shadows: for one ply; with --sector-maps also the bent ply's own maps, each hit read from its sector about the
+    bend) against explicit fibers and the native render (far field): luminance over the frame and over the glint
+    (frame_and_glint). Prints one line; the numbers for the JSON."""
     prefix = os.path.join(a.out, f"predicted_{scene}")
     tool = os.path.join(ev.BUILD, "cpp_core", "bench_bent_ply")
     sectors = ["--sector-maps", *a.sector_maps] if a.sector_maps else []
     r = subprocess.run([tool, "--model", os.path.join(ev.MODELS, f"{a.preset}.json"), "--maps", a.maps, "--rig", a.light,
-                        "--width", str(WIDTH), "--height", str(HEIGHT), *ring, *sectors, "--out", prefix],
+                        "--width", str(WIDTH), "--height", str(HEIGHT), "--plies", plies_path, *sectors, "--out", prefix],
                        capture_output=True, text=True)
     if r.returncode != 0:
         raise SystemExit(f"bench_near_field: {tool} failed: {r.stderr.strip()}")

@@ -14,7 +14,10 @@
 //                       [--rig back] [--width 160] [--height 80] [--lobes RM|R|M] [--out PREFIX]
 //                       (PREFIX_model.exr, PREFIX_maps.exr, PREFIX_sectors.exr)
 // Prints each image's mean colour. A benchmark: prints, never a test.
+#include <algorithm>
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -22,9 +25,12 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Dense>
 
+#include "neuralyarn/geometry/sweep.h"
 #include "neuralyarn/plots.h"
+#include "neuralyarn/rdm/embree_ply.h"
 #include "neuralyarn/rdm/map_file.h"
 #include "neuralyarn/scenes/closeup_prediction.h"
+#include "neuralyarn/scenes/ply_curves.h"
 #include "neuralyarn/units.h"
 
 using namespace neuralyarn;
@@ -40,6 +46,9 @@ int main(int argc, char **argv)
   std::vector<std::string> sector_paths;
   app.add_option("--sector-maps", sector_paths, "Maps gathered per sector about the bent tube (bench_bent_gather "
                  "--sector k --sectors K, k = 0 ... K - 1): each hit takes its sector's (the images' `sectors`)");
+  std::string plies_path;
+  app.add_option("--plies", plies_path, "Instead of the circle: the plies of a neuralyarn-plies file (bench_near_field's "
+                 "plies_SCENE.json), as the Catmull-Rom curves Cycles draws through their keys");
   app.add_option("--turn", turn_deg, "The circle turned about the image's vertical (degrees)")->check(CLI::Range(0.0, 89.0));
   app.add_option("--radius", radius, "The circle's radius (ply radii)")->check(CLI::Range(1.5, 5.0));
   app.add_option("--rig", rig_name, "A distant-light rig (scenes::find_light_rig)");
@@ -64,6 +73,14 @@ int main(int argc, char **argv)
       by_sector.push_back(scenes::maps_far_field(m, lobes, scenes::MapLookup::kInterpolated)); /* refers to m */
     }
     const int n_far = int(far.size()) + (by_sector.empty() ? 0 : 1);
+    std::vector<std::vector<Eigen::Vector3d>> lines;
+    std::unique_ptr<rdm::EmbreePly> curves;
+    if (!plies_path.empty()) {
+      for (const auto &keys : scenes::read_ply_curves(plies_path).plies) {
+        lines.push_back(geometry::catmull_rom_polyline(keys));
+      }
+      curves = std::make_unique<rdm::EmbreePly>(scenes::curve_set(lines, 1.0), "");
+    }
     const auto lights = scenes::distant_light_directions(scenes::find_light_rig(rig_name));
     const double turn = turn_deg * kDeg;
     /* The circle's plane: e1 (the image's x turned toward the camera) and e2 (the image's vertical). */
@@ -78,26 +95,67 @@ int main(int argc, char **argv)
           const double u = (2.0 * (px + (k % sub + 0.5) / sub) / width - 1.0) * t * aspect;
           const double v = (1.0 - 2.0 * (py + (k / sub + 0.5) / sub) / height) * t;
           const Eigen::Vector3d d = Eigen::Vector3d(u, v, 1.0).normalized();
-          /* Sphere tracing the tube of radius 1 about the circle. */
-          double s = 0.0;
-          bool hit = false;
-          Eigen::Vector3d p;
-          for (int step = 0; step < 512 && s < 4.0 * scenes::kCloseupCameraDistance; step++) {
-            p = o + s * d;
-            const double dist = std::hypot(std::hypot(p.dot(e1), p.dot(e2)) - radius, p.dot(e3)) - 1.0;
-            if (dist < 1e-7) {
-              hit = true;
-              break;
+          /* The frame at the hit (X along the curve, Z the tube's normal, Y = Z x X) and psi, the normal's angle about
+           * the tube from the bend's outward direction (away from the centre of curvature) toward outward x X. */
+          Eigen::Vector3d X, Y, Z;
+          double psi = 0.0;
+          if (!curves) {
+            /* Sphere tracing the tube of radius 1 about the circle. */
+            double s = 0.0;
+            bool hit = false;
+            Eigen::Vector3d p;
+            for (int step = 0; step < 512 && s < 4.0 * scenes::kCloseupCameraDistance; step++) {
+              p = o + s * d;
+              const double dist = std::hypot(std::hypot(p.dot(e1), p.dot(e2)) - radius, p.dot(e3)) - 1.0;
+              if (dist < 1e-7) {
+                hit = true;
+                break;
+              }
+              s += dist;
             }
-            s += dist;
+            if (!hit) {
+              continue;
+            }
+            /* X along the circle (increasing angle, as the scene's keys run). */
+            const double a = std::atan2(p.dot(e2), p.dot(e1));
+            const Eigen::Vector3d out = std::cos(a) * e1 + std::sin(a) * e2;
+            X = -std::sin(a) * e1 + std::cos(a) * e2;
+            Z = (p - radius * out).normalized();
+            psi = std::atan2(Z.dot(e3), Z.dot(out));
           }
-          if (!hit) {
-            continue;
+          else {
+            rdm::EmbreeHit h;
+            if (!curves->intersect(ny::make_vec3(float(o.x()), float(o.y()), float(o.z())),
+                                   ny::make_vec3(float(d.x()), float(d.y()), float(d.z())), 0.0f,
+                                   std::numeric_limits<float>::infinity(), &h)) {
+              continue;
+            }
+            const Eigen::Vector3d p = o + double(h.t) * d;
+            const std::vector<Eigen::Vector3d> &q = lines[size_t(h.fiber)];
+            /* The nearest chord of the ply's polyline, its foot and its neighbours' bend (the Catmull-Rom curve's). */
+            size_t j = 0;
+            double best = std::numeric_limits<double>::infinity();
+            for (size_t i = 0; i + 1 < q.size(); i++) {
+              const Eigen::Vector3d e = q[i + 1] - q[i];
+              const double f = std::clamp((p - q[i]).dot(e) / e.squaredNorm(), 0.0, 1.0);
+              const double dist = (p - q[i] - f * e).squaredNorm();
+              if (dist < best) {
+                best = dist;
+                j = i;
+              }
+            }
+            X = (q[j + 1] - q[j]).normalized();
+            const Eigen::Vector3d r = p - q[j] - (p - q[j]).dot(X) * X;
+            Z = r.normalized();
+            const size_t m = std::clamp<size_t>(j, 1, q.size() - 2);
+            const Eigen::Vector3d k = q[m - 1] + q[m + 1] - 2.0 * q[m];
+            const Eigen::Vector3d k_perp = k - k.dot(X) * X;
+            if (k_perp.norm() > 1e-12) {
+              const Eigen::Vector3d out = -k_perp.normalized();
+              psi = std::atan2(Z.dot(out.cross(X)), Z.dot(out));
+            }
           }
-          /* The yarn frame at the hit: x along the circle (increasing angle, as the scene's keys run), z the normal. */
-          const double a = std::atan2(p.dot(e2), p.dot(e1));
-          const Eigen::Vector3d C = radius * (std::cos(a) * e1 + std::sin(a) * e2);
-          const Eigen::Vector3d X = -std::sin(a) * e1 + std::cos(a) * e2, Z = (p - C).normalized(), Y = Z.cross(X);
+          Y = Z.cross(X);
           auto local = [&](const Eigen::Vector3d &w) {
             return ny::make_vec3(float(w.dot(X)), float(w.dot(Y)), float(w.dot(Z)));
           };
@@ -105,9 +163,6 @@ int main(int argc, char **argv)
           if (!(wi.z > 0.0f)) {
             continue;
           }
-          /* psi: the hit's angle about the tube from the circle's outward direction toward e3. */
-          const Eigen::Vector3d out = std::cos(a) * e1 + std::sin(a) * e2;
-          const double psi = std::atan2(Z.dot(e3), Z.dot(out));
           const int K = int(by_sector.size());
           const int sector = K > 0 ? int(std::lround(psi / (2.0 * kPi / K)) % K + K) % K : 0;
           for (int f = 0; f < n_far; f++) {
