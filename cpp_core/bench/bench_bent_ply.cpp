@@ -16,9 +16,9 @@
 // Prints each image's mean colour. A benchmark: prints, never a test.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <memory>
-#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -55,7 +55,7 @@ int main(int argc, char **argv)
   app.add_option("--width", width)->check(CLI::Range(8, 4096));
   app.add_option("--height", height)->check(CLI::Range(8, 4096));
   app.add_option("--lobes", lobes_name, "RM, R or M");
-  app.add_option("--out", out, "Write PREFIX_model.exr and PREFIX_maps.exr");
+  app.add_option("--out", out, "Write PREFIX_model.exr, PREFIX_maps.exr (and with --sector-maps PREFIX_sectors.exr)");
   CLI11_PARSE(app, argc, argv);
   try {
     const model::YarnModel model = model::load_model(model_path);

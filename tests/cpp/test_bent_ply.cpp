@@ -13,38 +13,20 @@
 #include "neuralyarn/rdm/bent_ply.h"
 #include "neuralyarn/rdm/gather.h"
 #include "neuralyarn/units.h"
+#include "gather_checks.h"
 
 using namespace neuralyarn;
 
 namespace {
 
-rdm::GatherOptions small_gather(uint64_t paths)
-{
-  rdm::GatherOptions o;
-  o.paths = paths;
-  o.bins = rdm::parse_resolution("6x12x12x12");
-  o.threads = 2;
-  return o;
-}
+using neuralyarn::testing::expect_same_energies;
+using neuralyarn::testing::small_gather;
 
 std::vector<geometry::Ply> one_ply(const char *preset)
 {
   const FiberPreset &p = find_preset(preset);
   const geometry::PlyParams pp{p.N, p.rho, p.alpha, 1.0};
   return {geometry::Ply(pp, geometry::pack_cross_section(pp, 1))};
-}
-
-/* Energies of two gathers agree within their noise: per-path exit weights stay below ~1.5 (roulette keeps them near
- * 1), so Var <= 1.5 E; 4 sigma of a difference of two independent means, plus `slack` of the larger. */
-void expect_same_energies(const rdm::GatherStats &a, const rdm::GatherStats &b, double slack)
-{
-  const double n = double(a.paths);
-  auto tol = [&](double x, double y) { return 4.0 * std::sqrt(1.5 * (x + y) / n) + slack * std::max(x, y); };
-  for (int c = 0; c < 3; c++) {
-    EXPECT_NEAR(a.energy_T[c], b.energy_T[c], tol(a.energy_T[c], b.energy_T[c])) << c;
-    EXPECT_NEAR(a.energy_R[c], b.energy_R[c], tol(a.energy_R[c], b.energy_R[c])) << c;
-    EXPECT_NEAR(a.energy_M[c], b.energy_M[c], tol(a.energy_M[c], b.energy_M[c])) << c;
-  }
 }
 
 }  // namespace

@@ -17,19 +17,13 @@
 #include "neuralyarn/rdm/map_file.h"
 #include "neuralyarn/rdm/yarn_grid_tracer.h"
 #include "neuralyarn/rdm/yarn_tracer.h"
+#include "gather_checks.h"
 
 using namespace neuralyarn;
 
 namespace {
 
-rdm::GatherOptions small_gather(uint64_t paths)
-{
-  rdm::GatherOptions o;
-  o.paths = paths;
-  o.bins = rdm::parse_resolution("6x12x12x12");
-  o.threads = 2;
-  return o;
-}
+using neuralyarn::testing::small_gather;
 
 geometry::Yarn one_ply_yarn(const FiberPreset &p, uint64_t seed)
 {
@@ -67,16 +61,8 @@ void expect_one_ply_yarn_walks_like_the_ply(bool grid)
     yarn_maps = rdm::gather_through(p, s, o, plain, mirror);
   }
   EXPECT_EQ(yarn_maps.stats.paths_past_ends, 0u);
-  const double n = double(o.paths);
-  for (int c = 0; c < 3; c++) {
-    /* Per-path exit weights are below ~1.5 (roulette keeps them near 1), so Var <= 1.5 E: 4 sigma of a
-     * difference of two independent means, plus 1 % for chords against Embree's polylines. */
-    auto tol = [&](double a, double b) { return 4.0 * std::sqrt(1.5 * (a + b) / n) + 0.01 * std::max(a, b); };
-    const rdm::GatherStats &y = yarn_maps.stats, &q = ply.stats;
-    EXPECT_NEAR(y.energy_T[c], q.energy_T[c], tol(y.energy_T[c], q.energy_T[c])) << c;
-    EXPECT_NEAR(y.energy_R[c], q.energy_R[c], tol(y.energy_R[c], q.energy_R[c])) << c;
-    EXPECT_NEAR(y.energy_M[c], q.energy_M[c], tol(y.energy_M[c], q.energy_M[c])) << c;
-  }
+  /* Plus 1 % for chords against Embree's polylines. */
+  neuralyarn::testing::expect_same_energies(yarn_maps.stats, ply.stats, 0.01);
 }
 
 TEST(YarnTracer, OnePlyYarnWalksLikeThePly) { expect_one_ply_yarn_walks_like_the_ply(false); }

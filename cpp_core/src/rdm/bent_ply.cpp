@@ -125,10 +125,10 @@ float BentPlies::exit_distance(Vec3 o, Vec3 d) const
    * one such step (grazing the inner side) is taken as staying in. */
   const Eigen::Vector3d O(o.x, o.y, o.z), D(d.x, d.y, d.z);
   constexpr double kMinStep = 0.01;
-  double t = 0.0;
+  double t = 0.0, f = inside(O, k);
   for (int step = 0; step < 4096; step++) {
-    const double t_next = t + std::max(inside(O + t * D, k), kMinStep);
-    if (inside(O + t_next * D, k) < 0.0) {
+    const double t_next = t + std::max(f, kMinStep), f_next = inside(O + t_next * D, k);
+    if (f_next < 0.0) {
       double lo = t, hi = t_next;
       for (int b = 0; b < 40; b++) {
         const double mid = 0.5 * (lo + hi);
@@ -137,6 +137,7 @@ float BentPlies::exit_distance(Vec3 o, Vec3 d) const
       return float(lo);
     }
     t = t_next;
+    f = f_next;
   }
   return float(t);
 }

@@ -214,15 +214,14 @@ EntryFrame entry_frame(const PlyTracer &t, double u_around, double u_along)
 }
 EntryFrame entry_frame(const FiberMedium &m, double u_around, double u_along) { return m.entry_frame(u_around, u_along); }
 
-/* Where a path enters: its incident bin, the entry frame (n the envelope's normal, ex the axis, ey = z x x)
- * and the entry point. */
-struct Entry {
+/* Where a path enters: the entry frame and point (EntryFrame: n the envelope's normal, ex the axis, ey = n x ex),
+ * its incident bin and direction. */
+struct Entry : EntryFrame {
   size_t in_bin = 0;
   Vec3 wi; /* w_i (toward the light); its x: its cosine with the axis */
   /* The light that came in with it, for a uniform field of light: w_i's cosine with n times its bin's share of the
    * solid angle over its share of the paths (theta bins of equal angle hold equal paths, not equal solid angle). */
   float irradiance = 0.0f;
-  Vec3 n, ex, ey, point;
 };
 
 /* How a walk ended: left the medium (alive) or not, its throughput and what its events absorbed. */
@@ -236,7 +235,7 @@ struct Walk {
 
 /* w_i uniform in solid angle inside the bin (cos(theta) uniform, phi uniform); the entry frame at a
  * uniform azimuth a on the ring x = 0 (screw invariance makes one ring enough), or at a uniform x over the
- * entry length of a medium that has none. */
+ * entry length of a medium that has none, or where a bent medium says (FiberMedium::entry_frame). */
 template <class Medium>
 Entry enter(const Medium &tracer, const MapResolution &b, const std::vector<double> &cos_theta_edge, size_t in_bin,
             PathRng &rng, SlabRay *ray)
@@ -250,13 +249,9 @@ Entry enter(const Medium &tracer, const MapResolution &b, const std::vector<doub
   const Vec3 wi_local = make_vec3(float(sin_t * std::cos(phi)), float(sin_t * std::sin(phi)), float(cos_t));
   const double u_around = rng.uniform_double();
   const double u_along = entry_length(tracer) > 0.0 ? rng.uniform_double() : 0.5;
-  const EntryFrame f = entry_frame(tracer, u_around, u_along);
   Entry e;
+  static_cast<EntryFrame &>(e) = entry_frame(tracer, u_around, u_along);
   e.in_bin = in_bin;
-  e.n = f.n;
-  e.ey = f.ey;
-  e.ex = f.ex;
-  e.point = f.point;
   const Vec3 wi = e.ex * wi_local.x + e.ey * wi_local.y + e.n * wi_local.z;
   e.wi = wi;
   e.irradiance = float(cos_t * (c0 - c1) * double(b.theta_i));
