@@ -92,6 +92,13 @@ TEST(BentPly, ARayLeavesWhereItLeavesItsTube)
     for (int j = 1; j < 64; j++) {
       ASSERT_GT(m.inside(o + double(t) * j / 64.0 * d, 0), -1e-6) << i << " " << j;
     }
+    /* Asked only as far as a fiber the ray hits first: the exit where it lies before; else none, or the same exit
+     * when the step that passes the fiber also passes it. */
+    const ny::Vec3 of = ny::make_vec3(float(o.x()), float(o.y()), float(o.z()));
+    const ny::Vec3 df = ny::make_vec3(float(d.x()), float(d.y()), float(d.z()));
+    ASSERT_EQ(m.exit_distance(of, df, 1.01f * t + 0.01f), t) << i;
+    const float before = m.exit_distance(of, df, 0.99f * t - 0.01f);
+    ASSERT_TRUE(!std::isfinite(before) || before == t) << i << " " << before << " " << t;
   }
   const rdm::EntryFrame e = m.entry_frame(0.3, 0.4);
   const float t = m.exit_distance(e.point, -e.n);

@@ -16,6 +16,7 @@
 // bent against straight isolates the bend.
 #pragma once
 
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -58,8 +59,9 @@ class BentPlies final : public FiberMedium {
   Eigen::Vector3d place(const Eigen::Vector3d &p, int k) const;
   /* Bound minus the distance from ply k's centreline: positive inside its tube (for the tests). */
   double inside(const Eigen::Vector3d &p, int k) const;
-  /* Where the ray from o (in a tube, or on it going in) leaves that tube (for the tests). */
-  float exit_distance(ny::Vec3 o, ny::Vec3 d) const;
+  /* Where the ray from o (in a tube, or on it going in) leaves that tube; +inf once it is found
+   * still in past t_max (a walk asks only as far as the fiber it hits). */
+  float exit_distance(ny::Vec3 o, ny::Vec3 d, float t_max = std::numeric_limits<float>::infinity()) const;
   /* psi of a point on or in ply k's tube (for the tests). */
   double psi(const Eigen::Vector3d &p, int k) const;
   /* Which ply's tube a point belongs to. */
