@@ -19,7 +19,8 @@ scene the luminance error (R / G / B) over the whole frame and, for `crossed` an
 the back one shadows it; writes OUT/bench_near_field.json and, with --image PNG, per scene explicit fibers, the native
 closure with its near field and their difference (luminance) side by side; with --maps, for the scenes of one ply
 also the model's and the maps' far field predicted on it (aggregation against fit, decisions D74) and with
---sector-maps the bent ply's own (D75). A benchmark: prints, never a test.
+--sector-maps the bent ply's own (D75), with --bent-m M from networks conditioned on the bend and pooled over bends
+(cpp_core/bench/bench_bent_m, D76). A benchmark: prints, never a test.
 """
 from __future__ import annotations
 
@@ -127,6 +128,8 @@ def main() -> int:
     ap.add_argument("--sector-maps", nargs="+", metavar="M", help="with --maps: maps of the bent ply gathered per sector "
                     "about the tube (cpp_core/bench/bench_bent_gather --sector k --sectors K, in order of k), predicted "
                     "each where its sector is (decisions D75)")
+    ap.add_argument("--bent-m", metavar="NETS", help="with --sector-maps: bench_bent_m's networks of M, conditioned on "
+                    "the bend and pooled over bends, each with the sector's R (decisions D76)")
     a = ap.parse_args()
     a.width, a.height = WIDTH, HEIGHT
     for s in a.scenes:
@@ -139,6 +142,9 @@ def main() -> int:
             return 1
     if a.sector_maps and not a.maps:
         print("bench_near_field: --sector-maps needs --maps (the straight ply's, predicted beside them)", file=sys.stderr)
+        return 1
+    if a.bent_m and not a.sector_maps:
+        print("bench_near_field: --bent-m needs --sector-maps (the R beside its M)", file=sys.stderr)
         return 1
     os.makedirs(a.out, exist_ok=True)
     shipped = os.path.join(ev.MODELS, f"{a.preset}.json")
@@ -193,17 +199,18 @@ def main() -> int:
 def predicted(a, scene: str, plies_path: str, explicit_parts: list, native: np.ndarray) -> dict:
     """The model's and the maps' far field on the plies of `scene` (bench_bent_ply --plies, direct light only, no
     shadows: for one ply; with --sector-maps also the bent ply's own maps, each hit read from its sector about the
-    bend) against explicit fibers and the native render (far field): luminance over the frame and over the glint
+    bend; with --bent-m also M from bench_bent_m's networks beside the sector's R) against explicit fibers and the native render (far field): luminance over the frame and over the glint
     (frame_and_glint). Prints one line; the numbers for the JSON."""
     prefix = os.path.join(a.out, f"predicted_{scene}")
     tool = os.path.join(ev.BUILD, "cpp_core", "bench_bent_ply")
     sectors = ["--sector-maps", *a.sector_maps] if a.sector_maps else []
+    sectors += ["--bent-m", a.bent_m] if a.bent_m else []
     r = subprocess.run([tool, "--model", os.path.join(ev.MODELS, f"{a.preset}.json"), "--maps", a.maps, "--rig", a.light,
                         "--width", str(WIDTH), "--height", str(HEIGHT), "--plies", plies_path, *sectors, "--out", prefix],
                        capture_output=True, text=True)
     if r.returncode != 0:
         raise SystemExit(f"bench_near_field: {tool} failed: {r.stderr.strip()}")
-    names = ("model", "maps", "sectors") if a.sector_maps else ("model", "maps")
+    names = ("model", "maps", *(("sectors",) if a.sector_maps else ()), *(("bent_m", "pooled_m") if a.bent_m else ()))
     out = frame_and_glint(explicit_parts, native, {k: read_exr(f"{prefix}_{k}.exr")[..., :3] for k in names})
     print(f"{scene}: frame / the 3 % of pixels where native exceeds fibers most: " +
           ", ".join(f"{k} {v['frame']:.5f} / {v['glint']:.4f}" for k, v in out.items()), flush=True)

@@ -9,10 +9,14 @@
 // bent ply), not the fit's. No shadows and no light between parts of the ring: only the camera-facing hits' direct light.
 // With --sector-maps, also the bent ply's own far field (decisions D75): maps gathered on the ring, one per sector of
 // psi about the tube (bench_bent_gather --sector k --sectors K), each hit read from its sector's.
+// With --bent-m (bench_bent_m's networks, decisions D76), two more: R from the sector's maps and M from the network
+// conditioned on the bend at the hit (kappa R and psi: the circle's, or the Catmull-Rom curve's at its nearest key),
+// and the same with M from the network pooled over bends — whether the bend, given to M, does what the sectors' maps do.
 //
 // Usage: bench_bent_ply --model M.json --maps M.nyrdm [--sector-maps S0.nyrdm ...] [--turn 60] [--radius 3]
-//                       [--rig back] [--width 160] [--height 80] [--lobes RM|R|M] [--out PREFIX]
-//                       (PREFIX_model.exr, PREFIX_maps.exr, PREFIX_sectors.exr)
+//                       [--bent-m NETS.json] [--rig back] [--width 160] [--height 80] [--lobes RM|R|M]
+//                       [--out PREFIX] (PREFIX_model.exr, PREFIX_maps.exr, PREFIX_sectors.exr, PREFIX_bent_m.exr,
+//                       PREFIX_pooled_m.exr)
 // Prints each image's mean colour. A benchmark: prints, never a test.
 #include <algorithm>
 #include <cmath>
@@ -22,8 +26,13 @@
 #include <string>
 #include <vector>
 
+#include <fstream>
+
 #include <CLI/CLI.hpp>
 #include <Eigen/Dense>
+#include <nlohmann/json.hpp>
+
+#include "neuralyarn/kernel/mlp.h"
 
 #include "neuralyarn/geometry/sweep.h"
 #include "neuralyarn/plots.h"
@@ -46,6 +55,9 @@ int main(int argc, char **argv)
   std::vector<std::string> sector_paths;
   app.add_option("--sector-maps", sector_paths, "Maps gathered per sector about the bent tube (bench_bent_gather "
                  "--sector k --sectors K, k = 0 ... K - 1): each hit takes its sector's (the images' `sectors`)");
+  std::string bent_m_path;
+  app.add_option("--bent-m", bent_m_path, "bench_bent_m's networks: R from the sector's maps, M from the network "
+                 "conditioned on the hit's bend (`bent_m`) and from the pooled one (`pooled_m`); needs --sector-maps");
   std::string plies_path;
   app.add_option("--plies", plies_path, "Instead of the circle: the plies of a neuralyarn-plies file (bench_near_field's "
                  "plies_SCENE.json), as the Catmull-Rom curves Cycles draws through their keys");
@@ -72,7 +84,25 @@ int main(int argc, char **argv)
     for (const rdm::RdmMaps &m : sector_maps) {
       by_sector.push_back(scenes::maps_far_field(m, lobes, scenes::MapLookup::kInterpolated)); /* refers to m */
     }
-    const int n_far = int(far.size()) + (by_sector.empty() ? 0 : 1);
+    /* R alone from each sector's maps, M from a network of S_M |cos theta_o| (bench_bent_m). */
+    std::vector<scenes::FarField> r_by_sector;
+    std::vector<float> bent_m, pooled_m;
+    if (!bent_m_path.empty()) {
+      if (by_sector.empty() || lobes != scenes::Lobes::kRM) {
+        throw std::runtime_error("--bent-m needs --sector-maps (their R) and --lobes RM");
+      }
+      std::ifstream in(bent_m_path);
+      const nlohmann::json j = nlohmann::json::parse(in);
+      bent_m = j.at("conditioned").get<std::vector<float>>();
+      pooled_m = j.at("pooled").get<std::vector<float>>();
+      if (int(bent_m[1]) != 8 || int(pooled_m[1]) != 6) {
+        throw std::runtime_error(bent_m_path + ": not bench_bent_m's networks (8 and 6 inputs)");
+      }
+      for (const rdm::RdmMaps &m : sector_maps) {
+        r_by_sector.push_back(scenes::maps_far_field(m, scenes::Lobes::kR, scenes::MapLookup::kInterpolated));
+      }
+    }
+    const int n_far = int(far.size()) + (by_sector.empty() ? 0 : 1) + (bent_m.empty() ? 0 : 2);
     std::vector<std::vector<Eigen::Vector3d>> lines;
     std::unique_ptr<rdm::EmbreePly> curves;
     if (!plies_path.empty()) {
@@ -98,7 +128,7 @@ int main(int argc, char **argv)
           /* The frame at the hit (X along the curve, Z the tube's normal, Y = Z x X) and psi, the normal's angle about
            * the tube from the bend's outward direction (away from the centre of curvature) toward outward x X. */
           Eigen::Vector3d X, Y, Z;
-          double psi = 0.0;
+          double psi = 0.0, kappa = 0.0; /* kappa in 1 / ply radius */
           if (!curves) {
             /* Sphere tracing the tube of radius 1 about the circle. */
             double s = 0.0;
@@ -122,6 +152,7 @@ int main(int argc, char **argv)
             X = -std::sin(a) * e1 + std::cos(a) * e2;
             Z = (p - radius * out).normalized();
             psi = std::atan2(Z.dot(e3), Z.dot(out));
+            kappa = 1.0 / radius;
           }
           else {
             rdm::EmbreeHit h;
@@ -153,6 +184,7 @@ int main(int argc, char **argv)
             if (k_perp.norm() > 1e-12) {
               const Eigen::Vector3d out = -k_perp.normalized();
               psi = std::atan2(Z.dot(out.cross(X)), Z.dot(out));
+              kappa = k_perp.norm() / (q[m + 1] - q[m]).squaredNorm();
             }
           }
           Y = Z.cross(X);
@@ -166,10 +198,22 @@ int main(int argc, char **argv)
           const int K = int(by_sector.size());
           const int sector = K > 0 ? int(std::lround(psi / (2.0 * kPi / K)) % K + K) % K : 0;
           for (int f = 0; f < n_far; f++) {
-            const scenes::FarField &ff = f < int(far.size()) ? far[size_t(f)] : by_sector[size_t(sector)];
+            const int first_net = int(far.size()) + 1;
+            const scenes::FarField &ff = f < int(far.size()) ? far[size_t(f)]
+                                         : f < first_net       ? by_sector[size_t(sector)]
+                                                               : r_by_sector[size_t(sector)];
             float *q = &img[size_t(f)][(size_t(py) * width + px) * 3];
             for (const auto &[dir, irradiance] : lights) {
-              const scenes::Rgb3 e = ff.eval(wi, local(dir));
+              const ny::Vec3 wo = local(dir);
+              scenes::Rgb3 e = ff.eval(wi, wo);
+              if (f >= first_net) {
+                const bool bent = f == first_net;
+                const float in[8] = {wi.x, wi.y, wi.z, wo.x, wo.y, wo.z, float(kappa * std::cos(psi)),
+                                     float(kappa * std::sin(psi))};
+                float m[3];
+                ny::mlp_forward(bent ? bent_m.data() : pooled_m.data(), in, m);
+                e.r += m[0], e.g += m[1], e.b += m[2];
+              }
               const double w = irradiance / (sub * sub);
               q[0] += float(w * e.r), q[1] += float(w * e.g), q[2] += float(w * e.b);
             }
@@ -177,7 +221,7 @@ int main(int argc, char **argv)
         }
       }
     }
-    const char *names[] = {"model", "maps", "sectors"};
+    const char *names[] = {"model", "maps", "sectors", "bent_m", "pooled_m"};
     for (size_t f = 0; f < img.size(); f++) {
       double m[3] = {0, 0, 0};
       for (size_t i = 0; i < img[f].size(); i++) {

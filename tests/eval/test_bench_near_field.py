@@ -63,6 +63,15 @@ def test_a_malformed_scene_is_refused(scene, tmp_path):
     assert not os.listdir(tmp_path)
 
 
+@pytest.mark.parametrize("args,needs", [(["--sector-maps", "s0.nyrdm"], "--sector-maps needs --maps"),
+                                        (["--maps", "m.nyrdm", "--bent-m", "nets.json"], "--bent-m needs --sector-maps")])
+def test_what_the_predictions_need_is_asked_for_before_anything_renders(args, needs, tmp_path):
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "bench_near_field.py"), "--scenes", "ringy-60",
+                        "--out", str(tmp_path), *args], capture_output=True, text=True)
+    assert r.returncode == 1 and needs in r.stderr
+    assert not os.listdir(tmp_path)
+
+
 def test_a_ring_is_bent_by_its_radius_and_turned_about_the_vertical():
     for radius in (3.0, 4.5):
         p = _points(f"ring-{radius:g}")
