@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <string>
 
 #include "neuralyarn/units.h"
@@ -26,7 +27,13 @@ void validate(const Bend &bend)
   }
 }
 
-BentPlies::BentPlies(const std::vector<geometry::Ply> &plies, const Bend &bend) : bend_(bend)
+BentPlies::~BentPlies() = default;
+
+int BentPlies::num_wedges() const { return wedges_.empty() ? 0 : int(wedges_[0].grids.size()); }
+
+BentPlies::BentPlies(const std::vector<geometry::Ply> &plies, const Bend &bend, BentIntersector intersector,
+                     const TracerOptions &options)
+    : bend_(bend)
 {
   validate(bend);
   if (plies.empty()) {
@@ -41,6 +48,11 @@ BentPlies::BentPlies(const std::vector<geometry::Ply> &plies, const Bend &bend) 
   length_ = Rc > 0.0 ? 2.0 * kPi * Rc : 48.0;
   entry_ = Rc > 0.0 ? kPi * Rc : length_ / 3.0;
   plies_ = int(plies.size());
+  fibers_ = plies[0].num_fibers();
+  if (intersector == BentIntersector::kWedges && Rc > 0.0) {
+    build_wedges(plies, options);
+    return;
+  }
   geometry::CurveSet curves;
   for (int k = 0; k < plies_; k++) {
     const geometry::Ply &ply = plies[size_t(k)];
@@ -57,6 +69,71 @@ BentPlies::BentPlies(const std::vector<geometry::Ply> &plies, const Bend &bend) 
   }
   curves.offsets.push_back(int(curves.points.size()));
   curves_ = std::make_unique<EmbreePly>(curves, "");
+}
+
+void BentPlies::build_wedges(const std::vector<geometry::Ply> &plies, const TracerOptions &options)
+{
+  const double Rc = bend_.radius, r = double(r_), w = plies[0].twist_rate();
+  /* A first guess of the wedges: chords of length sqrt(8 sagitta r / kappa) for the curvature of a fiber on the bend's
+   * inner side plus its twist's; then checked chord by chord at its fiber's midpoint, and made finer until every one
+   * holds (a fiber's curvature varies little over a wedge, so its midpoint is where it strays furthest). */
+  const double kappa = 1.0 / (Rc - 1.0) + w;
+  const double L = std::sqrt(8.0 * options.sagitta * r / kappa);
+  int S = std::max(8, int(std::ceil(2.0 * kPi * (Rc + 1.0) * std::sqrt(1.0 + w * w) / L)));
+  /* Chords on the bend's inner side run outside the fibers by up to the sagitta; entries start beyond them. */
+  bound_ = float(1.0 + std::max(1e-4, 2.0 * options.sagitta * r));
+  for (int attempt = 0; attempt < 6; attempt++) {
+    const double delta = 2.0 * kPi / S;
+    const double half = 0.5 * delta;
+    const float X = float((Rc + double(bound_) + r) * std::sin(half) + r);
+    const float grid_bound = float(double(bound_) + (Rc + 1.0) * (1.0 - std::cos(half)) + 0.01 * r);
+    const double cell = std::max(options.cell_size * r, 1e-6);
+    wedges_.assign(size_t(plies_), Wedges{});
+    double worst = 0.0;
+    for (int k = 0; k < plies_; k++) {
+      Wedges &W = wedges_[size_t(k)];
+      W.delta = delta;
+      for (int j = 0; j <= S; j++) {
+        W.face_c.push_back(float(std::cos(j * delta)));
+        W.face_s.push_back(float(std::sin(j * delta)));
+      }
+      W.grids.reserve(size_t(S));
+      std::vector<Chord> chords(static_cast<size_t>(fibers_));
+      for (int j = 0; j < S; j++) {
+        const double m = (j + 0.5) * delta, cm = std::cos(m), sm = std::sin(m);
+        W.mid_c.push_back(float(cm));
+        W.mid_s.push_back(float(sm));
+        auto local = [&](const Eigen::Vector3d &p) {
+          const double qz = p.z() - k * spacing_;
+          return Eigen::Vector3d(-sm * p.x() + cm * p.y(), cm * p.x() + sm * p.y() - Rc, -qz);
+        };
+        const geometry::Ply &ply = plies[size_t(k)];
+        for (int i = 0; i < fibers_; i++) {
+          const Eigen::Vector3d p0 = local(place(ply.fiber_point(i, j * delta * Rc), k));
+          const Eigen::Vector3d p1 = local(place(ply.fiber_point(i, (j + 1) * delta * Rc), k));
+          const Eigen::Vector3d mid = local(place(ply.fiber_point(i, m * Rc), k));
+          const Eigen::Vector3d u = (p1 - p0).normalized();
+          worst = std::max(worst, ((mid - p0) - (mid - p0).dot(u) * u).norm() / r);
+          /* The chord's line anchored on the wedge's middle plane x = 0; the cells it touches from its ends, each
+           * lengthened by 2 r (a tube's end cut by a tilted face reaches past its chord's end). */
+          Eigen::Vector3d a = p0 - (p0.x() / u.x()) * u;
+          const Eigen::Vector3d e0 = p0 - 2.0 * r * u, e1 = p1 + 2.0 * r * u;
+          Chord c = make_chord(i, e0.data(), e1.data(), r, 1.0);
+          c.a = make_vec3(0.0f, float(a.y()), float(a.z()));
+          chords[size_t(i)] = c;
+          W.a.push_back(c.a);
+          W.axis.push_back(c.axis);
+        }
+        W.grids.emplace_back(chords, r_, grid_bound, -X, X, cell, 0.0f);
+      }
+    }
+    wedge_sagitta_ = worst;
+    if (worst <= options.sagitta) {
+      return;
+    }
+    S = int(std::ceil(S * std::sqrt(worst / options.sagitta) * 1.05));
+  }
+  throw std::runtime_error("BentPlies: the wedges' chords do not come within the sagitta of their fibers");
 }
 
 Eigen::Vector3d BentPlies::place(const Eigen::Vector3d &p, int k) const
@@ -164,8 +241,89 @@ float BentPlies::exit_distance(Vec3 o, Vec3 d, float t_max) const
   return t < double(t_max) ? float(t) : std::numeric_limits<float>::infinity();
 }
 
+bool BentPlies::trace_wedges(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const
+{
+  const Vec3 o = ray->o, d = ray->d;
+  const int k = ply_of(o);
+  const Wedges &W = wedges_[size_t(k)];
+  const int S = int(W.grids.size());
+  const float cz = float(k * spacing_), Rc = float(bend_.radius);
+  /* The nearest fiber first, within the box about the circle's tube (the cylinder of radius Rc + bound about its
+   * axis, |z| <= bound): then the tube's exit only as far as that fiber, as trace() does with Embree's curves. */
+  float t_box = cylinder_exit(make_vec3(o.z - cz, o.x, o.y), make_vec3(d.z, d.x, d.y), Rc + bound_);
+  if (d.z != 0.0f) {
+    t_box = std::min(t_box, std::max(((d.z > 0.0f ? bound_ : -bound_) - (o.z - cz)) / d.z, 0.0f));
+  }
+  /* The wedge the origin is in, by its angle about the circle's axis. */
+  float angle = std::atan2(o.y, o.x);
+  angle += angle < 0.0f ? float(2.0 * kPi) : 0.0f;
+  int j = std::clamp(int(double(angle) / W.delta), 0, S - 1);
+  float travelled = 0.0f, t_hit = std::numeric_limits<float>::infinity();
+  int fiber = -1;
+  Vec3 p = o, normal, axis;
+  /* Within the box a ray crosses at most the circle's wedges once. */
+  for (int step = 0; step <= S; step++) {
+    /* Leaving the wedge through its face j + 1 (toward larger angles) or its face j. */
+    float t_face = std::numeric_limits<float>::infinity();
+    int next = j;
+    const float a1 = -W.face_s[size_t(j) + 1] * d.x + W.face_c[size_t(j) + 1] * d.y;
+    if (a1 > 0.0f) {
+      t_face = std::max(-(-W.face_s[size_t(j) + 1] * p.x + W.face_c[size_t(j) + 1] * p.y) / a1, 0.0f);
+      next = j + 1;
+    }
+    const float a0 = -W.face_s[size_t(j)] * d.x + W.face_c[size_t(j)] * d.y;
+    if (a0 < 0.0f) {
+      const float t0 = std::max(-(-W.face_s[size_t(j)] * p.x + W.face_c[size_t(j)] * p.y) / a0, 0.0f);
+      if (t0 < t_face) {
+        t_face = t0;
+        next = j - 1;
+      }
+    }
+    const float left = std::max(t_box - travelled, 0.0f);
+    /* The ray in the frame of the wedge's middle. */
+    const float cm = W.mid_c[size_t(j)], sm = W.mid_s[size_t(j)];
+    const Vec3 pl = make_vec3(-sm * p.x + cm * p.y, cm * p.x + sm * p.y - Rc, -(p.z - cz));
+    const Vec3 dl = make_vec3(-sm * d.x + cm * d.y, cm * d.x + sm * d.y, -d.z);
+    const float t = W.grids[size_t(j)].nearest(pl, dl, std::min(t_face, left), exclude, travelled, exclude_distance,
+                                                &fiber);
+    if (fiber >= 0) {
+      const size_t c = size_t(j) * size_t(fibers_) + size_t(fiber);
+      auto world = [cm, sm](Vec3 v) { return make_vec3(-sm * v.x + cm * v.y, cm * v.x + sm * v.y, -v.z); };
+      t_hit = travelled + t;
+      normal = world(ny::normalize(chord_radial(W.a[c], W.axis[c], pl + dl * t)));
+      axis = world(W.axis[c]);
+      p = p + d * t;
+      break;
+    }
+    if (left <= t_face) {
+      break;
+    }
+    travelled += t_face;
+    p = p + d * t_face;
+    ray->slab += next > j ? 1 : -1; /* the gather's count of crossings */
+    j = (next + S) % S;
+  }
+  const float t_exit = exit_distance(o, d, t_hit);
+  if (fiber >= 0 && !(t_exit < t_hit)) {
+    hit->t = t_hit;
+    hit->fiber = fiber;
+    hit->point = p;
+    hit->normal = normal;
+    hit->axis = axis;
+    ray->o = p;
+    return true;
+  }
+  if (std::isfinite(t_exit)) {
+    ray->o = o + d * t_exit;
+  }
+  return false;
+}
+
 bool BentPlies::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const
 {
+  if (!wedges_.empty()) {
+    return trace_wedges(ray, exclude, exclude_distance, hit);
+  }
   const Vec3 o = ray->o, d = ray->d;
   /* The nearest fiber first, then the exit only as far as it: a path's rays mostly end on a fiber a few fiber radii
    * on, and tracing the tube up to there is cheaper than finding where the ray would leave it. */
@@ -195,7 +353,8 @@ void BentPlies::leave_fiber(const TubeHit &hit, Vec3 d, SlabRay *ray) const
   ray->d = d;
 }
 
-RdmMaps gather_bent(const FiberPreset &preset, const Bend &bend, const GatherOptions &options)
+RdmMaps gather_bent(const FiberPreset &preset, const Bend &bend, const GatherOptions &options,
+                    BentIntersector intersector)
 {
   validate(preset);
   validate(options);
@@ -215,12 +374,13 @@ RdmMaps gather_bent(const FiberPreset &preset, const Bend &bend, const GatherOpt
     plies.emplace_back(pp, cs);
     mirrors.emplace_back(pp, geometry::mirrored(cs));
   }
-  const BentPlies medium(plies, bend), mirror(mirrors, bend);
+  const BentPlies medium(plies, bend, intersector), mirror(mirrors, bend, intersector);
   GatherOptions one = options;
   one.layouts = 1; /* the media hold the cross-sections side by side */
   RdmMaps maps = gather_through(preset, geometry::YarnStructure{}, one, medium, mirror);
   maps.layouts = options.layouts;
-  maps.intersector = "embree";
+  maps.intersector = medium.intersector_name();
+  maps.sagitta = medium.num_wedges() > 0 ? bent_tracer_options().sagitta : 0.0;
   return maps;
 }
 

@@ -135,7 +135,12 @@ float tube_entry(const Chord &c, Vec3 o, Vec3 d, float r2)
 }
 
 TubeGrid::TubeGrid(const std::vector<Chord> &chords, float r, float bound, float x0, float x1, double cell)
-    : r_(r), bound_(bound), x0_(x0), x1_(x1)
+    : TubeGrid(chords, r, bound, x0, x1, cell, x0)
+{
+}
+
+TubeGrid::TubeGrid(const std::vector<Chord> &chords, float r, float bound, float x0, float x1, double cell, float anchor)
+    : r_(r), bound_(bound), x0_(x0), x1_(x1), anchor_(anchor)
 {
   cell_ = float(cell);
   n_ = std::max(1, int(std::ceil(2.0 * double(bound_) / double(cell_))));
@@ -157,8 +162,8 @@ TubeGrid::TubeGrid(const std::vector<Chord> &chords, float r, float bound, float
       entries_ = std::accumulate(count.begin(), count.end(), size_t(0));
     }
     for (const Chord &ch : chords) {
-      if (!(ch.a.x == x0)) {
-        throw std::invalid_argument("TubeGrid: a chord does not start on its slab's near face");
+      if (!(ch.a.x == anchor)) {
+        throw std::invalid_argument("TubeGrid: a chord does not start on its slab's anchor plane");
       }
       const double rp = ch.capsule_radius;
       const int y0 = cell_index(float(std::min(ch.y0, ch.y1) - rp)), y1 = cell_index(float(std::max(ch.y0, ch.y1) + rp));
@@ -212,8 +217,8 @@ float TubeGrid::nearest(Vec3 o, Vec3 d, float t_end, int exclude, float travelle
   const float delta_y = std::abs(cell_ * inv_dy);
   const float delta_z = std::abs(cell_ * inv_dz);
   const LanesF ox = splat<LanesF>(o.x), oy = splat<LanesF>(o.y), oz = splat<LanesF>(o.z);
-  /* Every chord starts on the slab's near face (the constructor checks it): w.x = o.x - x0 for all lanes. */
-  const LanesF wx = splat<LanesF>(o.x - x0_);
+  /* Every chord starts on the anchor plane (the constructor checks it): w.x = o.x - anchor for all lanes. */
+  const LanesF wx = splat<LanesF>(o.x - anchor_);
   const LanesF dx = splat<LanesF>(d.x), dy = splat<LanesF>(d.y), dz = splat<LanesF>(d.z);
   const LanesF r2 = splat<LanesF>(r_ * r_), inf = splat<LanesF>(kInf);
   const LanesF slab_start = splat<LanesF>(x0_), slab_end = splat<LanesF>(x1_);

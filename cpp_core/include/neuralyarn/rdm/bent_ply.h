@@ -12,8 +12,12 @@
 // Where around the tube a path enters matters (the bend's inner side is compressed, its outer side stretched): psi,
 // the entry normal's angle about the tube from the circle's outward direction toward the circle's normal (outward x
 // tangent), and a gather can be held to one sector of psi. Several cross-sections are several circles side by side.
-// With Rc = 0 the same cross-sections are walked straight, through the same intersector (Embree's round curves), so
-// bent against straight isolates the bend.
+//
+// Two intersectors (decisions D76): wedges of the circle, each fiber the chord between its points on the wedge's two
+// faces (planes through the circle's axis), within `sagitta` fiber radii of the fiber, each wedge a TubeGrid in the
+// frame of its middle (as D66's slabs along a yarn) — the default; or Embree's round curves, the reference the wedges
+// are checked against. With Rc = 0 the same cross-sections are walked straight through Embree's curves, so bent
+// against straight isolates the bend.
 #pragma once
 
 #include <limits>
@@ -25,6 +29,7 @@
 #include "neuralyarn/rdm/embree_ply.h"
 #include "neuralyarn/rdm/fiber_medium.h"
 #include "neuralyarn/rdm/gather.h"
+#include "neuralyarn/rdm/tube_grid.h"
 
 namespace neuralyarn::rdm {
 
@@ -35,6 +40,18 @@ struct Bend {
   int sector = 0, sectors = 1;
 };
 
+/* What walks a bent ply (a straight one, radius 0, is always Embree's). */
+enum class BentIntersector { kWedges, kEmbree };
+
+/* The wedges' chords within 1 % of a fiber radius of their fibers, and grid cells of 4 fiber radii, as the yarn's
+ * slabs' (hundreds of grids do not stay in the cache as PlyTracer's one does: D66). */
+inline TracerOptions bent_tracer_options()
+{
+  TracerOptions o;
+  o.cell_size = 4.0;
+  return o;
+}
+
 /* Tighter circles fold the tube onto itself near the centre. */
 constexpr double kMinBendRadius = 1.5;
 
@@ -44,7 +61,10 @@ void validate(const Bend &bend);
 class BentPlies final : public FiberMedium {
  public:
   /* One circle (or straight ply) per ply, all of radius 1 and the same fibers per ply. */
-  BentPlies(const std::vector<geometry::Ply> &plies, const Bend &bend);
+  BentPlies(const std::vector<geometry::Ply> &plies, const Bend &bend,
+            BentIntersector intersector = BentIntersector::kWedges,
+            const TracerOptions &options = bent_tracer_options());
+  ~BentPlies() override;
 
   float bound_radius() const override { return bound_; }
   float envelope_radius() const override { return 1.0f; }
@@ -66,6 +86,11 @@ class BentPlies final : public FiberMedium {
   double psi(const Eigen::Vector3d &p, int k) const;
   /* Which ply's tube a point belongs to. */
   int ply_of(ny::Vec3 p) const;
+  /* The wedges of each circle (0 for Embree's curves), and the largest distance of a fiber's midpoint in a wedge from
+   * its chord, in fiber radii (for the tests). */
+  int num_wedges() const;
+  double wedge_sagitta() const { return wedge_sagitta_; }
+  const char *intersector_name() const { return wedges_.empty() ? "embree" : "wedges"; }
 
  private:
   Bend bend_;
@@ -73,12 +98,27 @@ class BentPlies final : public FiberMedium {
   float r_ = 0.0f, bound_ = 1.0f;
   int plies_ = 1;
   std::unique_ptr<EmbreePly> curves_;
+  /* The wedges of one circle: wedge j spans angles [j, j + 1] delta; its grid and chords in the frame of its middle
+   * (x along the circle, y outward from it, z = -z: right-handed). */
+  struct Wedges {
+    double delta = 0.0;
+    std::vector<TubeGrid> grids;
+    std::vector<ny::Vec3> a, axis;   /* [wedge][fiber], that frame */
+    std::vector<float> face_c, face_s; /* cos, sin of face j's angle, j = 0 ... S (face S is face 0) */
+    std::vector<float> mid_c, mid_s;   /* of wedge j's middle */
+  };
+  std::vector<Wedges> wedges_; /* per circle; empty: Embree's curves */
+  int fibers_ = 0;
+  double wedge_sagitta_ = 0.0;
+  void build_wedges(const std::vector<geometry::Ply> &plies, const TracerOptions &options);
+  bool trace_wedges(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const;
 };
 
 /* The maps of the preset's ply bent as `bend` says, over options.layouts cross-sections (packing seeds
  * options.packing_seed, +1, ...; the maps record them). A sector other than the outer or the inner side (2 k !=
  * sectors, 2 k != 0) is not its own image under the half turn about the normal that symmetrisation averages with
  * (the half turn takes psi to -psi): it needs options.symmetrize off, else ParameterError. */
-RdmMaps gather_bent(const FiberPreset &preset, const Bend &bend, const GatherOptions &options);
+RdmMaps gather_bent(const FiberPreset &preset, const Bend &bend, const GatherOptions &options,
+                    BentIntersector intersector = BentIntersector::kWedges);
 
 }  // namespace neuralyarn::rdm

@@ -27,8 +27,8 @@ namespace neuralyarn::rdm {
  * Each lane computes what one scalar tube test would, in the same float operations. */
 inline constexpr int kTubeLanes = 4;
 
-/* One fiber's straight piece in a slab: the tube about the line a + s axis, a on the slab's near face (a.x = x0
- * exactly: the grid's blocks do not store it). */
+/* One fiber's straight piece in a slab: the tube about the line a + s axis, a on the slab's anchor plane (a.x = x0,
+ * the near face, unless the grid says otherwise; exactly: the grid's blocks do not store it). */
 struct Chord {
   ny::Vec3 a;    /* chord start (x = x0 of its slab, in float)          */
   ny::Vec3 axis; /* unit chord direction, +x-ward                        */
@@ -62,8 +62,10 @@ float tube_entry(const Chord &c, ny::Vec3 o, ny::Vec3 d, float r2);
 class TubeGrid {
  public:
   TubeGrid() = default;
-  /* The chords of the slab [x0, x1] over the cross-section [-bound, bound]^2, cells of side about `cell`. */
+  /* The chords of the slab [x0, x1] over the cross-section [-bound, bound]^2, cells of side about `cell`. Every chord
+   * starts on the plane x = anchor (x0 unless given: a slab's near face); hits count within [x0, x1]. */
   TubeGrid(const std::vector<Chord> &chords, float r, float bound, float x0, float x1, double cell);
+  TubeGrid(const std::vector<Chord> &chords, float r, float bound, float x0, float x1, double cell, float anchor);
 
   /* The nearest tube entry at t in [0, t_end] along (o, d); fiber `exclude` is skipped where the trace,
    * `travelled` before this query, is closer than `exclude_distance`. Returns t_end (or +inf) and *fiber = -1
@@ -76,7 +78,7 @@ class TubeGrid {
   size_t entries() const { return entries_; }
 
  private:
-  float r_ = 0.0f, bound_ = 1.0f, x0_ = 0.0f, x1_ = 1.0f;
+  float r_ = 0.0f, bound_ = 1.0f, x0_ = 0.0f, x1_ = 1.0f, anchor_ = 0.0f;
   /* Grid over [-bound, bound]^2 in (y, z): cell (iy, iz) holds blocks_[start_[c] .. start_[c + 1]). */
   int n_ = 1;
   float cell_ = 1.0f, inv_cell_ = 1.0f;
