@@ -23,16 +23,16 @@
 #include <cstdio>
 #include <limits>
 #include <memory>
+#include <fstream>
 #include <string>
 #include <vector>
-
-#include <fstream>
 
 #include <CLI/CLI.hpp>
 #include <Eigen/Dense>
 #include <nlohmann/json.hpp>
 
 #include "neuralyarn/kernel/mlp.h"
+#include "neuralyarn/train/mlp.h"
 
 #include "neuralyarn/geometry/sweep.h"
 #include "neuralyarn/plots.h"
@@ -95,7 +95,9 @@ int main(int argc, char **argv)
       const nlohmann::json j = nlohmann::json::parse(in);
       bent_m = j.at("conditioned").get<std::vector<float>>();
       pooled_m = j.at("pooled").get<std::vector<float>>();
-      if (int(bent_m[1]) != 8 || int(pooled_m[1]) != 6) {
+      /* from_flat validates the arrays' headers and sizes (throws ParameterError), then the inputs. */
+      if (train::Mlp<float>::from_flat(bent_m).shape().widths.front() != 8 ||
+          train::Mlp<float>::from_flat(pooled_m).shape().widths.front() != 6) {
         throw std::runtime_error(bent_m_path + ": not bench_bent_m's networks (8 and 6 inputs)");
       }
       for (const rdm::RdmMaps &m : sector_maps) {
