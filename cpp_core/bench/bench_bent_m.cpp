@@ -9,9 +9,10 @@
 // energy per incident bin is from the map's (mean over bins of |E_net / E_map - 1|, by solid angle) and writes both
 // networks (the kernel's flat arrays) for bench_bent_ply --bent-m, which renders them on a bent ply.
 //
-// Usage: bench_bent_m --maps RADIUS:SECTOR:SECTORS:FILE ... [--samples 4e6] [--steps 20000] [--hidden 21]
+// Usage: bench_bent_m --maps FILE|RADIUS:SECTOR:SECTORS:FILE ... [--samples 4e6] [--steps 20000] [--hidden 21]
 //                     [--seed 1] --out NETS.json
-// (RADIUS 0: the ply straight; its sector is ignored.) A benchmark: prints, never a test.
+// (A bent gather's maps record their bend since D76; older ones are labelled. RADIUS 0: the ply straight.)
+// A benchmark: prints, never a test.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -42,15 +43,21 @@ struct BentMaps {
   double bend_sin() const { return radius > 0.0 ? std::sin(2.0 * kPi * sector / sectors) / radius : 0.0; }
 };
 
+/* FILE (its maps record their bend) or RADIUS:SECTOR:SECTORS:FILE (maps gathered before they did). */
 BentMaps parse_spec(const std::string &spec)
 {
-  std::stringstream s(spec);
   BentMaps b;
+  if (spec.find(':') == std::string::npos) {
+    b.path = spec;
+    b.sectors = 0; /* from the file */
+    return b;
+  }
+  std::stringstream s(spec);
   char c1 = 0, c2 = 0, c3 = 0;
   if (!(s >> b.radius >> c1 >> b.sector >> c2 >> b.sectors >> c3) || c1 != ':' || c2 != ':' || c3 != ':' ||
       !std::getline(s, b.path) || b.path.empty() || b.sectors < 1 || b.sector < 0 || b.sector >= b.sectors ||
       !(b.radius >= 0.0)) {
-    throw std::runtime_error("--maps wants RADIUS:SECTOR:SECTORS:FILE, got '" + spec + "'");
+    throw std::runtime_error("--maps wants FILE or RADIUS:SECTOR:SECTORS:FILE, got '" + spec + "'");
   }
   return b;
 }
@@ -140,7 +147,8 @@ int main(int argc, char **argv)
   std::string out, samples_text = "4e6";
   int steps = 20000, batch = 4096, hidden = 21, threads = 0;
   uint64_t seed = 1;
-  app.add_option("--maps", specs, "RADIUS:SECTOR:SECTORS:FILE (radius 0: straight)")->required();
+  app.add_option("--maps", specs, "FILE (a bent gather's, which records its bend) or RADIUS:SECTOR:SECTORS:FILE "
+                 "(radius 0: straight), checked against the file's record where it has one")->required();
   app.add_option("--samples", samples_text, "Training samples over all maps (validation: a tenth)");
   app.add_option("--steps", steps)->capture_default_str();
   app.add_option("--batch", batch)->capture_default_str();
@@ -160,6 +168,19 @@ int main(int argc, char **argv)
     std::string preset;
     for (size_t i = 0; i < sets.size(); i++) {
       const rdm::RdmMaps maps = rdm::load_maps(sets[i].path);
+      BentMaps &b = sets[i];
+      if (maps.bend_sectors > 0 && b.sectors > 0 &&
+          (maps.bend_radius != b.radius || maps.bend_sector != b.sector || maps.bend_sectors != b.sectors)) {
+        throw std::runtime_error(b.path + " records radius " + std::to_string(maps.bend_radius) + ", sector " +
+                                 std::to_string(maps.bend_sector) + " of " + std::to_string(maps.bend_sectors) +
+                                 ", not what --maps says");
+      }
+      if (b.sectors == 0) {
+        if (maps.bend_sectors == 0) {
+          throw std::runtime_error(b.path + " records no bend: give it as RADIUS:SECTOR:SECTORS:FILE");
+        }
+        b.radius = maps.bend_radius, b.sector = maps.bend_sector, b.sectors = maps.bend_sectors;
+      }
       if (i == 0) {
         preset = maps.preset.name;
       }

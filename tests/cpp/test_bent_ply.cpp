@@ -5,13 +5,18 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <random>
+#include <string>
+
+#include <unistd.h>
 
 #include <Eigen/Dense>
 
 #include "neuralyarn/presets.h"
 #include "neuralyarn/rdm/bent_ply.h"
 #include "neuralyarn/rdm/gather.h"
+#include "neuralyarn/rdm/map_file.h"
 #include "neuralyarn/units.h"
 #include "gather_checks.h"
 
@@ -241,4 +246,26 @@ TEST(BentPly, WedgesWalkLikeEmbreesCurves)
   EXPECT_EQ(b.intersector, "embree");
   expect_same_energies(a.stats, b.stats, 0.01);
   EXPECT_EQ(rdm::gather_bent(p, rdm::Bend{0.0, 0, 1}, small_gather(1000)).intersector, "embree");
+}
+
+/* A bent gather's maps record their bend, and the file keeps it: what bench_bent_m reads a map's bend from (a map
+ * labelled by hand can be labelled wrong). A ply's own maps record none. */
+TEST(BentPly, MapsRecordTheirBend)
+{
+  const FiberPreset &p = find_preset("polyester");
+  rdm::GatherOptions o = small_gather(2000);
+  o.symmetrize = false;
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("ny_bent_test_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / "bent.nyrdm").string();
+  rdm::save_maps(rdm::gather_bent(p, rdm::Bend{2.5, 3, 8}, o), path);
+  const rdm::RdmMaps back = rdm::load_maps(path);
+  EXPECT_EQ(back.bend_radius, 2.5);
+  EXPECT_EQ(back.bend_sector, 3);
+  EXPECT_EQ(back.bend_sectors, 8);
+  EXPECT_EQ(back.intersector, "wedges");
+  rdm::save_maps(rdm::gather(p, o), path);
+  EXPECT_EQ(rdm::load_maps(path).bend_sectors, 0);
+  std::filesystem::remove_all(dir);
 }

@@ -380,6 +380,9 @@ RdmMaps gather_bent(const FiberPreset &preset, const Bend &bend, const GatherOpt
   RdmMaps maps = gather_through(preset, geometry::YarnStructure{}, one, medium, mirror);
   maps.layouts = options.layouts;
   maps.intersector = medium.intersector_name();
+  maps.bend_radius = bend.radius;
+  maps.bend_sector = bend.sector;
+  maps.bend_sectors = bend.sectors;
   maps.sagitta = medium.num_wedges() > 0 ? bent_tracer_options().sagitta : 0.0;
   return maps;
 }

@@ -188,6 +188,9 @@ void save_maps(const RdmMaps &maps, const std::string &path)
   if (!maps.intersector.empty()) {
     h["geometry"]["intersector"] = maps.intersector;
   }
+  if (maps.bend_sectors > 0) {
+    h["geometry"]["bend"] = {{"radius", maps.bend_radius}, {"sector", maps.bend_sector}, {"sectors", maps.bend_sectors}};
+  }
   h["summary"] = stats_json(maps.stats);
   h["arrays"] = pl.arrays;
   h["payload_bytes"] = pl.bytes.size();
@@ -288,6 +291,16 @@ void read_description(const std::string &path, const json &h, uint32_t version, 
   maps.slab_length = h.at("geometry").at("slab_length").get<double>();
   maps.sagitta = h.at("geometry").at("chord_sagitta_fiber_radii").get<double>();
   maps.intersector = h.at("geometry").value("intersector", ""); /* yarn maps before D66: Embree's */
+  if (h.at("geometry").contains("bend")) { /* a bent ply's (D75; before D76 unrecorded) */
+    const json &b = h.at("geometry").at("bend");
+    maps.bend_radius = b.at("radius").get<double>();
+    maps.bend_sector = b.at("sector").get<int>();
+    maps.bend_sectors = b.at("sectors").get<int>();
+    if (!std::isfinite(maps.bend_radius) || maps.bend_radius < 0.0 || maps.bend_sectors < 1 || maps.bend_sector < 0 ||
+        maps.bend_sector >= maps.bend_sectors) {
+      fail(path, "geometry.bend needs a radius >= 0 and 0 <= sector < sectors");
+    }
+  }
 }
 
 /* The header's summary: what stats_json wrote (the parts a loaded map is asked for). */

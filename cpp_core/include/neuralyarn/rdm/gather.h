@@ -121,6 +121,10 @@ struct RdmMaps {
   /* The yarn level's intersector ("slabs": chord tubes within `sagitta`; "embree": round curves of 128 segments
    * per turn); empty for a ply, whose PlyTracer the sagitta describes. */
   std::string intersector;
+  /* A bent ply's maps (rdm/bent_ply.h, decisions D75): its circle's radius in ply radii (0: the same cross-sections
+   * walked straight) and the sector of psi the paths entered in; bend_sectors 0: not a bent ply's. */
+  double bend_radius = 0.0;
+  int bend_sector = 0, bend_sectors = 0;
   /* The R lobe's surface-fiber twist: the preset's alpha for a ply, the yarn's surface twist for a yarn. */
   double surface_alpha() const { return structure.is_yarn() ? structure.surface_alpha : preset.alpha; }
   std::vector<uint64_t> count;    /* [theta_i][phi_i]: paths                                    */
