@@ -94,10 +94,18 @@ struct EnergyError {
   double mean_abs = 0.0, mean = 0.0;
 };
 
-EnergyError energy_error(const train::Mlp<float> &net, const rdm::RdmMaps &maps, const BentMaps &b, bool bend)
+/* What the energy check needs of a map, kept from its one load: its bins and path counts (the maps without their R
+ * and M arrays) and its M energy per incident bin. */
+struct MapEnergy {
+  rdm::RdmMaps maps;
+  std::vector<double> E;
+};
+
+EnergyError energy_error(const train::Mlp<float> &net, const MapEnergy &me, const BentMaps &b, bool bend)
 {
+  const rdm::RdmMaps &maps = me.maps;
   const rdm::MapResolution &bins = maps.bins;
-  const std::vector<double> E = maps.energy(maps.m);
+  const std::vector<double> &E = me.E;
   constexpr int kT = 32, kP = 64; /* exits: cos theta_o and phi_o stratified */
   double sum = 0.0, signed_sum = 0.0, weight = 0.0;
   for (int ti = 0; ti < bins.theta_i; ti++) {
@@ -165,9 +173,10 @@ int main(int argc, char **argv)
     const int samples = int(std::stod(samples_text));
     const int per_map = std::max(1, samples / int(sets.size()));
     train::Dataset tr_bent, va_bent, tr_pool, va_pool;
+    std::vector<MapEnergy> energies;
     std::string preset;
     for (size_t i = 0; i < sets.size(); i++) {
-      const rdm::RdmMaps maps = rdm::load_maps(sets[i].path);
+      rdm::RdmMaps maps = rdm::load_maps(sets[i].path);
       BentMaps &b = sets[i];
       if (maps.bend_sectors > 0 && b.sectors > 0 &&
           (maps.bend_radius != b.radius || maps.bend_sector != b.sector || maps.bend_sectors != b.sectors)) {
@@ -193,6 +202,10 @@ int main(int argc, char **argv)
       append(&va_pool, va.X, va.Y);
       append(&tr_bent, with_bend(tr.X, sets[i], 5000 + 2 * i), tr.Y);
       append(&va_bent, with_bend(va.X, sets[i], 5001 + 2 * i), va.Y);
+      MapEnergy me{rdm::RdmMaps{}, maps.energy(maps.m)};
+      maps.r = {}, maps.m = {}, maps.r_se = {}, maps.m_se = {};
+      me.maps = std::move(maps);
+      energies.push_back(std::move(me));
     }
     /* Per-channel target scale, as the bake's exp head (D14). */
     Eigen::VectorXf scale(3);
@@ -233,9 +246,9 @@ int main(int argc, char **argv)
     std::printf("\nM energy per incident bin against each map's, mean |E_net / E_map - 1| (and E_net / E_map - 1),\n"
                 "solid-angle weighted:\n");
     std::printf("%-8s %-10s %20s %20s\n", "radius", "sector", "conditioned", "pooled");
-    for (const BentMaps &b : sets) {
-      const rdm::RdmMaps maps = rdm::load_maps(b.path);
-      const EnergyError c = energy_error(bent, maps, b, true), p = energy_error(pool, maps, b, false);
+    for (size_t i = 0; i < sets.size(); i++) {
+      const BentMaps &b = sets[i];
+      const EnergyError c = energy_error(bent, energies[i], b, true), p = energy_error(pool, energies[i], b, false);
       std::printf("%-8g %d/%-8d %10.1f%% (%+6.1f%%) %10.1f%% (%+6.1f%%)\n", b.radius, b.sector, b.sectors,
                   100.0 * c.mean_abs, 100.0 * c.mean, 100.0 * p.mean_abs, 100.0 * p.mean);
       std::fflush(stdout);

@@ -27,10 +27,6 @@ void validate(const Bend &bend)
   }
 }
 
-BentPlies::~BentPlies() = default;
-
-int BentPlies::num_wedges() const { return wedges_.empty() ? 0 : int(wedges_[0].grids.size()); }
-
 BentPlies::BentPlies(const std::vector<geometry::Ply> &plies, const Bend &bend, BentIntersector intersector,
                      const TracerOptions &options)
     : bend_(bend)
@@ -71,69 +67,103 @@ BentPlies::BentPlies(const std::vector<geometry::Ply> &plies, const Bend &bend, 
   curves_ = std::make_unique<EmbreePly>(curves, "");
 }
 
+namespace {
+/* A point or direction of world coordinates in the frame of the wedge whose middle is at the angle of cosine c and
+ * sine s about the circle's axis (x along the circle, y outward, z = -z), and back; points relative to the circle's
+ * centre and offset by the circle's radius across it. */
+template<class T> inline void to_wedge(T c, T s, T x, T y, T z, T *lx, T *ly, T *lz)
+{
+  *lx = -s * x + c * y;
+  *ly = c * x + s * y;
+  *lz = -z;
+}
+inline Vec3 wedge_dir(float c, float s, Vec3 v)
+{
+  Vec3 l;
+  to_wedge(c, s, v.x, v.y, v.z, &l.x, &l.y, &l.z);
+  return l;
+}
+inline Vec3 world_dir(float c, float s, Vec3 l) { return make_vec3(-s * l.x + c * l.y, c * l.x + s * l.y, -l.z); }
+}  // namespace
+
 void BentPlies::build_wedges(const std::vector<geometry::Ply> &plies, const TracerOptions &options)
 {
   const double Rc = bend_.radius, r = double(r_), w = plies[0].twist_rate();
-  /* A first guess of the wedges: chords of length sqrt(8 sagitta r / kappa) for the curvature of a fiber on the bend's
-   * inner side plus its twist's; then checked chord by chord at its fiber's midpoint, and made finer until every one
-   * holds (a fiber's curvature varies little over a wedge, so its midpoint is where it strays furthest). */
+  sagitta_ = options.sagitta;
+  /* Fiber i of circle k on face angle a, in the frame of the wedge whose middle is at angle m. */
+  auto point = [&](int k, int i, double a, double m) {
+    const Eigen::Vector3d p = place(plies[size_t(k)].fiber_point(i, a * Rc), k);
+    Eigen::Vector3d l;
+    to_wedge(std::cos(m), std::sin(m), p.x(), p.y(), p.z() - k * spacing_, &l.x(), &l.y(), &l.z());
+    l.y() -= Rc;
+    return l;
+  };
+  /* How many wedges: a first guess from chords of length sqrt(8 sagitta r / kappa) for the curvature of a fiber on the
+   * bend's inner side plus its twist's, then every chord checked at its fiber's midpoint (a fiber's curvature varies
+   * little over a wedge, so that is where it strays furthest) and the wedges made finer until all hold. */
   const double kappa = 1.0 / (Rc - 1.0) + w;
   const double L = std::sqrt(8.0 * options.sagitta * r / kappa);
   int S = std::max(8, int(std::ceil(2.0 * kPi * (Rc + 1.0) * std::sqrt(1.0 + w * w) / L)));
-  /* Chords on the bend's inner side run outside the fibers by up to the sagitta; entries start beyond them. */
-  bound_ = float(1.0 + std::max(1e-4, 2.0 * options.sagitta * r));
-  for (int attempt = 0; attempt < 6; attempt++) {
+  for (int attempt = 0;; attempt++) {
     const double delta = 2.0 * kPi / S;
-    const double half = 0.5 * delta;
-    const float X = float((Rc + double(bound_) + r) * std::sin(half) + r);
-    const float grid_bound = float(double(bound_) + (Rc + 1.0) * (1.0 - std::cos(half)) + 0.01 * r);
-    const double cell = std::max(options.cell_size * r, 1e-6);
-    wedges_.assign(size_t(plies_), Wedges{});
     double worst = 0.0;
     for (int k = 0; k < plies_; k++) {
-      Wedges &W = wedges_[size_t(k)];
-      W.delta = delta;
-      for (int j = 0; j <= S; j++) {
-        W.face_c.push_back(float(std::cos(j * delta)));
-        W.face_s.push_back(float(std::sin(j * delta)));
-      }
-      W.grids.reserve(size_t(S));
-      std::vector<Chord> chords(static_cast<size_t>(fibers_));
       for (int j = 0; j < S; j++) {
-        const double m = (j + 0.5) * delta, cm = std::cos(m), sm = std::sin(m);
-        W.mid_c.push_back(float(cm));
-        W.mid_s.push_back(float(sm));
-        auto local = [&](const Eigen::Vector3d &p) {
-          const double qz = p.z() - k * spacing_;
-          return Eigen::Vector3d(-sm * p.x() + cm * p.y(), cm * p.x() + sm * p.y() - Rc, -qz);
-        };
-        const geometry::Ply &ply = plies[size_t(k)];
+        const double m = (j + 0.5) * delta;
         for (int i = 0; i < fibers_; i++) {
-          const Eigen::Vector3d p0 = local(place(ply.fiber_point(i, j * delta * Rc), k));
-          const Eigen::Vector3d p1 = local(place(ply.fiber_point(i, (j + 1) * delta * Rc), k));
-          const Eigen::Vector3d mid = local(place(ply.fiber_point(i, m * Rc), k));
-          const Eigen::Vector3d u = (p1 - p0).normalized();
-          worst = std::max(worst, ((mid - p0) - (mid - p0).dot(u) * u).norm() / r);
-          /* The chord's line anchored on the wedge's middle plane x = 0; the cells it touches from its ends, each
-           * lengthened by 2 r (a tube's end cut by a tilted face reaches past its chord's end). */
-          Eigen::Vector3d a = p0 - (p0.x() / u.x()) * u;
-          const Eigen::Vector3d e0 = p0 - 2.0 * r * u, e1 = p1 + 2.0 * r * u;
-          Chord c = make_chord(i, e0.data(), e1.data(), r, 1.0);
-          c.a = make_vec3(0.0f, float(a.y()), float(a.z()));
-          chords[size_t(i)] = c;
-          W.a.push_back(c.a);
-          W.axis.push_back(c.axis);
+          const Eigen::Vector3d p0 = point(k, i, j * delta, m), p1 = point(k, i, (j + 1) * delta, m);
+          const Eigen::Vector3d u = (p1 - p0).normalized(), mid = point(k, i, m, m) - p0;
+          worst = std::max(worst, (mid - mid.dot(u) * u).norm() / r);
         }
-        W.grids.emplace_back(chords, r_, grid_bound, -X, X, cell, 0.0f);
       }
     }
     wedge_sagitta_ = worst;
     if (worst <= options.sagitta) {
-      return;
+      break;
+    }
+    if (attempt == 5) {
+      throw std::runtime_error("BentPlies: the wedges' chords do not come within the sagitta of their fibers");
     }
     S = int(std::ceil(S * std::sqrt(worst / options.sagitta) * 1.05));
   }
-  throw std::runtime_error("BentPlies: the wedges' chords do not come within the sagitta of their fibers");
+  delta_ = 2.0 * kPi / S;
+  for (int j = 0; j <= S; j++) {
+    face_c_.push_back(float(std::cos(j * delta_)));
+    face_s_.push_back(float(std::sin(j * delta_)));
+    if (j < S) {
+      mid_c_.push_back(float(std::cos((j + 0.5) * delta_)));
+      mid_s_.push_back(float(std::sin((j + 0.5) * delta_)));
+    }
+  }
+  /* Chords on the bend's inner side run outside the fibers by up to the sagitta; entries start beyond them. */
+  bound_ = float(1.0 + std::max(1e-4, 2.0 * options.sagitta * r));
+  const double half = 0.5 * delta_;
+  const float X = float((Rc + double(bound_) + r) * std::sin(half) + r);
+  const float grid_bound = float(double(bound_) + (Rc + 1.0) * (1.0 - std::cos(half)) + 0.01 * r);
+  const double cell = std::max(options.cell_size * r, 1e-6);
+  wedges_.assign(size_t(plies_), Wedges{});
+  std::vector<Chord> chords(static_cast<size_t>(fibers_));
+  for (int k = 0; k < plies_; k++) {
+    Wedges &W = wedges_[size_t(k)];
+    W.grids.reserve(size_t(S));
+    for (int j = 0; j < S; j++) {
+      const double m = (j + 0.5) * delta_;
+      for (int i = 0; i < fibers_; i++) {
+        const Eigen::Vector3d p0 = point(k, i, j * delta_, m), p1 = point(k, i, (j + 1) * delta_, m);
+        const Eigen::Vector3d u = (p1 - p0).normalized();
+        /* The chord's line anchored on the wedge's middle plane x = 0; the cells it touches from its ends, each
+         * lengthened by 2 r (a tube's end cut by a tilted face reaches past its chord's end). */
+        const Eigen::Vector3d a = p0 - (p0.x() / u.x()) * u;
+        const Eigen::Vector3d e0 = p0 - 2.0 * r * u, e1 = p1 + 2.0 * r * u;
+        Chord c = make_chord(i, e0.data(), e1.data(), r, 1.0);
+        c.a = make_vec3(0.0f, float(a.y()), float(a.z()));
+        chords[size_t(i)] = c;
+        W.a.push_back(c.a);
+        W.axis.push_back(c.axis);
+      }
+      W.grids.emplace_back(chords, r_, grid_bound, -X, X, cell, 0.0f);
+    }
+  }
 }
 
 Eigen::Vector3d BentPlies::place(const Eigen::Vector3d &p, int k) const
@@ -241,103 +271,104 @@ float BentPlies::exit_distance(Vec3 o, Vec3 d, float t_max) const
   return t < double(t_max) ? float(t) : std::numeric_limits<float>::infinity();
 }
 
-bool BentPlies::trace_wedges(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const
+bool BentPlies::nearest_in_wedges(Vec3 o, Vec3 d, float t_end, int exclude, float exclude_distance, TubeHit *hit,
+                                  int64_t *crossings) const
 {
-  const Vec3 o = ray->o, d = ray->d;
   const int k = ply_of(o);
   const Wedges &W = wedges_[size_t(k)];
-  const int S = int(W.grids.size());
+  const int S = num_wedges();
   const float cz = float(k * spacing_), Rc = float(bend_.radius);
-  /* The nearest fiber first, within the box about the circle's tube (the cylinder of radius Rc + bound about its
-   * axis, |z| <= bound): then the tube's exit only as far as that fiber, as trace() does with Embree's curves. */
-  float t_box = cylinder_exit(make_vec3(o.z - cz, o.x, o.y), make_vec3(d.z, d.x, d.y), Rc + bound_);
-  if (d.z != 0.0f) {
-    t_box = std::min(t_box, std::max(((d.z > 0.0f ? bound_ : -bound_) - (o.z - cz)) / d.z, 0.0f));
-  }
   /* The wedge the origin is in, by its angle about the circle's axis. */
   float angle = std::atan2(o.y, o.x);
   angle += angle < 0.0f ? float(2.0 * kPi) : 0.0f;
-  int j = std::clamp(int(double(angle) / W.delta), 0, S - 1);
-  float travelled = 0.0f, t_hit = std::numeric_limits<float>::infinity();
-  int fiber = -1;
-  Vec3 p = o, normal, axis;
-  /* Within the box a ray crosses at most the circle's wedges once. */
+  int j = std::clamp(int(double(angle) / delta_), 0, S - 1);
+  float travelled = 0.0f;
+  Vec3 p = o;
+  /* Within t_end (the box about the tube) a ray crosses the circle's wedges at most once. */
   for (int step = 0; step <= S; step++) {
     /* Leaving the wedge through its face j + 1 (toward larger angles) or its face j. */
     float t_face = std::numeric_limits<float>::infinity();
     int next = j;
-    const float a1 = -W.face_s[size_t(j) + 1] * d.x + W.face_c[size_t(j) + 1] * d.y;
+    const float a1 = -face_s_[size_t(j) + 1] * d.x + face_c_[size_t(j) + 1] * d.y;
     if (a1 > 0.0f) {
-      t_face = std::max(-(-W.face_s[size_t(j) + 1] * p.x + W.face_c[size_t(j) + 1] * p.y) / a1, 0.0f);
+      t_face = std::max(-(-face_s_[size_t(j) + 1] * p.x + face_c_[size_t(j) + 1] * p.y) / a1, 0.0f);
       next = j + 1;
     }
-    const float a0 = -W.face_s[size_t(j)] * d.x + W.face_c[size_t(j)] * d.y;
+    const float a0 = -face_s_[size_t(j)] * d.x + face_c_[size_t(j)] * d.y;
     if (a0 < 0.0f) {
-      const float t0 = std::max(-(-W.face_s[size_t(j)] * p.x + W.face_c[size_t(j)] * p.y) / a0, 0.0f);
+      const float t0 = std::max(-(-face_s_[size_t(j)] * p.x + face_c_[size_t(j)] * p.y) / a0, 0.0f);
       if (t0 < t_face) {
         t_face = t0;
         next = j - 1;
       }
     }
-    const float left = std::max(t_box - travelled, 0.0f);
-    /* The ray in the frame of the wedge's middle. */
-    const float cm = W.mid_c[size_t(j)], sm = W.mid_s[size_t(j)];
-    const Vec3 pl = make_vec3(-sm * p.x + cm * p.y, cm * p.x + sm * p.y - Rc, -(p.z - cz));
-    const Vec3 dl = make_vec3(-sm * d.x + cm * d.y, cm * d.x + sm * d.y, -d.z);
+    const float left = std::max(t_end - travelled, 0.0f);
+    const float cm = mid_c_[size_t(j)], sm = mid_s_[size_t(j)];
+    Vec3 pl = wedge_dir(cm, sm, make_vec3(p.x, p.y, p.z - cz));
+    pl.y -= Rc;
+    const Vec3 dl = wedge_dir(cm, sm, d);
+    int fiber = -1;
     const float t = W.grids[size_t(j)].nearest(pl, dl, std::min(t_face, left), exclude, travelled, exclude_distance,
                                                 &fiber);
     if (fiber >= 0) {
       const size_t c = size_t(j) * size_t(fibers_) + size_t(fiber);
-      auto world = [cm, sm](Vec3 v) { return make_vec3(-sm * v.x + cm * v.y, cm * v.x + sm * v.y, -v.z); };
-      t_hit = travelled + t;
-      normal = world(ny::normalize(chord_radial(W.a[c], W.axis[c], pl + dl * t)));
-      axis = world(W.axis[c]);
-      p = p + d * t;
-      break;
+      hit->t = travelled + t;
+      hit->fiber = fiber;
+      hit->point = p + d * t;
+      hit->normal = world_dir(cm, sm, ny::normalize(chord_radial(W.a[c], W.axis[c], pl + dl * t)));
+      hit->axis = world_dir(cm, sm, W.axis[c]);
+      return true;
     }
     if (left <= t_face) {
-      break;
+      return false;
     }
     travelled += t_face;
     p = p + d * t_face;
-    ray->slab += next > j ? 1 : -1; /* the gather's count of crossings */
+    *crossings += next > j ? 1 : -1;
     j = (next + S) % S;
-  }
-  const float t_exit = exit_distance(o, d, t_hit);
-  if (fiber >= 0 && !(t_exit < t_hit)) {
-    hit->t = t_hit;
-    hit->fiber = fiber;
-    hit->point = p;
-    hit->normal = normal;
-    hit->axis = axis;
-    ray->o = p;
-    return true;
-  }
-  if (std::isfinite(t_exit)) {
-    ray->o = o + d * t_exit;
   }
   return false;
 }
 
-bool BentPlies::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const
+bool BentPlies::nearest_fiber(Vec3 o, Vec3 d, float t_end, int exclude, float exclude_distance, TubeHit *hit,
+                              int64_t *crossings) const
 {
   if (!wedges_.empty()) {
-    return trace_wedges(ray, exclude, exclude_distance, hit);
+    return nearest_in_wedges(o, d, t_end, exclude, exclude_distance, hit, crossings);
   }
-  const Vec3 o = ray->o, d = ray->d;
-  /* The nearest fiber first, then the exit only as far as it: a path's rays mostly end on a fiber a few fiber radii
-   * on, and tracing the tube up to there is cheaper than finding where the ray would leave it. */
   EmbreeHit h;
-  const bool got = curves_->intersect(o, d, 0.0f, std::numeric_limits<float>::infinity(), &h, exclude,
-                                      exclude_distance, /*cull_exits=*/true);
+  if (!curves_->intersect(o, d, 0.0f, t_end, &h, exclude, exclude_distance, /*cull_exits=*/true)) {
+    return false;
+  }
+  hit->t = h.t;
+  hit->fiber = h.fiber;
+  hit->point = o + d * h.t;
+  hit->normal = h.radial_normal();
+  hit->axis = h.tangent; /* every fiber runs the way the ply does (increasing x or angle) */
+  return true;
+}
+
+bool BentPlies::trace(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const
+{
+  const Vec3 o = ray->o, d = ray->d;
+  /* The nearest fiber first, within the box about the ray's circle (the cylinder of radius Rc + bound about its axis,
+   * |z| <= bound: nothing of the tube lies beyond), then the tube's exit only as far as that fiber: a path's rays
+   * mostly end on a fiber a few fiber radii on, and tracing the tube up to there is cheaper than finding where the
+   * ray would leave it. */
+  float t_end = std::numeric_limits<float>::infinity();
+  if (bend_.radius > 0.0) {
+    const float cz = float(ply_of(o) * spacing_);
+    t_end = cylinder_exit(make_vec3(o.z - cz, o.x, o.y), make_vec3(d.z, d.x, d.y), float(bend_.radius) + bound_);
+    if (d.z != 0.0f) {
+      t_end = std::min(t_end, std::max(((d.z > 0.0f ? bound_ : -bound_) - (o.z - cz)) / d.z, 0.0f));
+    }
+  }
+  TubeHit h;
+  const bool got = nearest_fiber(o, d, t_end, exclude, exclude_distance, &h, &ray->slab);
   const float t_exit = exit_distance(o, d, got ? h.t : std::numeric_limits<float>::infinity());
   if (got && !(t_exit < h.t)) {
-    hit->t = h.t;
-    hit->fiber = h.fiber;
-    hit->point = o + d * h.t;
-    hit->normal = h.radial_normal();
-    hit->axis = h.tangent; /* every fiber runs the way the ply does (increasing x or angle) */
-    ray->o = hit->point;
+    *hit = h;
+    ray->o = h.point;
     return true;
   }
   if (std::isfinite(t_exit)) {
@@ -383,7 +414,7 @@ RdmMaps gather_bent(const FiberPreset &preset, const Bend &bend, const GatherOpt
   maps.bend_radius = bend.radius;
   maps.bend_sector = bend.sector;
   maps.bend_sectors = bend.sectors;
-  maps.sagitta = medium.num_wedges() > 0 ? bent_tracer_options().sagitta : 0.0;
+  maps.sagitta = medium.chord_sagitta();
   return maps;
 }
 

@@ -64,7 +64,6 @@ class BentPlies final : public FiberMedium {
   BentPlies(const std::vector<geometry::Ply> &plies, const Bend &bend,
             BentIntersector intersector = BentIntersector::kWedges,
             const TracerOptions &options = bent_tracer_options());
-  ~BentPlies() override;
 
   float bound_radius() const override { return bound_; }
   float envelope_radius() const override { return 1.0f; }
@@ -88,8 +87,10 @@ class BentPlies final : public FiberMedium {
   int ply_of(ny::Vec3 p) const;
   /* The wedges of each circle (0 for Embree's curves), and the largest distance of a fiber's midpoint in a wedge from
    * its chord, in fiber radii (for the tests). */
-  int num_wedges() const;
+  int num_wedges() const { return int(mid_c_.size()); }
   double wedge_sagitta() const { return wedge_sagitta_; }
+  /* The chords' largest distance from their fibers that the wedges were built for (0 for Embree's curves). */
+  double chord_sagitta() const { return wedges_.empty() ? 0.0 : sagitta_; }
   const char *intersector_name() const { return wedges_.empty() ? "embree" : "wedges"; }
 
  private:
@@ -98,20 +99,24 @@ class BentPlies final : public FiberMedium {
   float r_ = 0.0f, bound_ = 1.0f;
   int plies_ = 1;
   std::unique_ptr<EmbreePly> curves_;
-  /* The wedges of one circle: wedge j spans angles [j, j + 1] delta; its grid and chords in the frame of its middle
-   * (x along the circle, y outward from it, z = -z: right-handed). */
+  /* Wedge j spans angles [j, j + 1] delta about every circle's axis; its grid and chords live in the frame of its
+   * middle (x along the circle, y outward from it, z = -z: right-handed). */
+  double delta_ = 0.0, sagitta_ = 0.0, wedge_sagitta_ = 0.0;
+  std::vector<float> face_c_, face_s_; /* cos, sin of face j's angle, j = 0 ... S (face S is face 0) */
+  std::vector<float> mid_c_, mid_s_;   /* of wedge j's middle */
   struct Wedges {
-    double delta = 0.0;
     std::vector<TubeGrid> grids;
-    std::vector<ny::Vec3> a, axis;   /* [wedge][fiber], that frame */
-    std::vector<float> face_c, face_s; /* cos, sin of face j's angle, j = 0 ... S (face S is face 0) */
-    std::vector<float> mid_c, mid_s;   /* of wedge j's middle */
+    std::vector<ny::Vec3> a, axis; /* [wedge][fiber], the wedge's frame */
   };
   std::vector<Wedges> wedges_; /* per circle; empty: Embree's curves */
   int fibers_ = 0;
-  double wedge_sagitta_ = 0.0;
   void build_wedges(const std::vector<geometry::Ply> &plies, const TracerOptions &options);
-  bool trace_wedges(SlabRay *ray, int exclude, float exclude_distance, TubeHit *hit) const;
+  /* The nearest fiber the ray enters within t_end (its hit point, normal and axis in *hit), by either intersector;
+   * false if none. */
+  bool nearest_fiber(ny::Vec3 o, ny::Vec3 d, float t_end, int exclude, float exclude_distance, TubeHit *hit,
+                     int64_t *crossings) const;
+  bool nearest_in_wedges(ny::Vec3 o, ny::Vec3 d, float t_end, int exclude, float exclude_distance, TubeHit *hit,
+                         int64_t *crossings) const;
 };
 
 /* The maps of the preset's ply bent as `bend` says, over options.layouts cross-sections (packing seeds
