@@ -199,8 +199,9 @@ def main() -> int:
 def predicted(a, scene: str, plies_path: str, explicit_parts: list, native: np.ndarray) -> dict:
     """The model's and the maps' far field on the plies of `scene` (bench_bent_ply --plies, direct light only, no
     shadows: for one ply; with --sector-maps also the bent ply's own maps, each hit read from its sector about the
-    bend; with --bent-m also M from bench_bent_m's networks beside the sector's R) against explicit fibers and the native render (far field): luminance over the frame and over the glint
-    (frame_and_glint). Prints one line; the numbers for the JSON."""
+    bend; with --bent-m also M from bench_bent_m's networks beside the sector's R, calibrated too where they carry
+    their tables, D77) against explicit fibers and the native render (far field): luminance over the frame and over
+    the glint (frame_and_glint). Prints one line; the numbers for the JSON."""
     prefix = os.path.join(a.out, f"predicted_{scene}")
     tool = os.path.join(ev.BUILD, "cpp_core", "bench_bent_ply")
     sectors = ["--sector-maps", *a.sector_maps] if a.sector_maps else []
@@ -210,7 +211,8 @@ def predicted(a, scene: str, plies_path: str, explicit_parts: list, native: np.n
                        capture_output=True, text=True)
     if r.returncode != 0:
         raise SystemExit(f"bench_near_field: {tool} failed: {r.stderr.strip()}")
-    names = ("model", "maps", *(("sectors",) if a.sector_maps else ()), *(("bent_m", "pooled_m") if a.bent_m else ()))
+    # Every image the tool wrote, as it names them ("NAME: frame mean R G B").
+    names = [line.split(":")[0] for line in r.stdout.splitlines() if ": frame mean " in line]
     out = frame_and_glint(explicit_parts, native, {k: read_exr(f"{prefix}_{k}.exr")[..., :3] for k in names})
     print(f"{scene}: frame / the 3 % of pixels where native exceeds fibers most: " +
           ", ".join(f"{k} {v['frame']:.5f} / {v['glint']:.4f}" for k, v in out.items()), flush=True)

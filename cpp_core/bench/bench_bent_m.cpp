@@ -7,12 +7,15 @@
 // the shipped model has. Both learn the maps' S_M |cos theta_o| itself (no escape division, no calibration), with the
 // bake's M recipe (exp head, per-channel target scale, relative MSE, Adam). Prints, per map, how far each network's M
 // energy per incident bin is from the map's (mean over bins of |E_net / E_map - 1|, by solid angle) and writes both
-// networks (the kernel's flat arrays) for bench_bent_ply --bent-m, which renders them on a bent ply.
+// networks (the kernel's flat arrays) for bench_bent_ply --bent-m, which renders them on a bent ply, with the
+// conditioned network's M calibration per map (its M energy over the map's per incident bin, windowed in phi_i as the
+// bake's: what a calibration conditioned on the bend would hold, decisions D77).
 //
 // Usage: bench_bent_m --maps FILE|RADIUS:SECTOR:SECTORS:FILE ... [--samples 4e6] [--steps 20000] [--hidden 21]
 //                     [--seed 1] --out NETS.json
 // (A bent gather's maps record their bend since D76; older ones are labelled. RADIUS 0: the ply straight.)
 // A benchmark: prints, never a test.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -62,6 +65,72 @@ BentMaps parse_spec(const std::string &spec)
   return b;
 }
 
+/* The bake's M samples (train::sample_multiple_scattering: w_i uniform in cos theta_i over the split's bins with paths,
+ * target the map's S_M |cos theta_o| in the bin of w_o), but w_o drawn with probability `share` from the map's own M
+ * energy at the sample's incident bin (an outgoing bin in proportion to its mean RGB times its solid angle, uniform in
+ * cos theta_o and phi_o within it) and otherwise uniformly on the sphere: the relative MSE then weighs each exit by
+ * (1 - share) / 4 pi + share * its energy density, so that the exits that carry the light (the back light's forward
+ * peak) count for what they carry (decisions D77). share 0: the bake's samples. */
+train::Dataset sample_m_by_energy(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation, double share)
+{
+  if (!(share > 0.0)) {
+    return train::sample_multiple_scattering(maps, n, seed, validation);
+  }
+  const rdm::MapResolution &b = maps.bins;
+  const int n_out = b.theta_o * b.phi_o;
+  /* Per incident bin, the cumulative energy over its outgoing bins (built when first drawn). */
+  std::vector<std::vector<float>> cdf(size_t(b.theta_i) * b.phi_i);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  train::Dataset d;
+  d.X.resize(6, n);
+  d.Y.resize(3, n);
+  for (int k = 0; k < n; k++) {
+    double theta_i, phi_i;
+    int ti, pi;
+    for (long tries = 0;; tries++) {
+      if (tries > 100000000L) {
+        throw std::runtime_error("no incident bin with paths for this split");
+      }
+      theta_i = std::acos(1.0 - U(rng));
+      phi_i = -kPi + 2.0 * kPi * U(rng);
+      ti = rdm::bin_of(theta_i, 0.0, 0.5 * kPi, b.theta_i);
+      pi = rdm::bin_of(phi_i, -kPi, kPi, b.phi_i);
+      if (train::is_validation_bin(b, ti, pi) == validation && maps.count[maps.incident_index(ti, pi)] > 0) {
+        break;
+      }
+    }
+    std::vector<float> &c = cdf[maps.incident_index(ti, pi)];
+    if (c.empty()) {
+      c.resize(size_t(n_out));
+      double sum = 0.0;
+      for (int j = 0; j < n_out; j++) {
+        const float *v = &maps.m[maps.map_index(ti, pi, j / b.phi_o, j % b.phi_o)];
+        sum += (double(v[0]) + v[1] + v[2]) * maps.outgoing_solid_angle(j / b.phi_o);
+        c[size_t(j)] = float(sum);
+      }
+    }
+    double theta_o, phi_o;
+    if (U(rng) < share && c.back() > 0.0f) {
+      const int j = int(std::upper_bound(c.begin(), c.end(), float(U(rng) * c.back())) - c.begin());
+      const int to = std::min(j, n_out - 1) / b.phi_o, po = std::min(j, n_out - 1) % b.phi_o;
+      const double z0 = std::cos(kPi * to / b.theta_o), z1 = std::cos(kPi * (to + 1) / b.theta_o);
+      theta_o = std::acos(std::clamp(z0 + (z1 - z0) * U(rng), -1.0, 1.0));
+      phi_o = -kPi + 2.0 * kPi * (po + U(rng)) / b.phi_o;
+    }
+    else {
+      theta_o = std::acos(1.0 - 2.0 * U(rng));
+      phi_o = -kPi + 2.0 * kPi * U(rng);
+    }
+    const int to = rdm::bin_of(theta_o, 0.0, kPi, b.theta_o), po = rdm::bin_of(phi_o, -kPi, kPi, b.phi_o);
+    d.X.block<3, 1>(0, k) = train::entry_direction(theta_i, phi_i);
+    d.X.block<3, 1>(3, k) = train::entry_direction(theta_o, phi_o);
+    const float *v = &maps.m[maps.map_index(ti, pi, to, po)];
+    d.Y(0, k) = v[0], d.Y(1, k) = v[1], d.Y(2, k) = v[2];
+  }
+  return d;
+}
+
 /* The conditioned network's inputs: the pooled network's six and the bend's two, psi drawn uniformly over the sector
  * (its maps average over it), so that the network sees psi continuous rather than at K points. */
 train::Mlp<float>::Mat with_bend(const train::Mlp<float>::Mat &X, const BentMaps &b, uint64_t seed)
@@ -101,13 +170,14 @@ struct MapEnergy {
   std::vector<double> E;
 };
 
-EnergyError energy_error(const train::Mlp<float> &net, const MapEnergy &me, const BentMaps &b, bool bend)
+/* The network's M energy per incident bin of the map's (rgb, row-major [theta_i][phi_i]; zero where the map has no
+ * paths): a stratified sphere of exits at each bin centre, with the bend of the map's sector centre. */
+std::vector<double> net_energy(const train::Mlp<float> &net, const MapEnergy &me, const BentMaps &b, bool bend)
 {
   const rdm::RdmMaps &maps = me.maps;
   const rdm::MapResolution &bins = maps.bins;
-  const std::vector<double> &E = me.E;
   constexpr int kT = 32, kP = 64; /* exits: cos theta_o and phi_o stratified */
-  double sum = 0.0, signed_sum = 0.0, weight = 0.0;
+  std::vector<double> E(size_t(bins.theta_i) * bins.phi_i * 3, 0.0);
   for (int ti = 0; ti < bins.theta_i; ti++) {
     const double theta_i = 0.5 * kPi * (ti + 0.5) / bins.theta_i;
     for (int pi = 0; pi < bins.phi_i; pi++) {
@@ -129,21 +199,60 @@ EnergyError energy_error(const train::Mlp<float> &net, const MapEnergy &me, cons
         }
       }
       const train::Mlp<float>::Mat Y = net.forward(X);
-      const double domega = 4.0 * kPi / (kT * kP);
       for (int c = 0; c < 3; c++) {
-        const double e_map = E[ii * 3 + size_t(c)];
-        if (!(e_map > 0.0)) {
+        E[ii * 3 + size_t(c)] = double(Y.row(c).sum()) * 4.0 * kPi / (kT * kP);
+      }
+    }
+  }
+  return E;
+}
+
+/* Mean over incident bins (by solid angle) of |E_net / E_map - 1|; bins without paths or M energy are skipped. */
+EnergyError energy_error(const std::vector<double> &E_net, const MapEnergy &me)
+{
+  const rdm::RdmMaps &maps = me.maps;
+  double sum = 0.0, signed_sum = 0.0, weight = 0.0;
+  for (int ti = 0; ti < maps.bins.theta_i; ti++) {
+    for (int pi = 0; pi < maps.bins.phi_i; pi++) {
+      const size_t ii = maps.incident_index(ti, pi);
+      for (int c = 0; c < 3; c++) {
+        const double e_map = me.E[ii * 3 + size_t(c)];
+        if (maps.count[ii] == 0 || !(e_map > 0.0)) {
           continue;
         }
-        const double e_net = double(Y.row(c).sum()) * domega;
-        const double w = maps.incident_solid_angle(ti);
-        sum += w * std::abs(e_net / e_map - 1.0);
-        signed_sum += w * (e_net / e_map - 1.0);
+        const double r = E_net[ii * 3 + size_t(c)] / e_map - 1.0, w = maps.incident_solid_angle(ti);
+        sum += w * std::abs(r);
+        signed_sum += w * r;
         weight += w;
       }
     }
   }
   return weight > 0.0 ? EnergyError{sum / weight, signed_sum / weight} : EnergyError{};
+}
+
+/* The M calibration of a network on one map, as the bake's (model/calibration.h): per incident bin the map's M energy
+ * over the network's, both summed over a window of +-2 bins in phi_i (same theta_i), clamped to [0.01, 100]. */
+std::vector<float> m_calibration(const std::vector<double> &E_net, const MapEnergy &me)
+{
+  const rdm::MapResolution &bins = me.maps.bins;
+  const int half = 2;
+  std::vector<float> c(size_t(bins.theta_i) * bins.phi_i * 3, 1.0f);
+  for (int ti = 0; ti < bins.theta_i; ti++) {
+    for (int pi = 0; pi < bins.phi_i; pi++) {
+      for (int ch = 0; ch < 3; ch++) {
+        double a = 0.0, b = 0.0;
+        for (int d = -half; d <= half; d++) {
+          const size_t ii = me.maps.incident_index(ti, (pi + d + bins.phi_i) % bins.phi_i) * 3 + size_t(ch);
+          a += me.E[ii];
+          b += E_net[ii];
+        }
+        if (a > 1e-9 && b > 1e-9) {
+          c[me.maps.incident_index(ti, pi) * 3 + size_t(ch)] = float(std::clamp(a / b, 0.01, 100.0));
+        }
+      }
+    }
+  }
+  return c;
 }
 
 }  // namespace
@@ -155,6 +264,8 @@ int main(int argc, char **argv)
   std::string out, samples_text = "4e6";
   int steps = 20000, batch = 4096, hidden = 21, threads = 0;
   uint64_t seed = 1;
+  bool no_pooled = false;
+  app.add_flag("--no-pooled", no_pooled, "Train the conditioned network alone (the pooled one's entries are empty)");
   app.add_option("--maps", specs, "FILE (a bent gather's, which records its bend) or RADIUS:SECTOR:SECTORS:FILE "
                  "(radius 0: straight), checked against the file's record where it has one")->required();
   app.add_option("--samples", samples_text, "Training samples over all maps (validation: a tenth)");
@@ -163,6 +274,9 @@ int main(int argc, char **argv)
   app.add_option("--hidden", hidden, "Hidden units of both layers")->capture_default_str();
   app.add_option("--threads", threads)->capture_default_str();
   app.add_option("--seed", seed, "Initial weights and mini-batches (the samples stay)")->capture_default_str();
+  double energy_share = 0.0;
+  app.add_option("--energy-share", energy_share, "Share of the samples whose exit is drawn from the map's M energy "
+                 "(0: all uniform on the sphere, the bake's)")->check(CLI::Range(0.0, 1.0))->capture_default_str();
   app.add_option("--out", out, "The two networks (JSON: the kernel's flat arrays)")->required();
   CLI11_PARSE(app, argc, argv);
   try {
@@ -196,8 +310,8 @@ int main(int argc, char **argv)
       else if (maps.preset.name != preset) {
         throw std::runtime_error(sets[i].path + " is " + maps.preset.name + "'s, not " + preset + "'s");
       }
-      const train::Dataset tr = train::sample_multiple_scattering(maps, per_map, 1000 + 2 * i, false);
-      const train::Dataset va = train::sample_multiple_scattering(maps, std::max(1, per_map / 10), 1001 + 2 * i, true);
+      const train::Dataset tr = sample_m_by_energy(maps, per_map, 1000 + 2 * i, false, energy_share);
+      const train::Dataset va = sample_m_by_energy(maps, std::max(1, per_map / 10), 1001 + 2 * i, true, energy_share);
       append(&tr_pool, tr.X, tr.Y);
       append(&va_pool, va.X, va.Y);
       append(&tr_bent, with_bend(tr.X, sets[i], 5000 + 2 * i), tr.Y);
@@ -242,13 +356,20 @@ int main(int argc, char **argv)
       return net;
     };
     const train::Mlp<float> bent = train(8, tr_bent, va_bent, "conditioned");
-    const train::Mlp<float> pool = train(6, tr_pool, va_pool, "pooled");
+    const train::Mlp<float> pool = no_pooled ? train::Mlp<float>(train::MlpShape{{6, 1, 3}, ny::kMlpHeadExp}, 1)
+                                             : train(6, tr_pool, va_pool, "pooled");
     std::printf("\nM energy per incident bin against each map's, mean |E_net / E_map - 1| (and E_net / E_map - 1),\n"
                 "solid-angle weighted:\n");
     std::printf("%-8s %-10s %20s %20s\n", "radius", "sector", "conditioned", "pooled");
+    nlohmann::json calibration = nlohmann::json::array();
     for (size_t i = 0; i < sets.size(); i++) {
       const BentMaps &b = sets[i];
-      const EnergyError c = energy_error(bent, energies[i], b, true), p = energy_error(pool, energies[i], b, false);
+      const std::vector<double> E_bent = net_energy(bent, energies[i], b, true);
+      const EnergyError c = energy_error(E_bent, energies[i]),
+                        p = no_pooled ? EnergyError{} : energy_error(net_energy(pool, energies[i], b, false), energies[i]);
+      calibration.push_back({{"radius", b.radius}, {"sector", b.sector}, {"sectors", b.sectors},
+                             {"theta_bins", energies[i].maps.bins.theta_i}, {"phi_bins", energies[i].maps.bins.phi_i},
+                             {"c_M", m_calibration(E_bent, energies[i])}});
       std::printf("%-8g %d/%-8d %10.1f%% (%+6.1f%%) %10.1f%% (%+6.1f%%)\n", b.radius, b.sector, b.sectors,
                   100.0 * c.mean_abs, 100.0 * c.mean, 100.0 * p.mean_abs, 100.0 * p.mean);
       std::fflush(stdout);
@@ -259,7 +380,8 @@ int main(int argc, char **argv)
                         {"output", "S_M |cos theta_o| (RGB)"},
                         {"maps", specs},
                         {"conditioned", bent.to_flat()},
-                        {"pooled", pool.to_flat()}};
+                        {"pooled", pool.to_flat()},
+                        {"conditioned_calibration", calibration}};
     std::ofstream(out) << j.dump(1);
   }
   catch (const std::exception &e) {

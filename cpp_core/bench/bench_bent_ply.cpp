@@ -12,11 +12,14 @@
 // With --bent-m (bench_bent_m's networks, decisions D76), two more: R from the sector's maps and M from the network
 // conditioned on the bend at the hit (kappa R and psi: the circle's, or the Catmull-Rom curve's at its nearest key),
 // and the same with M from the network pooled over bends — whether the bend, given to M, does what the sectors' maps do.
+// Where the networks carry their calibration per map (bench_bent_m since D77), two more: the conditioned M calibrated
+// by its sector's table with the sector's R (`bent_m_cal`) or the model's R (`model_r_bent_m_cal`, what a model with
+// the bend would render). --bend-split tells which lobe carries the bend and whether an energy per incident direction
+// does (decisions D77).
 //
 // Usage: bench_bent_ply --model M.json --maps M.nyrdm [--sector-maps S0.nyrdm ...] [--turn 60] [--radius 3]
-//                       [--bent-m NETS.json] [--rig back] [--width 160] [--height 80] [--lobes RM|R|M]
-//                       [--out PREFIX] (PREFIX_model.exr, PREFIX_maps.exr, PREFIX_sectors.exr, PREFIX_bent_m.exr,
-//                       PREFIX_pooled_m.exr)
+//                       [--bent-m NETS.json] [--bend-split] [--rig back] [--width 160] [--height 80] [--lobes RM|R|M]
+//                       [--out PREFIX] (PREFIX_NAME.exr for every image NAME printed)
 // Prints each image's mean colour. A benchmark: prints, never a test.
 #include <algorithm>
 #include <cmath>
@@ -24,6 +27,7 @@
 #include <limits>
 #include <memory>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -59,6 +63,11 @@ int main(int argc, char **argv)
   app.add_option("--bent-m", bent_m_path, "bench_bent_m's networks: R from the sector's maps, M from the network "
                  "conditioned on the hit's bend (`bent_m`) and from the pooled one (`pooled_m`); needs --sector-maps");
   std::string plies_path;
+  bool bend_split = false;
+  app.add_flag("--bend-split", bend_split, "With --sector-maps: which lobe carries the bend, and whether its energy per "
+               "incident direction does: R from the sectors' maps and M from the straight ones (`r_bent`), the other way "
+               "round (`m_bent`), the straight maps' M times the sector's M energy over the straight's per incident "
+               "direction (`m_energy`), and the model with its R and M so rescaled (`model_energy`)");
   app.add_option("--plies", plies_path, "Instead of the circle: the plies of a neuralyarn-plies file (bench_near_field's "
                  "plies_SCENE.json), as the Catmull-Rom curves Cycles draws through their keys");
   app.add_option("--turn", turn_deg, "The circle turned about the image's vertical (degrees)")->check(CLI::Range(0.0, 89.0));
@@ -87,6 +96,8 @@ int main(int argc, char **argv)
     /* R alone from each sector's maps, M from a network of S_M |cos theta_o| (bench_bent_m). */
     std::vector<scenes::FarField> r_by_sector;
     std::vector<float> bent_m, pooled_m;
+    std::vector<std::vector<float>> bent_cal; /* per sector: the conditioned M's calibration [theta_i][phi_i][rgb] */
+    std::vector<float> straight_cal;          /* the same on the straight ply's maps, if among them */
     if (!bent_m_path.empty()) {
       if (by_sector.empty() || lobes != scenes::Lobes::kRM) {
         throw std::runtime_error("--bent-m needs --sector-maps (their R) and --lobes RM");
@@ -95,6 +106,29 @@ int main(int argc, char **argv)
       const nlohmann::json j = nlohmann::json::parse(in);
       bent_m = j.at("conditioned").get<std::vector<float>>();
       pooled_m = j.at("pooled").get<std::vector<float>>();
+      if (j.contains("conditioned_calibration")) {
+        /* Each sector map's table, found by the bend it records. */
+        for (const rdm::RdmMaps &m : sector_maps) {
+          const nlohmann::json *found = nullptr;
+          for (const nlohmann::json &c : j.at("conditioned_calibration")) {
+            if (c.at("radius").get<double>() == m.bend_radius && c.at("sector").get<int>() == m.bend_sector &&
+                c.at("sectors").get<int>() == m.bend_sectors && c.at("theta_bins").get<int>() == m.bins.theta_i &&
+                c.at("phi_bins").get<int>() == m.bins.phi_i) {
+              found = &c;
+            }
+          }
+          if (!found) {
+            throw std::runtime_error(bent_m_path + ": no calibration for a sector map's bend");
+          }
+          bent_cal.push_back(found->at("c_M").get<std::vector<float>>());
+        }
+        for (const nlohmann::json &c : j.at("conditioned_calibration")) {
+          if (c.at("radius").get<double>() == 0.0 && c.at("theta_bins").get<int>() == sector_maps[0].bins.theta_i &&
+              c.at("phi_bins").get<int>() == sector_maps[0].bins.phi_i) {
+            straight_cal = c.at("c_M").get<std::vector<float>>();
+          }
+        }
+      }
       /* from_flat validates the arrays' headers and sizes (throws ParameterError), then the inputs. */
       if (train::Mlp<float>::from_flat(bent_m).shape().widths.front() != 8 ||
           train::Mlp<float>::from_flat(pooled_m).shape().widths.front() != 6) {
@@ -104,7 +138,142 @@ int main(int argc, char **argv)
         r_by_sector.push_back(scenes::maps_far_field(m, scenes::Lobes::kR, scenes::MapLookup::kInterpolated));
       }
     }
-    const int n_far = int(far.size()) + (by_sector.empty() ? 0 : 1) + (bent_m.empty() ? 0 : 2);
+    /* Every image: its name and its S |cos theta_o| at a hit given the hit's sector and bend (kappa R, psi). */
+    using Predict = std::function<scenes::Rgb3(const ny::Vec3 &, const ny::Vec3 &, int, double, double)>;
+    struct Image {
+      std::string name;
+      Predict predict;
+    };
+    std::vector<Image> images;
+    auto add = [&images](std::string name, Predict predict) { images.push_back({std::move(name), std::move(predict)}); };
+    add("model", [&](const ny::Vec3 &wi, const ny::Vec3 &wo, int, double, double) {
+      return far[0].eval(wi, wo);
+    });
+    add("maps", [&](const ny::Vec3 &wi, const ny::Vec3 &wo, int, double, double) {
+      return far[1].eval(wi, wo);
+    });
+    if (!by_sector.empty()) {
+      add("sectors", [&](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double, double) {
+        return by_sector[size_t(k)].eval(wi, wo);
+      });
+    }
+    for (const bool conditioned : {true, false}) {
+      if (bent_m.empty()) {
+        break;
+      }
+      const std::vector<float> &net = conditioned ? bent_m : pooled_m;
+      add(conditioned ? "bent_m" : "pooled_m",
+                          [&](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double kappa, double psi) {
+                            scenes::Rgb3 e = r_by_sector[size_t(k)].eval(wi, wo);
+                            const float in[8] = {wi.x, wi.y, wi.z, wo.x, wo.y, wo.z, float(kappa * std::cos(psi)),
+                                                 float(kappa * std::sin(psi))};
+                            float m[3];
+                            ny::mlp_forward(net.data(), in, m);
+                            e.r += m[0], e.g += m[1], e.b += m[2];
+                            return e;
+                          });
+    }
+    /* The conditioned M calibrated per sector (bench_bent_m's tables), with R from the sector's maps (`bent_m_cal`) or
+     * the model's (`model_r_bent_m_cal`: what a model with the bend would render). */
+    std::vector<scenes::FarField> model_Rc;
+    if (!bent_cal.empty()) {
+      model_Rc.push_back(scenes::model_far_field(model, scenes::Lobes::kR));
+      const rdm::MapResolution b = sector_maps[0].bins;
+      for (const int variant : {0, 1, 2}) {
+        const bool model_r = variant > 0, straight = variant == 2; /* straight: every bend the straight ply's table */
+        if (straight && straight_cal.empty()) {
+          break;
+        }
+        add(variant == 0 ? "bent_m_cal" : variant == 1 ? "model_r_bent_m_cal" : "model_r_bent_m_cal0",
+            [&, b, model_r, straight](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double kappa, double psi) {
+              scenes::Rgb3 e = model_r ? model_Rc[0].eval(wi, wo) : r_by_sector[size_t(k)].eval(wi, wo);
+              const float in[8] = {wi.x, wi.y, wi.z, wo.x, wo.y, wo.z, float(kappa * std::cos(psi)),
+                                   float(kappa * std::sin(psi))};
+              float m[3];
+              ny::mlp_forward(bent_m.data(), in, m);
+              const rdm::BinTaps ti = rdm::bin_taps(std::acos(std::clamp(double(wi.z), -1.0, 1.0)), 0.0, 0.5 * kPi,
+                                                    b.theta_i, false),
+                                 pi = rdm::bin_taps(std::atan2(double(wi.y), double(wi.x)), -kPi, kPi, b.phi_i, true);
+              double c[3] = {0, 0, 0};
+              for (int x = 0; x < 2; x++) {
+                for (int y = 0; y < 2; y++) {
+                  const size_t at = (size_t(ti.bin[x]) * size_t(b.phi_i) + size_t(pi.bin[y])) * 3;
+                  for (int ch = 0; ch < 3; ch++) {
+                    c[ch] += ti.weight[x] * pi.weight[y] * (straight ? straight_cal : bent_cal[size_t(k)])[at + size_t(ch)];
+                  }
+                }
+              }
+              e.r += m[0] * c[0], e.g += m[1] * c[1], e.b += m[2] * c[2];
+              return e;
+            });
+      }
+    }
+    /* --bend-split: the lobes apart, and each sector's R and M energy over the straight maps' per incident bin. */
+    std::vector<scenes::FarField> r_straight, m_straight, r_sector, m_sector, r_model, m_model;
+    std::vector<std::vector<double>> ratio_R, ratio_M; /* [sector][theta_i][phi_i][rgb] */
+    if (bend_split) {
+      if (by_sector.empty() || lobes != scenes::Lobes::kRM) {
+        throw std::runtime_error("--bend-split needs --sector-maps and --lobes RM");
+      }
+      r_straight.push_back(scenes::maps_far_field(maps, scenes::Lobes::kR, scenes::MapLookup::kInterpolated));
+      m_straight.push_back(scenes::maps_far_field(maps, scenes::Lobes::kM, scenes::MapLookup::kInterpolated));
+      r_model.push_back(scenes::model_far_field(model, scenes::Lobes::kR));
+      m_model.push_back(scenes::model_far_field(model, scenes::Lobes::kM));
+      const std::vector<double> eR = maps.energy(maps.r), eM = maps.energy(maps.m);
+      for (const rdm::RdmMaps &m : sector_maps) {
+        if (m.bins.theta_i != maps.bins.theta_i || m.bins.phi_i != maps.bins.phi_i) {
+          throw std::runtime_error("--bend-split: the sector maps' incident bins differ from --maps'");
+        }
+        r_sector.push_back(scenes::maps_far_field(m, scenes::Lobes::kR, scenes::MapLookup::kInterpolated));
+        m_sector.push_back(scenes::maps_far_field(m, scenes::Lobes::kM, scenes::MapLookup::kInterpolated));
+        std::vector<double> qR = m.energy(m.r), qM = m.energy(m.m);
+        for (size_t i = 0; i < qR.size(); i++) {
+          qR[i] = eR[i] > 1e-9 ? qR[i] / eR[i] : 1.0;
+          qM[i] = eM[i] > 1e-9 ? qM[i] / eM[i] : 1.0;
+        }
+        ratio_R.push_back(std::move(qR));
+        ratio_M.push_back(std::move(qM));
+      }
+      const rdm::MapResolution b = maps.bins;
+      /* The ratio at w_i, bilinear between incident bin centres (as the calibration table reads). */
+      auto ratio = [b](const std::vector<double> &q, const ny::Vec3 &wi) {
+        const rdm::BinTaps ti = rdm::bin_taps(std::acos(std::clamp(double(wi.z), -1.0, 1.0)), 0.0, 0.5 * kPi,
+                                              b.theta_i, false),
+                           pi = rdm::bin_taps(std::atan2(double(wi.y), double(wi.x)), -kPi, kPi, b.phi_i, true);
+        scenes::Rgb3 s;
+        for (int x = 0; x < 2; x++) {
+          for (int y = 0; y < 2; y++) {
+            const double w = ti.weight[x] * pi.weight[y];
+            const size_t k = (size_t(ti.bin[x]) * size_t(b.phi_i) + size_t(pi.bin[y])) * 3;
+            s.r += w * q[k], s.g += w * q[k + 1], s.b += w * q[k + 2];
+          }
+        }
+        return s;
+      };
+      auto sum = [](scenes::Rgb3 a, const scenes::Rgb3 &x, const scenes::Rgb3 &qa, const scenes::Rgb3 &qx) {
+        return scenes::Rgb3{a.r * qa.r + x.r * qx.r, a.g * qa.g + x.g * qx.g, a.b * qa.b + x.b * qx.b};
+      };
+      const scenes::Rgb3 one{1.0, 1.0, 1.0};
+      add("r_bent", [&, sum, one](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double, double) {
+        return sum(r_sector[size_t(k)].eval(wi, wo), m_straight[0].eval(wi, wo), one, one);
+      });
+      add("m_bent", [&, sum, one](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double, double) {
+        return sum(r_straight[0].eval(wi, wo), m_sector[size_t(k)].eval(wi, wo), one, one);
+      });
+      add("m_energy", [&, sum, one, ratio](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double,
+                                                           double) {
+        return sum(r_sector[size_t(k)].eval(wi, wo), m_straight[0].eval(wi, wo), one, ratio(ratio_M[size_t(k)], wi));
+      });
+      add("rm_energy", [&, sum, ratio](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double, double) {
+        return sum(r_straight[0].eval(wi, wo), m_straight[0].eval(wi, wo), ratio(ratio_R[size_t(k)], wi),
+                   ratio(ratio_M[size_t(k)], wi));
+      });
+      add("model_energy", [&, sum, ratio](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double,
+                                                           double) {
+        return sum(r_model[0].eval(wi, wo), m_model[0].eval(wi, wo), ratio(ratio_R[size_t(k)], wi),
+                   ratio(ratio_M[size_t(k)], wi));
+      });
+    }
     std::vector<std::vector<Eigen::Vector3d>> lines;
     std::unique_ptr<rdm::EmbreePly> curves;
     if (!plies_path.empty()) {
@@ -120,7 +289,7 @@ int main(int argc, char **argv)
     const Eigen::Vector3d o(0.0, 0.0, -scenes::kCloseupCameraDistance);
     const double t = std::tan(0.5 * scenes::kCloseupCameraFov) * (width >= height ? 1.0 : double(height) / width);
     const double aspect = double(width) / height;
-    std::vector<std::vector<float>> img(size_t(n_far), std::vector<float>(size_t(width) * height * 3, 0.0f));
+    std::vector<std::vector<float>> img(images.size(), std::vector<float>(size_t(width) * height * 3, 0.0f));
     for (int py = 0; py < height; py++) {
       for (int px = 0; px < width; px++) {
         for (int k = 0; k < sub * sub; k++) {
@@ -199,23 +368,10 @@ int main(int argc, char **argv)
           }
           const int K = int(by_sector.size());
           const int sector = K > 0 ? int(std::lround(psi / (2.0 * kPi / K)) % K + K) % K : 0;
-          for (int f = 0; f < n_far; f++) {
-            const int first_net = int(far.size()) + 1;
-            const scenes::FarField &ff = f < int(far.size()) ? far[size_t(f)]
-                                         : f < first_net       ? by_sector[size_t(sector)]
-                                                               : r_by_sector[size_t(sector)];
-            float *q = &img[size_t(f)][(size_t(py) * width + px) * 3];
+          for (size_t f = 0; f < images.size(); f++) {
+            float *q = &img[f][(size_t(py) * width + px) * 3];
             for (const auto &[dir, irradiance] : lights) {
-              const ny::Vec3 wo = local(dir);
-              scenes::Rgb3 e = ff.eval(wi, wo);
-              if (f >= first_net) {
-                const bool bent = f == first_net;
-                const float in[8] = {wi.x, wi.y, wi.z, wo.x, wo.y, wo.z, float(kappa * std::cos(psi)),
-                                     float(kappa * std::sin(psi))};
-                float m[3];
-                ny::mlp_forward(bent ? bent_m.data() : pooled_m.data(), in, m);
-                e.r += m[0], e.g += m[1], e.b += m[2];
-              }
+              const scenes::Rgb3 e = images[f].predict(wi, local(dir), sector, kappa, psi);
               const double w = irradiance / (sub * sub);
               q[0] += float(w * e.r), q[1] += float(w * e.g), q[2] += float(w * e.b);
             }
@@ -223,15 +379,14 @@ int main(int argc, char **argv)
         }
       }
     }
-    const char *names[] = {"model", "maps", "sectors", "bent_m", "pooled_m"};
     for (size_t f = 0; f < img.size(); f++) {
       double m[3] = {0, 0, 0};
       for (size_t i = 0; i < img[f].size(); i++) {
         m[i % 3] += img[f][i] / (double(width) * height);
       }
-      std::printf("%s: frame mean %.6f %.6f %.6f\n", names[f], m[0], m[1], m[2]);
+      std::printf("%s: frame mean %.6f %.6f %.6f\n", images[f].name.c_str(), m[0], m[1], m[2]);
       if (!out.empty()) {
-        write_rgb_exr(img[f], width, height, out + "_" + names[f] + ".exr");
+        write_rgb_exr(img[f], width, height, out + "_" + images[f].name + ".exr");
       }
     }
   }
