@@ -10,7 +10,7 @@
 // With --sector-maps, also the bent ply's own far field (decisions D75): maps gathered on the ring, one per sector of
 // psi about the tube (bench_bent_gather --sector k --sectors K), each hit read from its sector's.
 // With --bent-m (bench_bent_m's networks, decisions D76), two more: R from the sector's maps and M from the network
-// conditioned on the bend at the hit (kappa R and psi: the circle's, or the Catmull-Rom curve's at its nearest key),
+// conditioned on the bend at the hit (kappa R and psi: the circle's, or the Catmull-Rom curve's there, kernel/bend.h),
 // and the same with M from the network pooled over bends — whether the bend, given to M, does what the sectors' maps do.
 // Where the networks carry their calibration per map (bench_bent_m since D77), two more: the conditioned M calibrated
 // by its sector's table with the sector's R (`bent_m_cal`) or the model's R (`model_r_bent_m_cal`, what a model with
@@ -35,6 +35,7 @@
 #include <Eigen/Dense>
 #include <nlohmann/json.hpp>
 
+#include "neuralyarn/kernel/bend.h"
 #include "neuralyarn/kernel/mlp.h"
 #include "neuralyarn/train/mlp.h"
 
@@ -179,16 +180,20 @@ int main(int argc, char **argv)
     if (!bent_cal.empty()) {
       model_Rc.push_back(scenes::model_far_field(model, scenes::Lobes::kR));
       const rdm::MapResolution b = sector_maps[0].bins;
-      for (const int variant : {0, 1, 2}) {
-        const bool model_r = variant > 0, straight = variant == 2; /* straight: every bend the straight ply's table */
+      /* 0: sector R; 1: model R; 2: model R, every bend the straight ply's table; 3: the same without the bend (the
+       * conditioned network's straight far field on the bent ply: what it makes of the straight maps). */
+      for (const int variant : {0, 1, 2, 3}) {
+        const bool model_r = variant > 0, straight = variant >= 2, no_bend = variant == 3;
         if (straight && straight_cal.empty()) {
           break;
         }
-        add(variant == 0 ? "bent_m_cal" : variant == 1 ? "model_r_bent_m_cal" : "model_r_bent_m_cal0",
-            [&, b, model_r, straight](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double kappa, double psi) {
+        const char *names[] = {"bent_m_cal", "model_r_bent_m_cal", "model_r_bent_m_cal0", "model_r_m0_cal0"};
+        add(names[variant],
+            [&, b, model_r, straight, no_bend](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double kappa, double psi) {
               scenes::Rgb3 e = model_r ? model_Rc[0].eval(wi, wo) : r_by_sector[size_t(k)].eval(wi, wo);
-              const float in[8] = {wi.x, wi.y, wi.z, wo.x, wo.y, wo.z, float(kappa * std::cos(psi)),
-                                   float(kappa * std::sin(psi))};
+              const float bend = no_bend ? 0.0f : 1.0f;
+              const float in[8] = {wi.x, wi.y, wi.z, wo.x, wo.y, wo.z, bend * float(kappa * std::cos(psi)),
+                                   bend * float(kappa * std::sin(psi))};
               float m[3];
               ny::mlp_forward(bent_m.data(), in, m);
               const rdm::BinTaps ti = rdm::bin_taps(std::acos(std::clamp(double(wi.z), -1.0, 1.0)), 0.0, 0.5 * kPi,
@@ -274,11 +279,13 @@ int main(int argc, char **argv)
                    ratio(ratio_M[size_t(k)], wi));
       });
     }
-    std::vector<std::vector<Eigen::Vector3d>> lines;
+    std::vector<std::vector<Eigen::Vector3d>> lines, ply_keys;
     std::unique_ptr<rdm::EmbreePly> curves;
+    constexpr int kPerSpan = 16; /* the polyline's chords per key span */
     if (!plies_path.empty()) {
       for (const auto &keys : scenes::read_ply_curves(plies_path).plies) {
-        lines.push_back(geometry::catmull_rom_polyline(keys));
+        lines.push_back(geometry::catmull_rom_polyline(keys, kPerSpan));
+        ply_keys.push_back(keys);
       }
       curves = std::make_unique<rdm::EmbreePly>(scenes::curve_set(lines, 1.0), "");
     }
@@ -334,9 +341,10 @@ int main(int argc, char **argv)
             }
             const Eigen::Vector3d p = o + double(h.t) * d;
             const std::vector<Eigen::Vector3d> &q = lines[size_t(h.fiber)];
-            /* The nearest chord of the ply's polyline, its foot and its neighbours' bend (the Catmull-Rom curve's). */
+            /* The nearest chord of the ply's polyline and its foot: the Catmull-Rom segment and u there, whose bend the
+             * kernel's (kernel/bend.h). */
             size_t j = 0;
-            double best = std::numeric_limits<double>::infinity();
+            double best = std::numeric_limits<double>::infinity(), foot = 0.0;
             for (size_t i = 0; i + 1 < q.size(); i++) {
               const Eigen::Vector3d e = q[i + 1] - q[i];
               const double f = std::clamp((p - q[i]).dot(e) / e.squaredNorm(), 0.0, 1.0);
@@ -344,19 +352,24 @@ int main(int argc, char **argv)
               if (dist < best) {
                 best = dist;
                 j = i;
+                foot = f;
               }
             }
             X = (q[j + 1] - q[j]).normalized();
             const Eigen::Vector3d r = p - q[j] - (p - q[j]).dot(X) * X;
             Z = r.normalized();
-            const size_t m = std::clamp<size_t>(j, 1, q.size() - 2);
-            const Eigen::Vector3d k = q[m - 1] + q[m + 1] - 2.0 * q[m];
-            const Eigen::Vector3d k_perp = k - k.dot(X) * X;
-            if (k_perp.norm() > 1e-12) {
-              const Eigen::Vector3d out = -k_perp.normalized();
-              psi = std::atan2(Z.dot(out.cross(X)), Z.dot(out));
-              kappa = k_perp.norm() / (q[m + 1] - q[m]).squaredNorm();
+            const std::vector<Eigen::Vector3d> &keys = ply_keys[size_t(h.fiber)];
+            const size_t n = keys.size(), span = n < 3 ? j : j / kPerSpan;
+            const double u = n < 3 ? foot : (double(j % kPerSpan) + foot) / kPerSpan;
+            const size_t at[4] = {span ? span - 1 : 0, span, std::min(span + 1, n - 1), std::min(span + 2, n - 1)};
+            ny::Vec3 P[4];
+            for (int i = 0; i < 4; i++) {
+              P[i] = ny::make_vec3(float(keys[at[i]].x()), float(keys[at[i]].y()), float(keys[at[i]].z()));
             }
+            auto v3 = [](const Eigen::Vector3d &w) { return ny::make_vec3(float(w.x()), float(w.y()), float(w.z())); };
+            const ny::YarnBend b = ny::yarn_bend(ny::catmull_rom_curvature(P, float(u)), v3(X), v3(Z), 1.0f);
+            kappa = std::hypot(double(b.c), double(b.s));
+            psi = std::atan2(double(b.s), double(b.c));
           }
           Y = Z.cross(X);
           auto local = [&](const Eigen::Vector3d &w) {
