@@ -10,6 +10,7 @@
 
 #include "device_environment.h"
 
+#include "neuralyarn/kernel/bend.h"
 #include "neuralyarn/kernel/fiber_bsdf.h"
 #include "neuralyarn/kernel/yarn_bsdf.h"
 
@@ -32,6 +33,21 @@ float neural_yarn_closure(NY_GLOBAL const float *lookup_table, int offset, ny::V
     return 0.0f;
   }
   return P_T + v.r + pdf + ny::to_world(f, s.wo).x + s.weight.g + s.pdf;
+}
+
+/* The bend at a hit on a thick curve (kernel/bend.h): the segment's four keys fetched into private memory, as
+ * cycles_patch/0005 fetches them, the tangent and normal of the closure's frame. */
+float neural_yarn_bend(NY_GLOBAL const float *keys, int first, float u, ny::Vec3 dPdu, ny::Vec3 N, float radius)
+{
+  ny::Vec3 P[4];
+  for (int i = 0; i < 4; i++) {
+    P[i] = ny::make_vec3(keys[4 * (first + i)], keys[4 * (first + i) + 1], keys[4 * (first + i) + 2]);
+  }
+  ny::Frame f;
+  ny::make_frame(dPdu, N, &f);
+  const ny::YarnBend b = ny::yarn_bend(ny::catmull_rom_curvature(P, u), ny::to_world(f, ny::make_vec3(1.0f, 0.0f, 0.0f)),
+                                       ny::to_world(f, ny::make_vec3(0.0f, 0.0f, 1.0f)), radius);
+  return b.c + b.s;
 }
 
 /* The Khungurn fiber closure as cycles_patch/0001 calls it: the lobes, eval, pdf, albedo and sample with
