@@ -26,6 +26,7 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
 #include "neuralyarn/rdm/map_file.h"
@@ -71,9 +72,10 @@ BentMaps parse_spec(const std::string &spec)
  * cos theta_o and phi_o within it) and otherwise uniformly on the sphere: the relative MSE then weighs each exit by
  * (1 - share) / 4 pi + share * its energy density, so that the exits that carry the light (the back light's forward
  * peak) count for what they carry (decisions D77). share 0: the bake's samples. */
-train::Dataset sample_m_by_energy(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation, double share)
+train::Dataset sample_m_by_energy(const rdm::RdmMaps &maps, int n, uint64_t seed, bool validation, double share,
+                                  double forward_share = 0.0, double forward_cone = 0.0)
 {
-  if (!(share > 0.0)) {
+  if (!(share > 0.0) && !(forward_share > 0.0)) {
     return train::sample_multiple_scattering(maps, n, seed, validation);
   }
   const rdm::MapResolution &b = maps.bins;
@@ -101,7 +103,7 @@ train::Dataset sample_m_by_energy(const rdm::RdmMaps &maps, int n, uint64_t seed
       }
     }
     std::vector<float> &c = cdf[maps.incident_index(ti, pi)];
-    if (c.empty()) {
+    if (c.empty() && share > 0.0) {
       c.resize(size_t(n_out));
       double sum = 0.0;
       for (int j = 0; j < n_out; j++) {
@@ -111,7 +113,19 @@ train::Dataset sample_m_by_energy(const rdm::RdmMaps &maps, int n, uint64_t seed
       }
     }
     double theta_o, phi_o;
-    if (U(rng) < share && c.back() > 0.0f) {
+    const double pick = U(rng);
+    if (pick < forward_share) {
+      /* Uniform in the cone of half-angle forward_cone about -w_i. */
+      const Eigen::Vector3d f = -train::entry_direction(theta_i, phi_i).cast<double>();
+      const Eigen::Vector3d a = std::abs(f.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
+      const Eigen::Vector3d e1 = f.cross(a).normalized(), e2 = f.cross(e1);
+      const double z = 1.0 - U(rng) * (1.0 - std::cos(forward_cone)), r = std::sqrt(std::max(0.0, 1.0 - z * z));
+      const double ph = 2.0 * kPi * U(rng);
+      const Eigen::Vector3d w = z * f + r * (std::cos(ph) * e1 + std::sin(ph) * e2);
+      theta_o = std::acos(std::clamp(w.z(), -1.0, 1.0));
+      phi_o = std::atan2(w.y(), w.x());
+    }
+    else if (pick < forward_share + share && !c.empty() && c.back() > 0.0f) {
       const int j = int(std::upper_bound(c.begin(), c.end(), float(U(rng) * c.back())) - c.begin());
       const int to = std::min(j, n_out - 1) / b.phi_o, po = std::min(j, n_out - 1) % b.phi_o;
       const double z0 = std::cos(kPi * to / b.theta_o), z1 = std::cos(kPi * (to + 1) / b.theta_o);
@@ -277,6 +291,10 @@ int main(int argc, char **argv)
   double energy_share = 0.0;
   app.add_option("--energy-share", energy_share, "Share of the samples whose exit is drawn from the map's M energy "
                  "(0: all uniform on the sphere, the bake's)")->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  double forward_share = 0.0, forward_cone = 30.0;
+  app.add_option("--forward-share", forward_share, "Share of the samples whose exit is drawn uniformly in the cone of "
+                 "--forward-cone degrees about -w_i (the light through the ply; 0: none)")->check(CLI::Range(0.0, 1.0));
+  app.add_option("--forward-cone", forward_cone)->check(CLI::Range(1.0, 90.0))->capture_default_str();
   app.add_option("--out", out, "The two networks (JSON: the kernel's flat arrays)")->required();
   CLI11_PARSE(app, argc, argv);
   try {
@@ -310,8 +328,10 @@ int main(int argc, char **argv)
       else if (maps.preset.name != preset) {
         throw std::runtime_error(sets[i].path + " is " + maps.preset.name + "'s, not " + preset + "'s");
       }
-      const train::Dataset tr = sample_m_by_energy(maps, per_map, 1000 + 2 * i, false, energy_share);
-      const train::Dataset va = sample_m_by_energy(maps, std::max(1, per_map / 10), 1001 + 2 * i, true, energy_share);
+      const train::Dataset tr = sample_m_by_energy(maps, per_map, 1000 + 2 * i, false, energy_share, forward_share,
+                                                          forward_cone * kDeg);
+      const train::Dataset va = sample_m_by_energy(maps, std::max(1, per_map / 10), 1001 + 2 * i, true, energy_share,
+                                                          forward_share, forward_cone * kDeg);
       append(&tr_pool, tr.X, tr.Y);
       append(&va_pool, va.X, va.Y);
       append(&tr_bent, with_bend(tr.X, sets[i], 5000 + 2 * i), tr.Y);
