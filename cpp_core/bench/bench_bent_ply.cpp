@@ -22,6 +22,7 @@
 //                       [--out PREFIX] (PREFIX_NAME.exr for every image NAME printed)
 // Prints each image's mean colour. A benchmark: prints, never a test.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -238,6 +239,40 @@ int main(int argc, char **argv)
         }
         ratio_R.push_back(std::move(qR));
         ratio_M.push_back(std::move(qM));
+      }
+      /* Where the bend moves M: each map's M energy, all of it and within 20 and 40 degrees of -w_i (bin centres;
+       * the mean of RGB, averaged over incident bins by solid angle), each sector's over the straight maps'. */
+      auto m_shares = [](const rdm::RdmMaps &m) {
+        const rdm::MapResolution &b = m.bins;
+        const double c20 = std::cos(20.0 * kDeg), c40 = std::cos(40.0 * kDeg);
+        double e[3] = {0, 0, 0}, w = 0.0;
+        for (int ti = 0; ti < b.theta_i; ti++) {
+          const double t_i = 0.5 * kPi * (ti + 0.5) / b.theta_i, dI = m.incident_solid_angle(ti);
+          for (int pi = 0; pi < b.phi_i; pi++) {
+            const double p_i = -kPi + 2.0 * kPi * (pi + 0.5) / b.phi_i;
+            const Eigen::Vector3d wi(std::sin(t_i) * std::cos(p_i), std::sin(t_i) * std::sin(p_i), std::cos(t_i));
+            for (int to = 0; to < b.theta_o; to++) {
+              const double t_o = kPi * (to + 0.5) / b.theta_o, dO = m.outgoing_solid_angle(to);
+              for (int po = 0; po < b.phi_o; po++) {
+                const double p_o = -kPi + 2.0 * kPi * (po + 0.5) / b.phi_o;
+                const Eigen::Vector3d wo(std::sin(t_o) * std::cos(p_o), std::sin(t_o) * std::sin(p_o), std::cos(t_o));
+                const float *v = &m.m[m.map_index(ti, pi, to, po)];
+                const double x = (double(v[0]) + v[1] + v[2]) / 3.0 * dO * dI, c = -wi.dot(wo);
+                e[0] += x, e[1] += c > c40 ? x : 0.0, e[2] += c > c20 ? x : 0.0;
+              }
+            }
+            w += dI;
+          }
+        }
+        return std::array<double, 3>{e[0] / w, e[1] / w, e[2] / w};
+      };
+      const std::array<double, 3> straight_shares = m_shares(maps);
+      std::printf("M energy of each sector over the straight maps' (mean over incident bins): all, within 40 and 20 "
+                  "degrees of -w_i\n");
+      for (size_t k = 0; k < sector_maps.size(); k++) {
+        const std::array<double, 3> e = m_shares(sector_maps[k]);
+        std::printf("  sector %zu: %.3f %.3f %.3f\n", k, e[0] / straight_shares[0], e[1] / straight_shares[1],
+                    e[2] / straight_shares[2]);
       }
       const rdm::MapResolution b = maps.bins;
       /* The ratio at w_i, bilinear between incident bin centres (as the calibration table reads). */
