@@ -20,6 +20,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -279,7 +280,7 @@ int main(int argc, char **argv)
   int steps = 20000, batch = 4096, hidden = 21, threads = 0;
   uint64_t seed = 1;
   bool no_pooled = false;
-  app.add_flag("--no-pooled", no_pooled, "Train the conditioned network alone (the pooled one's entries are empty)");
+  app.add_flag("--no-pooled", no_pooled, "Train the conditioned network alone (the file has no pooled one)");
   app.add_option("--maps", specs, "FILE (a bent gather's, which records its bend) or RADIUS:SECTOR:SECTORS:FILE "
                  "(radius 0: straight), checked against the file's record where it has one")->required();
   app.add_option("--samples", samples_text, "Training samples over all maps (validation: a tenth)");
@@ -376,8 +377,10 @@ int main(int argc, char **argv)
       return net;
     };
     const train::Mlp<float> bent = train(8, tr_bent, va_bent, "conditioned");
-    const train::Mlp<float> pool = no_pooled ? train::Mlp<float>(train::MlpShape{{6, 1, 3}, ny::kMlpHeadExp}, 1)
-                                             : train(6, tr_pool, va_pool, "pooled");
+    std::optional<train::Mlp<float>> pool;
+    if (!no_pooled) {
+      pool = train(6, tr_pool, va_pool, "pooled");
+    }
     std::printf("\nM energy per incident bin against each map's, mean |E_net / E_map - 1| (and E_net / E_map - 1),\n"
                 "solid-angle weighted:\n");
     std::printf("%-8s %-10s %20s %20s\n", "radius", "sector", "conditioned", "pooled");
@@ -386,7 +389,7 @@ int main(int argc, char **argv)
       const BentMaps &b = sets[i];
       const std::vector<double> E_bent = net_energy(bent, energies[i], b, true);
       const EnergyError c = energy_error(E_bent, energies[i]),
-                        p = no_pooled ? EnergyError{} : energy_error(net_energy(pool, energies[i], b, false), energies[i]);
+                        p = pool ? energy_error(net_energy(*pool, energies[i], b, false), energies[i]) : EnergyError{};
       calibration.push_back({{"radius", b.radius}, {"sector", b.sector}, {"sectors", b.sectors},
                              {"theta_bins", energies[i].maps.bins.theta_i}, {"phi_bins", energies[i].maps.bins.phi_i},
                              {"c_M", m_calibration(E_bent, energies[i])}});
@@ -400,8 +403,10 @@ int main(int argc, char **argv)
                         {"output", "S_M |cos theta_o| (RGB)"},
                         {"maps", specs},
                         {"conditioned", bent.to_flat()},
-                        {"pooled", pool.to_flat()},
                         {"conditioned_calibration", calibration}};
+    if (pool) {
+      j["pooled"] = pool->to_flat();
+    }
     std::ofstream(out) << j.dump(1);
   }
   catch (const std::exception &e) {

@@ -107,7 +107,9 @@ int main(int argc, char **argv)
       std::ifstream in(bent_m_path);
       const nlohmann::json j = nlohmann::json::parse(in);
       bent_m = j.at("conditioned").get<std::vector<float>>();
-      pooled_m = j.at("pooled").get<std::vector<float>>();
+      if (j.contains("pooled")) { /* bench_bent_m --no-pooled writes none */
+        pooled_m = j.at("pooled").get<std::vector<float>>();
+      }
       if (j.contains("conditioned_calibration")) {
         /* Each sector map's table, found by the bend it records. */
         for (const rdm::RdmMaps &m : sector_maps) {
@@ -123,17 +125,23 @@ int main(int argc, char **argv)
             throw std::runtime_error(bent_m_path + ": no calibration for a sector map's bend");
           }
           bent_cal.push_back(found->at("c_M").get<std::vector<float>>());
+          if (bent_cal.back().size() != size_t(m.bins.theta_i) * m.bins.phi_i * 3) {
+            throw std::runtime_error(bent_m_path + ": a calibration table of the wrong size");
+          }
         }
         for (const nlohmann::json &c : j.at("conditioned_calibration")) {
           if (c.at("radius").get<double>() == 0.0 && c.at("theta_bins").get<int>() == sector_maps[0].bins.theta_i &&
               c.at("phi_bins").get<int>() == sector_maps[0].bins.phi_i) {
             straight_cal = c.at("c_M").get<std::vector<float>>();
+            if (straight_cal.size() != size_t(sector_maps[0].bins.theta_i) * sector_maps[0].bins.phi_i * 3) {
+              throw std::runtime_error(bent_m_path + ": a calibration table of the wrong size");
+            }
           }
         }
       }
       /* from_flat validates the arrays' headers and sizes (throws ParameterError), then the inputs. */
       if (train::Mlp<float>::from_flat(bent_m).shape().widths.front() != 8 ||
-          train::Mlp<float>::from_flat(pooled_m).shape().widths.front() != 6) {
+          (!pooled_m.empty() && train::Mlp<float>::from_flat(pooled_m).shape().widths.front() != 6)) {
         throw std::runtime_error(bent_m_path + ": not bench_bent_m's networks (8 and 6 inputs)");
       }
       for (const rdm::RdmMaps &m : sector_maps) {
@@ -160,20 +168,19 @@ int main(int argc, char **argv)
       });
     }
     for (const bool conditioned : {true, false}) {
-      if (bent_m.empty()) {
+      if (bent_m.empty() || (!conditioned && pooled_m.empty())) {
         break;
       }
-      const std::vector<float> &net = conditioned ? bent_m : pooled_m;
-      add(conditioned ? "bent_m" : "pooled_m",
-                          [&](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double kappa, double psi) {
-                            scenes::Rgb3 e = r_by_sector[size_t(k)].eval(wi, wo);
-                            const float in[8] = {wi.x, wi.y, wi.z, wo.x, wo.y, wo.z, float(kappa * std::cos(psi)),
-                                                 float(kappa * std::sin(psi))};
-                            float m[3];
-                            ny::mlp_forward(net.data(), in, m);
-                            e.r += m[0], e.g += m[1], e.b += m[2];
-                            return e;
-                          });
+      const float *net = conditioned ? bent_m.data() : pooled_m.data(); /* both outlive the images */
+      add(conditioned ? "bent_m" : "pooled_m", [&, net](const ny::Vec3 &wi, const ny::Vec3 &wo, int k, double kappa,
+                                                        double psi) {
+        scenes::Rgb3 e = r_by_sector[size_t(k)].eval(wi, wo);
+        const float in[8] = {wi.x, wi.y, wi.z, wo.x, wo.y, wo.z, float(kappa * std::cos(psi)), float(kappa * std::sin(psi))};
+        float m[3];
+        ny::mlp_forward(net, in, m);
+        e.r += m[0], e.g += m[1], e.b += m[2];
+        return e;
+      });
     }
     /* The conditioned M calibrated per sector (bench_bent_m's tables), with R from the sector's maps (`bent_m_cal`) or
      * the model's (`model_r_bent_m_cal`: what a model with the bend would render). */
