@@ -30,6 +30,7 @@
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
+#include "neuralyarn/model/calibration.h"
 #include "neuralyarn/rdm/map_file.h"
 #include "neuralyarn/train/dataset.h"
 #include "neuralyarn/train/trainer.h"
@@ -246,11 +247,11 @@ EnergyError energy_error(const std::vector<double> &E_net, const MapEnergy &me)
 }
 
 /* The M calibration of a network on one map, as the bake's (model/calibration.h): per incident bin the map's M energy
- * over the network's, both summed over a window of +-2 bins in phi_i (same theta_i), clamped to [0.01, 100]. */
+ * over the network's, both summed over the calibration's window in phi_i (same theta_i), clamped as its ratios. */
 std::vector<float> m_calibration(const std::vector<double> &E_net, const MapEnergy &me)
 {
   const rdm::MapResolution &bins = me.maps.bins;
-  const int half = 2;
+  const int half = model::calibration_window_half(bins.phi_i);
   std::vector<float> c(size_t(bins.theta_i) * bins.phi_i * 3, 1.0f);
   for (int ti = 0; ti < bins.theta_i; ti++) {
     for (int pi = 0; pi < bins.phi_i; pi++) {
@@ -262,7 +263,7 @@ std::vector<float> m_calibration(const std::vector<double> &E_net, const MapEner
           b += E_net[ii];
         }
         if (a > 1e-9 && b > 1e-9) {
-          c[me.maps.incident_index(ti, pi) * 3 + size_t(ch)] = float(std::clamp(a / b, 0.01, 100.0));
+          c[me.maps.incident_index(ti, pi) * 3 + size_t(ch)] = std::clamp(float(a / b), model::kCalibrationMin, model::kCalibrationMax);
         }
       }
     }

@@ -50,6 +50,28 @@
 
 using namespace neuralyarn;
 
+namespace {
+
+/* A table of RGB values per incident bin ([theta_i][phi_i][rgb]) at w_i, bilinear between the bins' centres (clamped in
+ * theta, periodic in phi), as the calibration table reads. */
+template<class T>
+scenes::Rgb3 incident_rgb(const std::vector<T> &table, const rdm::MapResolution &b, const ny::Vec3 &wi)
+{
+  const rdm::BinTaps ti = rdm::bin_taps(std::acos(std::clamp(double(wi.z), -1.0, 1.0)), 0.0, 0.5 * kPi, b.theta_i, false),
+                     pi = rdm::bin_taps(std::atan2(double(wi.y), double(wi.x)), -kPi, kPi, b.phi_i, true);
+  scenes::Rgb3 s;
+  for (int x = 0; x < 2; x++) {
+    for (int y = 0; y < 2; y++) {
+      const double w = ti.weight[x] * pi.weight[y];
+      const size_t k = (size_t(ti.bin[x]) * size_t(b.phi_i) + size_t(pi.bin[y])) * 3;
+      s.r += w * table[k], s.g += w * table[k + 1], s.b += w * table[k + 2];
+    }
+  }
+  return s;
+}
+
+}  // namespace
+
 int main(int argc, char **argv)
 {
   CLI::App app{"A straight ply's far field (model and maps) on a ply bent on a circle, predicted"};
@@ -204,19 +226,8 @@ int main(int argc, char **argv)
                                    bend * float(kappa * std::sin(psi))};
               float m[3];
               ny::mlp_forward(bent_m.data(), in, m);
-              const rdm::BinTaps ti = rdm::bin_taps(std::acos(std::clamp(double(wi.z), -1.0, 1.0)), 0.0, 0.5 * kPi,
-                                                    b.theta_i, false),
-                                 pi = rdm::bin_taps(std::atan2(double(wi.y), double(wi.x)), -kPi, kPi, b.phi_i, true);
-              double c[3] = {0, 0, 0};
-              for (int x = 0; x < 2; x++) {
-                for (int y = 0; y < 2; y++) {
-                  const size_t at = (size_t(ti.bin[x]) * size_t(b.phi_i) + size_t(pi.bin[y])) * 3;
-                  for (int ch = 0; ch < 3; ch++) {
-                    c[ch] += ti.weight[x] * pi.weight[y] * (straight ? straight_cal : bent_cal[size_t(k)])[at + size_t(ch)];
-                  }
-                }
-              }
-              e.r += m[0] * c[0], e.g += m[1] * c[1], e.b += m[2] * c[2];
+              const scenes::Rgb3 c = incident_rgb(straight ? straight_cal : bent_cal[size_t(k)], b, wi);
+              e.r += m[0] * c.r, e.g += m[1] * c.g, e.b += m[2] * c.b;
               return e;
             });
       }
@@ -282,21 +293,7 @@ int main(int argc, char **argv)
                     e[2] / straight_shares[2]);
       }
       const rdm::MapResolution b = maps.bins;
-      /* The ratio at w_i, bilinear between incident bin centres (as the calibration table reads). */
-      auto ratio = [b](const std::vector<double> &q, const ny::Vec3 &wi) {
-        const rdm::BinTaps ti = rdm::bin_taps(std::acos(std::clamp(double(wi.z), -1.0, 1.0)), 0.0, 0.5 * kPi,
-                                              b.theta_i, false),
-                           pi = rdm::bin_taps(std::atan2(double(wi.y), double(wi.x)), -kPi, kPi, b.phi_i, true);
-        scenes::Rgb3 s;
-        for (int x = 0; x < 2; x++) {
-          for (int y = 0; y < 2; y++) {
-            const double w = ti.weight[x] * pi.weight[y];
-            const size_t k = (size_t(ti.bin[x]) * size_t(b.phi_i) + size_t(pi.bin[y])) * 3;
-            s.r += w * q[k], s.g += w * q[k + 1], s.b += w * q[k + 2];
-          }
-        }
-        return s;
-      };
+      auto ratio = [b](const std::vector<double> &q, const ny::Vec3 &wi) { return incident_rgb(q, b, wi); };
       auto sum = [](scenes::Rgb3 a, const scenes::Rgb3 &x, const scenes::Rgb3 &qa, const scenes::Rgb3 &qx) {
         return scenes::Rgb3{a.r * qa.r + x.r * qx.r, a.g * qa.g + x.g * qx.g, a.b * qa.b + x.b * qx.b};
       };
